@@ -1,0 +1,43 @@
+// Place-recognition runs in the layout of ../shared/data/README.md:
+//   <dataset>/runs/<run>.frames.csv     frame,robot,image,utime_us
+//   <dataset>/runs/<run>.positives.csv  query,reference
+#pragma once
+
+#include <cstdint>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "common/util/status.h"
+
+namespace placerec {
+
+struct RunFrame {
+  int frame = 0;       // counts from 0 in feeding order
+  std::string robot;
+  std::string image;   // absolute or dataset-relative path joined with the dataset directory
+  int64_t utime = 0;   // capture time, microseconds since the epoch
+};
+
+struct Run {
+  std::string dataset_dir;
+  std::string name;
+  std::vector<RunFrame> frames;
+  std::set<std::pair<int, int>> positives;  // (query, reference), reference < query
+  std::vector<bool> is_revisit;             // per frame: has at least one positive
+  int num_revisits = 0;
+
+  bool IsPositive(int query, int reference) const {
+    return positives.count({query, reference}) > 0;
+  }
+};
+
+// Loads a run and checks it: frames numbered 0..n-1 in order, utime monotonic per robot,
+// positives referring to existing frames with reference < query. Errors name the file and line.
+StatusOr<Run> LoadRun(const std::string& dataset_dir, const std::string& run_name);
+
+// Names of the runs in <dataset>/runs (the <run> of each <run>.frames.csv), sorted.
+std::vector<std::string> ListRuns(const std::string& dataset_dir);
+
+}  // namespace placerec

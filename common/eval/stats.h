@@ -1,0 +1,12 @@
+// Summary statistics for timings and counts.
+#pragma once
+
+#include <vector>
+
+namespace placerec {
+
+// Percentile q in [0, 100] with linear interpolation between order statistics; 0 when empty.
+double Percentile(std::vector<double> values, double q);
+inline double Median(std::vector<double> values) { return Percentile(std::move(values), 50.0); }
+
+}  // namespace placerec

@@ -1,0 +1,204 @@
+#include "common/image/image.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace placerec {
+
+const char* ImageEncodingName(ImageEncoding encoding) {
+  switch (encoding) {
+    case ImageEncoding::kJpeg:
+      return "jpeg";
+    case ImageEncoding::kPng:
+      return "png";
+    case ImageEncoding::kRawBgr8:
+      return "raw-bgr8";
+    case ImageEncoding::kRawGray8:
+      return "raw-gray8";
+  }
+  return "unknown";
+}
+
+bool DecodeOptions::Check(std::string* error) const {
+  if (min_dimension < 1) {
+    *error = "min_dimension must be at least 1";
+    return false;
+  }
+  if (max_dimension < min_dimension) {
+    *error = "max_dimension must be at least min_dimension";
+    return false;
+  }
+  return true;
+}
+
+namespace {
+
+std::string SizeText(int width, int height) {
+  return std::to_string(width) + "x" + std::to_string(height);
+}
+
+Status CheckDimensions(int width, int height, const DecodeOptions& options) {
+  if (width < options.min_dimension || height < options.min_dimension) {
+    return Status::BadImage("image size " + SizeText(width, height) + " is below the minimum of " +
+                            std::to_string(options.min_dimension) + " pixels per side");
+  }
+  if (width > options.max_dimension || height > options.max_dimension) {
+    return Status::BadImage("image size " + SizeText(width, height) + " exceeds the maximum of " +
+                            std::to_string(options.max_dimension) + " pixels per side");
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+StatusOr<cv::Mat> DecodeImage(const uint8_t* data, size_t size, ImageEncoding encoding, int width,
+                              int height, const DecodeOptions& options) {
+  if (data == nullptr || size == 0) return Status::BadImage("no image bytes");
+  if (width < 0 || height < 0) {
+    return Status::BadImage("negative image size " + SizeText(width, height));
+  }
+  switch (encoding) {
+    case ImageEncoding::kRawBgr8:
+    case ImageEncoding::kRawGray8: {
+      PLACEREC_RETURN_IF_ERROR(CheckDimensions(width, height, options));
+      const int channels = encoding == ImageEncoding::kRawBgr8 ? 3 : 1;
+      const size_t expected = static_cast<size_t>(width) * height * channels;
+      if (size != expected) {
+        return Status::BadImage(std::string(ImageEncodingName(encoding)) + " image of " +
+                                SizeText(width, height) + " needs " + std::to_string(expected) +
+                                " bytes, got " + std::to_string(size));
+      }
+      cv::Mat wrapped(height, width, channels == 3 ? CV_8UC3 : CV_8UC1,
+                      const_cast<uint8_t*>(data));
+      cv::Mat bgr;
+      if (channels == 3) {
+        bgr = wrapped.clone();
+      } else {
+        cv::cvtColor(wrapped, bgr, cv::COLOR_GRAY2BGR);
+      }
+      return bgr;
+    }
+    case ImageEncoding::kJpeg:
+    case ImageEncoding::kPng: {
+      if ((width == 0) != (height == 0)) {
+        return Status::BadImage("give both width and height, or neither, for " +
+                                std::string(ImageEncodingName(encoding)));
+      }
+      if (width > 0) PLACEREC_RETURN_IF_ERROR(CheckDimensions(width, height, options));
+      const bool is_jpeg = size >= 3 && data[0] == 0xFF && data[1] == 0xD8 && data[2] == 0xFF;
+      const bool is_png = size >= 8 && data[0] == 0x89 && data[1] == 'P' && data[2] == 'N' &&
+                          data[3] == 'G';
+      if (encoding == ImageEncoding::kJpeg && !is_jpeg) {
+        return Status::BadImage("bytes do not start with a JPEG signature");
+      }
+      if (encoding == ImageEncoding::kPng && !is_png) {
+        return Status::BadImage("bytes do not start with a PNG signature");
+      }
+      cv::Mat bytes(1, static_cast<int>(std::min<size_t>(size, INT32_MAX)), CV_8UC1,
+                    const_cast<uint8_t*>(data));
+      cv::Mat bgr;
+      try {
+        bgr = cv::imdecode(bytes, cv::IMREAD_COLOR);
+      } catch (const cv::Exception& e) {
+        return Status::BadImage(std::string("cannot decode ") + ImageEncodingName(encoding) +
+                                ": " + e.what());
+      }
+      if (bgr.empty()) {
+        return Status::BadImage(std::string("cannot decode ") + ImageEncodingName(encoding) +
+                                " bytes (truncated or corrupt)");
+      }
+      PLACEREC_RETURN_IF_ERROR(CheckDimensions(bgr.cols, bgr.rows, options));
+      if (width > 0 && (bgr.cols != width || bgr.rows != height)) {
+        return Status::BadImage("declared size " + SizeText(width, height) +
+                                " does not match decoded size " + SizeText(bgr.cols, bgr.rows));
+      }
+      return bgr;
+    }
+  }
+  return Status::BadImage("unsupported image encoding");
+}
+
+StatusOr<cv::Mat> ReadImageFile(const std::string& path) {
+  cv::Mat bgr = cv::imread(path, cv::IMREAD_COLOR);
+  if (bgr.empty()) return Status::IoError("cannot read image " + path);
+  return bgr;
+}
+
+cv::Mat LimitWidth(const cv::Mat& bgr, int max_width, double* scale) {
+  *scale = 1.0;
+  if (max_width <= 0 || bgr.cols <= max_width) return bgr;
+  *scale = static_cast<double>(max_width) / bgr.cols;
+  const int height = std::max(1, static_cast<int>(std::lround(bgr.rows * *scale)));
+  cv::Mat resized;
+  cv::resize(bgr, resized, cv::Size(max_width, height), 0, 0, cv::INTER_AREA);
+  return resized;
+}
+
+cv::Mat ToLab(const cv::Mat& bgr) {
+  CHECK_EQ(bgr.type(), CV_8UC3);
+  cv::Mat bgr_float;
+  bgr.convertTo(bgr_float, CV_32F, 1.0 / 255.0);
+  cv::Mat lab;
+  cv::cvtColor(bgr_float, lab, cv::COLOR_BGR2Lab);
+  return lab;
+}
+
+cv::Mat GaussianColourModel(const cv::Mat& bgr) {
+  CHECK_EQ(bgr.type(), CV_8UC3);
+  // Rows of seed eq. 5.6 applied to (R, G, B); OpenCV stores B, G, R, so the columns are
+  // reversed and the 1/255 scaling is folded in.
+  const float s = 1.0f / 255.0f;
+  const cv::Matx33f m(0.27f * s, 0.63f * s, 0.06f * s,     //
+                      -0.35f * s, 0.04f * s, 0.30f * s,    //
+                      0.17f * s, -0.60f * s, 0.34f * s);   //
+  cv::Mat bgr_float;
+  bgr.convertTo(bgr_float, CV_32F);
+  cv::Mat model;
+  cv::transform(bgr_float, model, m);
+  return model;
+}
+
+bool ColourInvariantOptions::Check(std::string* error) const {
+  if (min_intensity < 0 || min_intensity >= 1) {
+    *error = "colour min_intensity must be in [0, 1)";
+    return false;
+  }
+  if (min_denominator < 0) {
+    *error = "colour min_denominator must be non-negative";
+    return false;
+  }
+  if (max_abs_h <= 0) {
+    *error = "colour max_abs_h must be positive";
+    return false;
+  }
+  return true;
+}
+
+cv::Mat ColourInvariantH(const cv::Mat& bgr, const ColourInvariantOptions& options,
+                         cv::Mat* valid) {
+  const cv::Mat model = GaussianColourModel(bgr);
+  cv::Mat h(bgr.size(), CV_32F);
+  valid->create(bgr.size(), CV_8U);
+  const float max_h = static_cast<float>(options.max_abs_h);
+  for (int y = 0; y < model.rows; ++y) {
+    const cv::Vec3f* in = model.ptr<cv::Vec3f>(y);
+    float* out = h.ptr<float>(y);
+    uint8_t* ok = valid->ptr<uint8_t>(y);
+    for (int x = 0; x < model.cols; ++x) {
+      const float d = in[x][0];
+      const float d_l = in[x][1];
+      const float d_ll = in[x][2];
+      const bool usable = d >= options.min_intensity &&
+                          std::abs(d_ll) >= options.min_denominator * d;
+      ok[x] = usable ? 255 : 0;
+      const float ratio = std::abs(d_ll) > 1e-9f ? d_l / d_ll : (d_l >= 0 ? max_h : -max_h);
+      out[x] = std::clamp(ratio, -max_h, max_h);
+    }
+  }
+  return h;
+}
+
+}  // namespace placerec

@@ -1,0 +1,72 @@
+// Pipeline step 1 (DESIGN.md): decode a frame and compute the colour spaces later stages need:
+// CIE Lab (textons, region colours, seed §3.4) and the Gaussian colour model with its colour
+// invariant H = D_lambda / D_lambdalambda (seed eq. 5.6 and 5.13).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "common/util/status.h"
+
+namespace placerec {
+
+enum class ImageEncoding {
+  kJpeg,
+  kPng,
+  kRawBgr8,   // width * height * 3 bytes, rows top to bottom, B G R per pixel
+  kRawGray8,  // width * height bytes
+};
+
+const char* ImageEncodingName(ImageEncoding encoding);
+
+struct DecodeOptions {
+  // Frames larger than this in either dimension are rejected (pixels); protects the server
+  // from absurd sizes before any allocation.
+  int max_dimension = 8192;
+  // Frames smaller than this in either dimension are rejected (pixels).
+  int min_dimension = 16;
+
+  bool Check(std::string* error) const;
+};
+
+// Decodes `size` bytes into an 8-bit BGR image. For JPEG and PNG, `width` and `height` may be 0
+// (unknown); when given they must match the decoded image. For raw encodings they are required
+// and `size` must equal width * height * channels. Every failure is a kBadImage status whose
+// message says what was wrong.
+StatusOr<cv::Mat> DecodeImage(const uint8_t* data, size_t size, ImageEncoding encoding, int width,
+                              int height, const DecodeOptions& options);
+
+// Reads an image file (JPEG, PNG, ...) into 8-bit BGR.
+StatusOr<cv::Mat> ReadImageFile(const std::string& path);
+
+// Scales `bgr` down (INTER_AREA) so that its width is at most `max_width`; 0 keeps it. Returns
+// the factor new/old through `scale` (1 when unchanged).
+cv::Mat LimitWidth(const cv::Mat& bgr, int max_width, double* scale);
+
+// CIE Lab with L in [0, 100] and a, b roughly in [-127, 127] (CV_32FC3).
+cv::Mat ToLab(const cv::Mat& bgr);
+
+// Gaussian colour model (seed eq. 5.6): channels D, D_lambda, D_lambdalambda (CV_32FC3) from
+// RGB scaled to [0, 1].
+cv::Mat GaussianColourModel(const cv::Mat& bgr);
+
+struct ColourInvariantOptions {
+  // Pixels darker than this (D of eq. 5.6, RGB in [0, 1]) carry no reliable colour.
+  double min_intensity = 0.04;
+  // Pixels with |D_lambdalambda| < min_denominator * D are near the pole of the ratio.
+  double min_denominator = 0.02;
+  // H is clamped to [-max_abs_h, max_abs_h]; beyond that the ratio is noise.
+  double max_abs_h = 4.0;
+
+  bool Check(std::string* error) const;
+};
+
+// Colour invariant H = D_lambda / D_lambdalambda per pixel (seed eq. 5.13), CV_32F, clamped.
+// `valid` (CV_8U, 255 = usable) marks pixels that pass the intensity and pole tests.
+cv::Mat ColourInvariantH(const cv::Mat& bgr, const ColourInvariantOptions& options,
+                         cv::Mat* valid);
+
+}  // namespace placerec

@@ -1,0 +1,149 @@
+#include "common/image/image.h"
+
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+namespace placerec {
+namespace {
+
+cv::Mat Flat(int width, int height, cv::Scalar bgr) {
+  return cv::Mat(height, width, CV_8UC3, bgr);
+}
+
+TEST(DecodeTest, DefaultOptionsPass) {
+  std::string error;
+  EXPECT_TRUE(DecodeOptions().Check(&error)) << error;
+  EXPECT_TRUE(ColourInvariantOptions().Check(&error)) << error;
+  DecodeOptions bad;
+  bad.max_dimension = 1;
+  EXPECT_FALSE(bad.Check(&error));
+  ColourInvariantOptions bad_colour;
+  bad_colour.max_abs_h = 0;
+  EXPECT_FALSE(bad_colour.Check(&error));
+}
+
+TEST(DecodeTest, JpegAndPngRoundTrip) {
+  const cv::Mat image = Flat(64, 48, cv::Scalar(10, 200, 30));
+  for (const char* ext : {".jpg", ".png"}) {
+    std::vector<uint8_t> bytes;
+    ASSERT_TRUE(cv::imencode(ext, image, bytes));
+    const ImageEncoding encoding =
+        std::string(ext) == ".jpg" ? ImageEncoding::kJpeg : ImageEncoding::kPng;
+    StatusOr<cv::Mat> decoded =
+        DecodeImage(bytes.data(), bytes.size(), encoding, 64, 48, DecodeOptions());
+    ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+    EXPECT_EQ(decoded->cols, 64);
+    EXPECT_EQ(decoded->rows, 48);
+    EXPECT_EQ(decoded->type(), CV_8UC3);
+    // Unknown size (0, 0) is accepted for compressed encodings.
+    EXPECT_TRUE(DecodeImage(bytes.data(), bytes.size(), encoding, 0, 0, DecodeOptions()).ok());
+  }
+}
+
+TEST(DecodeTest, RejectsWhatIsWrongWithAMessage) {
+  const cv::Mat image = Flat(64, 48, cv::Scalar(1, 2, 3));
+  std::vector<uint8_t> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", image, jpeg));
+  const DecodeOptions options;
+
+  // Declared size does not match the JPEG.
+  StatusOr<cv::Mat> r = DecodeImage(jpeg.data(), jpeg.size(), ImageEncoding::kJpeg, 65, 48, options);
+  EXPECT_EQ(r.status().code(), StatusCode::kBadImage);
+  EXPECT_NE(r.status().message().find("does not match"), std::string::npos);
+
+  // PNG bytes claimed to be JPEG.
+  std::vector<uint8_t> png;
+  ASSERT_TRUE(cv::imencode(".png", image, png));
+  r = DecodeImage(png.data(), png.size(), ImageEncoding::kJpeg, 0, 0, options);
+  EXPECT_EQ(r.status().code(), StatusCode::kBadImage);
+
+  // Truncated JPEG.
+  r = DecodeImage(jpeg.data(), 20, ImageEncoding::kJpeg, 0, 0, options);
+  EXPECT_EQ(r.status().code(), StatusCode::kBadImage);
+
+  // Raw with the wrong byte count, zero and absurd sizes.
+  std::vector<uint8_t> raw(64 * 48 * 3);
+  r = DecodeImage(raw.data(), raw.size() - 1, ImageEncoding::kRawBgr8, 64, 48, options);
+  EXPECT_NE(r.status().message().find("needs 9216 bytes"), std::string::npos);
+  EXPECT_FALSE(DecodeImage(raw.data(), raw.size(), ImageEncoding::kRawBgr8, 0, 48, options).ok());
+  EXPECT_FALSE(
+      DecodeImage(raw.data(), raw.size(), ImageEncoding::kRawBgr8, 100000, 48, options).ok());
+  EXPECT_FALSE(DecodeImage(nullptr, 0, ImageEncoding::kPng, 0, 0, options).ok());
+
+  // Raw that is right decodes, gray becomes BGR.
+  StatusOr<cv::Mat> ok = DecodeImage(raw.data(), 64 * 48, ImageEncoding::kRawGray8, 64, 48, options);
+  ASSERT_TRUE(ok.ok());
+  EXPECT_EQ(ok->type(), CV_8UC3);
+}
+
+TEST(ColourTest, LabOfWhiteAndBlack) {
+  const cv::Mat lab_white = ToLab(Flat(2, 2, cv::Scalar(255, 255, 255)));
+  EXPECT_NEAR(lab_white.at<cv::Vec3f>(0, 0)[0], 100.0f, 0.5f);
+  EXPECT_NEAR(lab_white.at<cv::Vec3f>(0, 0)[1], 0.0f, 0.5f);
+  const cv::Mat lab_black = ToLab(Flat(2, 2, cv::Scalar(0, 0, 0)));
+  EXPECT_NEAR(lab_black.at<cv::Vec3f>(0, 0)[0], 0.0f, 0.5f);
+}
+
+TEST(ColourTest, GaussianModelFollowsEquation56) {
+  // Pure red (R = 1): the first column of the matrix in eq. 5.6.
+  const cv::Mat model = GaussianColourModel(Flat(1, 1, cv::Scalar(0, 0, 255)));
+  const cv::Vec3f v = model.at<cv::Vec3f>(0, 0);
+  EXPECT_NEAR(v[0], 0.06f, 1e-5f);
+  EXPECT_NEAR(v[1], 0.30f, 1e-5f);
+  EXPECT_NEAR(v[2], 0.34f, 1e-5f);
+}
+
+TEST(ColourTest, InvariantHOfKnownColours) {
+  struct Case {
+    cv::Scalar bgr;
+    float h;
+  };
+  // H = D_lambda / D_lambdalambda with eq. 5.6 rows (0.3, 0.04, -0.35) and (0.34, -0.6, 0.17).
+  const Case cases[] = {
+      {cv::Scalar(0, 0, 255), 0.30f / 0.34f},       // red
+      {cv::Scalar(0, 255, 0), 0.04f / -0.60f},      // green
+      {cv::Scalar(255, 0, 0), -0.35f / 0.17f},      // blue
+      {cv::Scalar(128, 128, 128), -0.01f / -0.09f}, // grey: the same for any grey level
+      {cv::Scalar(200, 200, 200), -0.01f / -0.09f},
+  };
+  for (const Case& c : cases) {
+    cv::Mat valid;
+    const cv::Mat h = ColourInvariantH(Flat(3, 3, c.bgr), ColourInvariantOptions(), &valid);
+    EXPECT_NEAR(h.at<float>(1, 1), c.h, 1e-4f) << c.bgr;
+    EXPECT_EQ(valid.at<uint8_t>(1, 1), 255);
+  }
+}
+
+TEST(ColourTest, InvariantHIgnoresIntensity) {
+  // Seed §5.4.2: H does not change with illumination intensity.
+  cv::Mat valid;
+  const float bright =
+      ColourInvariantH(Flat(1, 1, cv::Scalar(40, 120, 200)), ColourInvariantOptions(), &valid)
+          .at<float>(0, 0);
+  const float dim =
+      ColourInvariantH(Flat(1, 1, cv::Scalar(20, 60, 100)), ColourInvariantOptions(), &valid)
+          .at<float>(0, 0);
+  EXPECT_NEAR(bright, dim, 0.02f);
+}
+
+TEST(ColourTest, DarkPixelsAreInvalid) {
+  cv::Mat valid;
+  ColourInvariantH(Flat(2, 2, cv::Scalar(2, 2, 2)), ColourInvariantOptions(), &valid);
+  EXPECT_EQ(valid.at<uint8_t>(0, 0), 0);
+}
+
+TEST(ResizeTest, LimitWidthKeepsAspect) {
+  double scale = 0;
+  const cv::Mat small = LimitWidth(Flat(960, 540, cv::Scalar(0, 0, 0)), 640, &scale);
+  EXPECT_EQ(small.cols, 640);
+  EXPECT_EQ(small.rows, 360);
+  EXPECT_NEAR(scale, 640.0 / 960.0, 1e-9);
+  const cv::Mat same = LimitWidth(Flat(320, 240, cv::Scalar(0, 0, 0)), 640, &scale);
+  EXPECT_EQ(same.cols, 320);
+  EXPECT_EQ(scale, 1.0);
+}
+
+}  // namespace
+}  // namespace placerec

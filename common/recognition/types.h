@@ -1,0 +1,48 @@
+// Domain types of the landmark map (seed §5.3, §5.7): places are frames that robots inserted,
+// landmarks are the widely visible objects stored for a place.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "common/objects/objects.h"
+#include "common/segmentation/segmentation.h"
+#include "common/util/ids.h"
+
+namespace placerec {
+
+// Longest robot id the map accepts (bytes).
+constexpr size_t kMaxRobotIdLength = 64;
+
+// One inserted frame of one robot.
+struct Place {
+  PlaceId id;
+  std::string robot;     // robot id, 1..kMaxRobotIdLength bytes
+  int64_t sequence = 0;  // the robot's frame sequence number (monotonic per robot)
+  int64_t utime = 0;     // capture time, microseconds since the epoch
+  int num_landmarks = 0;
+
+  bool operator==(const Place& other) const {
+    return id == other.id && robot == other.robot && sequence == other.sequence &&
+           utime == other.utime && num_landmarks == other.num_landmarks;
+  }
+};
+
+// A stored landmark object.
+struct Landmark {
+  LandmarkId id;
+  PlaceId place;
+  int sift_count = 0;      // SIFT keypoints on the object when it was seen (texture, seed §5.5)
+  ColourSignature colour;  // dominant H peaks (seed §5.6)
+  cv::Rect box;            // full-resolution pixels in the place's frame
+  SegmentClass segment_class = SegmentClass::kStructured;
+  cv::Mat descriptors;     // CV_8U, the stored SIFT descriptors, one 128-byte row each
+  std::vector<cv::KeyPoint> keypoints;  // one per stored descriptor (x, y, size, angle kept)
+
+  int num_descriptors() const { return descriptors.rows; }
+};
+
+}  // namespace placerec

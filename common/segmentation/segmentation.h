@@ -1,0 +1,53 @@
+// The segmentation every later stage consumes: a label per pixel and a class per segment.
+// Superpixels (pipeline step 3) produce one with every segment "structured"; Perceptual
+// Organization (step 5, seed Ch. 3) produces one with grouped objects and background classes.
+// Objects (step 6) read only this type, so either producer slots in without changes downstream.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace placerec {
+
+// Class of a segment. Values are the ids of stanford_background/classes.txt for the background
+// classes (seed §3.4) and 7 for structured segments (candidate objects or object parts).
+enum class SegmentClass : uint8_t {
+  kSky = 0,
+  kTree = 1,
+  kRoad = 2,
+  kGrass = 3,
+  kWater = 4,
+  kStructured = 7,
+};
+
+const char* SegmentClassName(SegmentClass segment_class);
+bool IsBackground(SegmentClass segment_class);
+
+// The frame at the resolution segmentation works at (seed §6.1: about 320x240).
+struct WorkingImage {
+  cv::Mat bgr;    // CV_8UC3
+  cv::Mat lab;    // CV_32FC3, CIE Lab (L in [0, 100])
+  double scale = 1.0;  // working pixels per full-resolution pixel (<= 1)
+};
+
+// Resizes `bgr` (INTER_AREA) so that its width is at most `working_width` (0 keeps it) and
+// computes its Lab image.
+WorkingImage MakeWorkingImage(const cv::Mat& bgr, int working_width);
+
+struct SceneSegmentation {
+  cv::Mat labels;                     // CV_32S, segment id per working pixel, 0..size()-1
+  std::vector<SegmentClass> classes;  // one per segment
+  double scale = 1.0;                 // working pixels per full-resolution pixel
+
+  int size() const { return static_cast<int>(classes.size()); }
+  // Segment under a full-resolution point (e.g. a keypoint); -1 outside the image.
+  int SegmentAt(float x, float y) const;
+};
+
+// Renumbers labels to 0..n-1 in order of first appearance (row-major) and returns n.
+int CompactLabels(cv::Mat* labels);
+
+}  // namespace placerec

@@ -1,0 +1,47 @@
+#include "common/util/options.h"
+
+#include <sstream>
+
+namespace po = boost::program_options;
+
+namespace placerec {
+
+FlagParser::FlagParser(std::string usage) : usage_(std::move(usage)), options_("Options", 100) {
+  options_.add_options()("help,h", "show this help and exit");
+}
+
+void FlagParser::AddSwitch(const std::string& name, bool* field, const std::string& help) {
+  options_.add_options()(name.c_str(), po::bool_switch(field), help.c_str());
+}
+
+void FlagParser::AddPositional(const std::string& name, std::vector<std::string>* field,
+                               const std::string& help) {
+  options_.add_options()(name.c_str(), po::value<std::vector<std::string>>(field), help.c_str());
+  positional_.add(name.c_str(), -1);
+  positional_name_ = name;
+}
+
+Status FlagParser::Parse(int argc, const char* const* argv, int first, bool* help_requested) {
+  *help_requested = false;
+  std::vector<std::string> args(argv + first, argv + argc);
+  po::variables_map vm;
+  try {
+    po::store(po::command_line_parser(args).options(options_).positional(positional_).run(), vm);
+    if (vm.count("help")) {
+      *help_requested = true;
+      return Status::Ok();
+    }
+    po::notify(vm);
+  } catch (const po::error& e) {
+    return Status::InvalidArgument(std::string(e.what()) + " (see --help)");
+  }
+  return Status::Ok();
+}
+
+std::string FlagParser::Help() const {
+  std::ostringstream out;
+  out << "Usage: " << usage_ << "\n\n" << options_;
+  return out.str();
+}
+
+}  // namespace placerec

@@ -1,0 +1,51 @@
+// Binds command-line flags to fields of the library's options structs. The default shown in
+// --help is the field's value when the flag is added, so defaults live only in the structs.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <boost/program_options.hpp>
+
+#include "common/util/status.h"
+
+namespace placerec {
+
+class FlagParser {
+ public:
+  // `usage` is printed first by --help, e.g. "placerec-eval run --dataset DIR --run NAME --out OUT".
+  explicit FlagParser(std::string usage);
+
+  // Adds `--name` bound to *field; `help` should give units and the seed section.
+  template <typename T>
+  void Add(const std::string& name, T* field, const std::string& help) {
+    options_.add_options()(name.c_str(),
+                           boost::program_options::value<T>(field)->default_value(*field), help.c_str());
+  }
+  // A flag without a default that must be given.
+  template <typename T>
+  void AddRequired(const std::string& name, T* field, const std::string& help) {
+    options_.add_options()(name.c_str(), boost::program_options::value<T>(field)->required(),
+                           help.c_str());
+  }
+  // A switch: present means true.
+  void AddSwitch(const std::string& name, bool* field, const std::string& help);
+  // Remaining positional arguments (e.g. image paths) go into *field.
+  void AddPositional(const std::string& name, std::vector<std::string>* field,
+                     const std::string& help);
+
+  // Parses argv[first..argc). Returns ok with *help_requested set when --help was given (the
+  // caller prints Help() and exits 0); an InvalidArgument status with a message otherwise.
+  Status Parse(int argc, const char* const* argv, int first, bool* help_requested);
+
+  std::string Help() const;
+
+ private:
+  std::string usage_;
+  boost::program_options::options_description options_;
+  boost::program_options::positional_options_description positional_;
+  std::string positional_name_;
+};
+
+}  // namespace placerec

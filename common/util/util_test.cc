@@ -1,0 +1,109 @@
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "common/util/csv.h"
+#include "common/util/ids.h"
+#include "common/util/options.h"
+#include "common/util/status.h"
+
+namespace placerec {
+namespace {
+
+TEST(StatusTest, OkAndErrors) {
+  EXPECT_TRUE(Status::Ok().ok());
+  const Status error = Status::BadImage("width 0");
+  EXPECT_FALSE(error.ok());
+  EXPECT_EQ(error.code(), StatusCode::kBadImage);
+  EXPECT_EQ(error.ToString(), "bad image: width 0");
+  StatusOr<int> value(7);
+  ASSERT_TRUE(value.ok());
+  EXPECT_EQ(*value, 7);
+  StatusOr<int> failed(Status::NotFound("x"));
+  EXPECT_FALSE(failed.ok());
+  EXPECT_EQ(failed.status().code(), StatusCode::kNotFound);
+}
+
+TEST(TypedIdTest, InvalidByDefault) {
+  EXPECT_FALSE(LandmarkId().IsValid());
+  EXPECT_TRUE(LandmarkId(0).IsValid());
+  EXPECT_EQ(PlaceId(3), PlaceId(3));
+  EXPECT_NE(PlaceId(3), PlaceId::Invalid());
+}
+
+TEST(CsvTest, ReadsHeaderAndRows) {
+  const std::string path = ::testing::TempDir() + "/placerec_csv_test.csv";
+  {
+    std::ofstream out(path);
+    out << "frame,robot,image\r\n0,left,a.jpg\n1,right,b.jpg\n\n";
+  }
+  StatusOr<CsvTable> table = ReadCsv(path);
+  ASSERT_TRUE(table.ok()) << table.status().ToString();
+  ASSERT_EQ(table->rows.size(), 2u);
+  EXPECT_EQ(table->Column("robot"), 1);
+  EXPECT_EQ(table->Column("missing"), -1);
+  EXPECT_EQ(table->rows[1][2], "b.jpg");
+  std::remove(path.c_str());
+}
+
+TEST(CsvTest, RejectsRaggedRowsAndMissingFiles) {
+  const std::string path = ::testing::TempDir() + "/placerec_csv_bad.csv";
+  {
+    std::ofstream out(path);
+    out << "a,b\n1,2,3\n";
+  }
+  StatusOr<CsvTable> table = ReadCsv(path);
+  ASSERT_FALSE(table.ok());
+  EXPECT_NE(table.status().message().find(":2: expected 2 fields"), std::string::npos);
+  EXPECT_EQ(ReadCsv(path + ".missing").status().code(), StatusCode::kIoError);
+  std::remove(path.c_str());
+}
+
+TEST(CsvTest, ParsesNumbersStrictly) {
+  long long i = 0;
+  double d = 0;
+  EXPECT_TRUE(ParseInt64("-42", &i));
+  EXPECT_EQ(i, -42);
+  EXPECT_FALSE(ParseInt64("42x", &i));
+  EXPECT_FALSE(ParseInt64("", &i));
+  EXPECT_TRUE(ParseDouble("0.25", &d));
+  EXPECT_DOUBLE_EQ(d, 0.25);
+  EXPECT_FALSE(ParseDouble("nope", &d));
+}
+
+TEST(FlagParserTest, BindsFieldsAndKeepsDefaults) {
+  struct Options {
+    int k = 300;
+    double ratio = 0.8;
+    std::string name = "x";
+  } options;
+  FlagParser parser("test");
+  parser.Add("k", &options.k, "k");
+  parser.Add("ratio", &options.ratio, "ratio");
+  parser.Add("name", &options.name, "name");
+  const char* argv[] = {"prog", "--k", "500"};
+  bool help = false;
+  ASSERT_TRUE(parser.Parse(3, argv, 1, &help).ok());
+  EXPECT_FALSE(help);
+  EXPECT_EQ(options.k, 500);
+  EXPECT_DOUBLE_EQ(options.ratio, 0.8);
+  EXPECT_NE(parser.Help().find("--ratio"), std::string::npos);
+}
+
+TEST(FlagParserTest, ReportsUnknownFlagsAndHelp) {
+  int k = 1;
+  FlagParser parser("test");
+  parser.Add("k", &k, "k");
+  const char* bad[] = {"prog", "--nope", "1"};
+  bool help = false;
+  const Status status = parser.Parse(3, bad, 1, &help);
+  EXPECT_EQ(status.code(), StatusCode::kInvalidArgument);
+  const char* with_help[] = {"prog", "--help"};
+  ASSERT_TRUE(parser.Parse(2, with_help, 1, &help).ok());
+  EXPECT_TRUE(help);
+}
+
+}  // namespace
+}  // namespace placerec

@@ -1,0 +1,12 @@
+#!/usr/bin/env bash
+# The test command: installs what is missing, builds, and runs every test (unit tests, the
+# end-to-end evaluation on ../shared/data, and the server/client integration tests).
+# Tests that need ../shared/data skip with a message when it is absent (set PLACEREC_DATA to
+# point elsewhere).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+build_dir=${BUILD_DIR:-$root/build}
+
+bash "$root/scripts/build.sh"
+cd "$build_dir"
+ctest --output-on-failure -j "${TEST_JOBS:-2}" "$@"
