@@ -28,13 +28,14 @@ bool IsBackground(SegmentClass segment_class);
 
 // The frame at the resolution segmentation works at (seed §6.1: about 320x240).
 struct WorkingImage {
-  cv::Mat bgr;    // CV_8UC3
-  cv::Mat lab;    // CV_32FC3, CIE Lab (L in [0, 100])
+  cv::Mat bgr;         // CV_8UC3
+  cv::Mat lab;         // CV_32FC3, CIE Lab (L in [0, 100])
   double scale = 1.0;  // working pixels per full-resolution pixel (<= 1)
 };
 
-// Resizes `bgr` (INTER_AREA) so that its width is at most `working_width` (0 keeps it) and
-// computes its Lab image.
+// Resizes `bgr` (8-bit BGR, INTER_AREA) so that its width is at most `working_width` pixels
+// (0 keeps it; the height is rounded to keep the aspect ratio) and computes its Lab image.
+// scale = working width / original width. Without resizing, `bgr` shares data with the input.
 WorkingImage MakeWorkingImage(const cv::Mat& bgr, int working_width);
 
 struct SceneSegmentation {
@@ -43,7 +44,10 @@ struct SceneSegmentation {
   double scale = 1.0;                 // working pixels per full-resolution pixel
 
   int size() const { return static_cast<int>(classes.size()); }
-  // Segment under a full-resolution point (e.g. a keypoint); -1 outside the image.
+  // Segment under a full-resolution point (e.g. a keypoint, pixel centres at integers): the
+  // working pixel floor((x + 0.5) * scale), floor((y + 0.5) * scale), clamped to the label image
+  // when it lies up to half a working pixel past the last column or row (the working height is
+  // rounded); -1 further outside (or NaN).
   int SegmentAt(float x, float y) const;
 };
 
