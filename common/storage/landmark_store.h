@@ -20,20 +20,29 @@ struct StoreCounts {
   int64_t descriptors = 0;
 };
 
+// Every method may be called from any thread; calls on one store are serialised (the server reads
+// Counts from its status thread while a worker writes). `visit` callbacks run under that lock and
+// must not call back into the store.
 class LandmarkStore {
  public:
   virtual ~LandmarkStore() = default;
 
-  // Adds `place` and its `landmarks` in one transaction; when it returns ok the data is durable
-  // (committed to disk for file-backed stores). Assigns place->id, and each landmark's id and
-  // place; sets place->num_landmarks. On error nothing is written and the inputs' ids are left
-  // invalid. A place whose (robot, sequence) is already stored is an InvalidArgument error.
+  // Adds `place` and its `landmarks` (null for none) in one transaction; when it returns ok the
+  // data is committed (for file-backed stores it survives a killed process, and power loss too
+  // when the store syncs fully). Assigns place->id, and each landmark's id and place; sets
+  // place->num_landmarks. Ids are valid and increase with every call. The input is validated
+  // first (robot id 1..kMaxRobotIdLength bytes; descriptors CV_8U, 128 columns, continuous (or an
+  // empty matrix), one keypoint each; sift_count >= 0): on any error nothing is written and the
+  // inputs are left unchanged. A place whose (robot, sequence) is already stored is an
+  // InvalidArgument error.
   virtual Status AddPlace(Place* place, std::vector<Landmark>* landmarks) = 0;
 
   // Calls `visit` for every place in increasing id order.
   virtual Status LoadPlaces(const std::function<void(const Place&)>& visit) const = 0;
 
   // Calls `visit` for every landmark (descriptors and keypoints included) in increasing id order.
+  // Keypoints keep x, y, size and angle; response, octave and class_id come back as defaults.
+  // A landmark whose stored data is damaged stops the scan with an IoError naming its id.
   virtual Status LoadLandmarks(const std::function<void(Landmark&&)>& visit) const = 0;
 
   virtual StatusOr<StoreCounts> Counts() const = 0;

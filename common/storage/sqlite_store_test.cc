@@ -1,0 +1,590 @@
+#include "common/storage/sqlite_store.h"
+
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sqlite3.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cstdio>
+#include <fstream>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace placerec {
+namespace {
+
+// A map file in the test's temporary directory, removed (with its WAL files) before and after.
+// The process id keeps concurrent runs (several build trees, ctest -j) apart.
+class TempMap {
+ public:
+  explicit TempMap(const std::string& name)
+      : path_(::testing::TempDir() + "/placerec_storage_" + name + "_" + std::to_string(getpid()) +
+              ".db") {
+    Remove();
+  }
+  ~TempMap() { Remove(); }
+  const std::string& path() const { return path_; }
+
+ private:
+  void Remove() const {
+    for (const char* suffix : {"", "-wal", "-shm", "-journal"}) {
+      std::remove((path_ + suffix).c_str());
+    }
+  }
+  std::string path_;
+};
+
+bool FileExists(const std::string& path) { return std::ifstream(path).good(); }
+
+std::unique_ptr<LandmarkStore> Open(const std::string& path,
+                                    const SqliteStoreOptions& options = SqliteStoreOptions()) {
+  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(path, options);
+  EXPECT_TRUE(store.ok()) << store.status().ToString();
+  return store.ok() ? std::move(store).value() : nullptr;
+}
+
+// Runs constant SQL on a map file directly, to forge foreign, newer or damaged files.
+void ExecSql(const std::string& path, const char* sql) {
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  char* error = nullptr;
+  const int rc = sqlite3_exec(db, sql, nullptr, nullptr, &error);
+  EXPECT_EQ(rc, SQLITE_OK) << (error != nullptr ? error : "");
+  sqlite3_free(error);
+  sqlite3_close(db);
+}
+
+// The first column of the first row of a constant query, as text.
+std::string QuerySql(const std::string& path, const char* sql) {
+  sqlite3* db = nullptr;
+  std::string value;
+  if (sqlite3_open(path.c_str(), &db) == SQLITE_OK) {
+    sqlite3_stmt* stmt = nullptr;
+    if (sqlite3_prepare_v2(db, sql, -1, &stmt, nullptr) == SQLITE_OK &&
+        sqlite3_step(stmt) == SQLITE_ROW) {
+      value = reinterpret_cast<const char*>(sqlite3_column_text(stmt, 0));
+    }
+    sqlite3_finalize(stmt);
+  }
+  sqlite3_close(db);
+  return value;
+}
+
+Place MakePlace(const std::string& robot, int64_t sequence) {
+  Place place;
+  place.robot = robot;
+  place.sequence = sequence;
+  place.utime = 1700000000000000 + sequence * 100000;
+  return place;
+}
+
+// A landmark with `num_descriptors` random descriptors; everything depends only on `seed`.
+Landmark MakeLandmark(int seed, int num_descriptors) {
+  cv::RNG rng(static_cast<uint64_t>(seed) + 1);
+  Landmark landmark;
+  landmark.sift_count = num_descriptors + seed % 5;
+  if (seed % 3 == 1) landmark.colour.peaks = {0.125f + 0.01f * static_cast<float>(seed)};
+  if (seed % 3 == 2) landmark.colour.peaks = {-0.4375f, 0.3f + 0.001f * static_cast<float>(seed)};
+  landmark.segment_class = seed % 2 == 0 ? SegmentClass::kStructured : SegmentClass::kTree;
+  landmark.box = cv::Rect(seed, 2 * seed + 1, 30 + seed, 17);
+  landmark.descriptors.create(num_descriptors, 128, CV_8U);
+  rng.fill(landmark.descriptors, cv::RNG::UNIFORM, 0, 256);
+  for (int i = 0; i < num_descriptors; ++i) {
+    landmark.keypoints.emplace_back(rng.uniform(0.f, 640.f), rng.uniform(0.f, 480.f),
+                                    rng.uniform(1.f, 30.f), rng.uniform(0.f, 360.f));
+  }
+  return landmark;
+}
+
+std::vector<Landmark> MakeLandmarks(int first_seed, int count, int num_descriptors) {
+  std::vector<Landmark> landmarks;
+  landmarks.reserve(count);
+  for (int i = 0; i < count; ++i) {
+    landmarks.push_back(MakeLandmark(first_seed + i, num_descriptors));
+  }
+  return landmarks;
+}
+
+struct Contents {
+  std::vector<Place> places;
+  std::vector<Landmark> landmarks;
+};
+
+Contents ReadAll(const LandmarkStore& store) {
+  Contents contents;
+  const Status places =
+      store.LoadPlaces([&contents](const Place& place) { contents.places.push_back(place); });
+  EXPECT_TRUE(places.ok()) << places.ToString();
+  const Status landmarks = store.LoadLandmarks(
+      [&contents](Landmark&& landmark) { contents.landmarks.push_back(std::move(landmark)); });
+  EXPECT_TRUE(landmarks.ok()) << landmarks.ToString();
+  return contents;
+}
+
+void ExpectSameLandmark(const Landmark& expected, const Landmark& actual) {
+  EXPECT_EQ(actual.id, expected.id);
+  EXPECT_EQ(actual.place, expected.place);
+  EXPECT_EQ(actual.sift_count, expected.sift_count);
+  EXPECT_EQ(actual.colour.peaks, expected.colour.peaks);
+  EXPECT_EQ(actual.box, expected.box);
+  EXPECT_EQ(actual.segment_class, expected.segment_class);
+  ASSERT_EQ(actual.descriptors.type(), CV_8U);
+  ASSERT_EQ(actual.descriptors.cols, 128);
+  ASSERT_EQ(actual.descriptors.rows, expected.descriptors.rows);
+  if (expected.descriptors.rows > 0) {
+    EXPECT_EQ(cv::countNonZero(actual.descriptors != expected.descriptors), 0);
+  }
+  ASSERT_EQ(actual.keypoints.size(), expected.keypoints.size());
+  for (size_t i = 0; i < expected.keypoints.size(); ++i) {
+    EXPECT_EQ(actual.keypoints[i].pt.x, expected.keypoints[i].pt.x) << i;
+    EXPECT_EQ(actual.keypoints[i].pt.y, expected.keypoints[i].pt.y) << i;
+    EXPECT_EQ(actual.keypoints[i].size, expected.keypoints[i].size) << i;
+    EXPECT_EQ(actual.keypoints[i].angle, expected.keypoints[i].angle) << i;
+  }
+}
+
+void ExpectCounts(const LandmarkStore& store, int64_t places, int64_t landmarks,
+                  int64_t descriptors) {
+  StatusOr<StoreCounts> counts = store.Counts();
+  ASSERT_TRUE(counts.ok()) << counts.status().ToString();
+  EXPECT_EQ(counts->places, places);
+  EXPECT_EQ(counts->landmarks, landmarks);
+  EXPECT_EQ(counts->descriptors, descriptors);
+}
+
+uint64_t ChecksumOf(const LandmarkStore& store) {
+  StatusOr<uint64_t> checksum = store.Checksum();
+  EXPECT_TRUE(checksum.ok()) << checksum.status().ToString();
+  return checksum.ok() ? *checksum : 0;
+}
+
+bool Contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+TEST(SqliteStoreOptionsTest, DefaultsPassAndBadValuesFail) {
+  std::string error;
+  EXPECT_TRUE(SqliteStoreOptions().Check(&error)) << error;
+  SqliteStoreOptions bad;
+  bad.busy_timeout_ms = -1;
+  EXPECT_FALSE(bad.Check(&error));
+  EXPECT_TRUE(Contains(error, "busy_timeout_ms"));
+  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(":memory:", bad);
+  EXPECT_EQ(store.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(OpenSqliteStore("", SqliteStoreOptions()).status().code(),
+            StatusCode::kInvalidArgument);
+}
+
+TEST(SqliteStoreTest, WritesAndReadsBackAfterReopen) {
+  TempMap map("roundtrip");
+  Place first = MakePlace("alpha", 10);
+  Place second = MakePlace("beta", 3);
+  std::vector<Landmark> first_landmarks = MakeLandmarks(0, 3, 12);
+  std::vector<Landmark> second_landmarks = MakeLandmarks(10, 2, 40);
+  {
+    std::unique_ptr<LandmarkStore> store = Open(map.path());
+    ASSERT_NE(store, nullptr);
+    EXPECT_EQ(store->Describe(), "sqlite:" + map.path());
+    ASSERT_TRUE(store->AddPlace(&first, &first_landmarks).ok());
+    ASSERT_TRUE(store->AddPlace(&second, &second_landmarks).ok());
+  }
+  // Ids are valid, increasing, and tie the landmarks to their place.
+  EXPECT_TRUE(first.id.IsValid());
+  EXPECT_LT(first.id, second.id);
+  EXPECT_EQ(first.num_landmarks, 3);
+  EXPECT_EQ(second.num_landmarks, 2);
+  std::vector<Landmark> all = first_landmarks;
+  all.insert(all.end(), second_landmarks.begin(), second_landmarks.end());
+  for (size_t i = 0; i < all.size(); ++i) {
+    EXPECT_TRUE(all[i].id.IsValid());
+    if (i > 0) {
+      EXPECT_LT(all[i - 1].id, all[i].id);
+    }
+    EXPECT_EQ(all[i].place, i < 3 ? first.id : second.id);
+  }
+
+  std::unique_ptr<LandmarkStore> store = Open(map.path());
+  ASSERT_NE(store, nullptr);
+  const Contents contents = ReadAll(*store);
+  ASSERT_EQ(contents.places.size(), 2u);
+  EXPECT_EQ(contents.places[0], first);
+  EXPECT_EQ(contents.places[1], second);
+  ASSERT_EQ(contents.landmarks.size(), 5u);
+  for (size_t i = 0; i < all.size(); ++i) {
+    SCOPED_TRACE(i);
+    ExpectSameLandmark(all[i], contents.landmarks[i]);
+  }
+  ExpectCounts(*store, 2, 5, 3 * 12 + 2 * 40);
+}
+
+TEST(SqliteStoreTest, CountsAreExactAfterEachOperation) {
+  std::unique_ptr<LandmarkStore> store = Open(":memory:");
+  ASSERT_NE(store, nullptr);
+  ExpectCounts(*store, 0, 0, 0);
+  Place place = MakePlace("r", 1);
+  std::vector<Landmark> landmarks = MakeLandmarks(0, 2, 9);
+  ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
+  ExpectCounts(*store, 1, 2, 18);
+  place = MakePlace("r", 2);
+  landmarks = MakeLandmarks(5, 3, 40);
+  ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
+  ExpectCounts(*store, 2, 5, 18 + 120);
+  // A place without landmarks (null list) counts as a place only.
+  place = MakePlace("r", 3);
+  ASSERT_TRUE(store->AddPlace(&place, nullptr).ok());
+  EXPECT_EQ(place.num_landmarks, 0);
+  ExpectCounts(*store, 3, 5, 138);
+  // Reading changes nothing.
+  ReadAll(*store);
+  ExpectCounts(*store, 3, 5, 138);
+}
+
+TEST(SqliteStoreTest, DuplicatePlaceIsRejectedAndChangesNothing) {
+  std::unique_ptr<LandmarkStore> store = Open(":memory:");
+  ASSERT_NE(store, nullptr);
+  Place place = MakePlace("r", 7);
+  std::vector<Landmark> landmarks = MakeLandmarks(0, 2, 10);
+  ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
+  const uint64_t before = ChecksumOf(*store);
+
+  Place again = MakePlace("r", 7);
+  again.utime += 1;
+  std::vector<Landmark> more = MakeLandmarks(3, 4, 10);
+  const Status status = store->AddPlace(&again, &more);
+  EXPECT_EQ(status.code(), StatusCode::kInvalidArgument);
+  EXPECT_TRUE(Contains(status.message(), "place robot/sequence already stored"))
+      << status.message();
+  EXPECT_FALSE(again.id.IsValid());
+  for (const Landmark& landmark : more) EXPECT_FALSE(landmark.id.IsValid());
+  ExpectCounts(*store, 1, 2, 20);
+  EXPECT_EQ(ChecksumOf(*store), before);
+
+  // The same sequence from another robot is a different place.
+  Place other = MakePlace("s", 7);
+  EXPECT_TRUE(store->AddPlace(&other, &more).ok());
+  ExpectCounts(*store, 2, 6, 60);
+}
+
+TEST(SqliteStoreTest, InvalidInputIsRejectedAndWritesNothing) {
+  std::unique_ptr<LandmarkStore> store = Open(":memory:");
+  ASSERT_NE(store, nullptr);
+  const uint64_t empty = ChecksumOf(*store);
+
+  const auto expect_rejected = [&](Place place, std::vector<Landmark> landmarks,
+                                   const std::string& message) {
+    SCOPED_TRACE(message);
+    const Status status = store->AddPlace(&place, &landmarks);
+    EXPECT_EQ(status.code(), StatusCode::kInvalidArgument);
+    EXPECT_TRUE(Contains(status.message(), message)) << status.message();
+    EXPECT_FALSE(place.id.IsValid());
+    for (const Landmark& landmark : landmarks) EXPECT_FALSE(landmark.id.IsValid());
+    ExpectCounts(*store, 0, 0, 0);
+    EXPECT_EQ(ChecksumOf(*store), empty);
+  };
+
+  // The second landmark is the bad one, so a half-written place would show in the counts.
+  std::vector<Landmark> wrong_type = MakeLandmarks(0, 2, 5);
+  wrong_type[1].descriptors.convertTo(wrong_type[1].descriptors, CV_32F);
+  expect_rejected(MakePlace("r", 1), wrong_type, "landmark 1: descriptors must be CV_8U");
+
+  std::vector<Landmark> wrong_columns = MakeLandmarks(0, 2, 5);
+  wrong_columns[1].descriptors = cv::Mat::zeros(5, 64, CV_8U);
+  expect_rejected(MakePlace("r", 1), wrong_columns, "64 columns, expected 128");
+
+  std::vector<Landmark> not_continuous = MakeLandmarks(0, 2, 5);
+  const cv::Mat wide = cv::Mat::zeros(5, 256, CV_8U);
+  not_continuous[1].descriptors = wide.colRange(0, 128);
+  expect_rejected(MakePlace("r", 1), not_continuous, "not continuous");
+
+  std::vector<Landmark> keypoint_mismatch = MakeLandmarks(0, 2, 5);
+  keypoint_mismatch[1].keypoints.pop_back();
+  expect_rejected(MakePlace("r", 1), keypoint_mismatch, "4 keypoints for 5 descriptors");
+
+  std::vector<Landmark> negative_count = MakeLandmarks(0, 2, 5);
+  negative_count[1].sift_count = -1;
+  expect_rejected(MakePlace("r", 1), negative_count, "sift_count is negative");
+
+  expect_rejected(MakePlace("", 1), MakeLandmarks(0, 1, 5), "robot id is empty");
+  expect_rejected(MakePlace(std::string(kMaxRobotIdLength + 1, 'x'), 1), MakeLandmarks(0, 1, 5),
+                  "robot id is 65 bytes");
+
+  EXPECT_EQ(store->AddPlace(nullptr, nullptr).code(), StatusCode::kInvalidArgument);
+
+  // The longest allowed robot id is fine.
+  Place longest = MakePlace(std::string(kMaxRobotIdLength, 'x'), 1);
+  std::vector<Landmark> landmarks = MakeLandmarks(0, 1, 5);
+  EXPECT_TRUE(store->AddPlace(&longest, &landmarks).ok());
+  ExpectCounts(*store, 1, 1, 5);
+}
+
+TEST(SqliteStoreTest, LandmarkWithoutDescriptorsRoundTrips) {
+  std::unique_ptr<LandmarkStore> store = Open(":memory:");
+  ASSERT_NE(store, nullptr);
+  Place place = MakePlace("r", 1);
+  std::vector<Landmark> landmarks(1);
+  landmarks[0].sift_count = 12;
+  ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
+  const Contents contents = ReadAll(*store);
+  ASSERT_EQ(contents.landmarks.size(), 1u);
+  EXPECT_EQ(contents.landmarks[0].descriptors.rows, 0);
+  EXPECT_EQ(contents.landmarks[0].descriptors.cols, 128);
+  EXPECT_TRUE(contents.landmarks[0].keypoints.empty());
+  EXPECT_TRUE(contents.landmarks[0].colour.peaks.empty());
+  EXPECT_EQ(contents.landmarks[0].sift_count, 12);
+  ExpectCounts(*store, 1, 1, 0);
+}
+
+TEST(SqliteStoreTest, ChecksumFollowsContent) {
+  TempMap map("checksum");
+  std::unique_ptr<LandmarkStore> file = Open(map.path());
+  std::unique_ptr<LandmarkStore> memory = Open(":memory:");
+  ASSERT_NE(file, nullptr);
+  ASSERT_NE(memory, nullptr);
+  EXPECT_EQ(ChecksumOf(*file), ChecksumOf(*memory));
+
+  uint64_t previous = ChecksumOf(*file);
+  for (int sequence = 0; sequence < 3; ++sequence) {
+    for (LandmarkStore* store : {file.get(), memory.get()}) {
+      Place place = MakePlace("r", sequence);
+      std::vector<Landmark> landmarks = MakeLandmarks(sequence * 10, 2, 8);
+      ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
+    }
+    const uint64_t now = ChecksumOf(*file);
+    EXPECT_NE(now, previous);
+    EXPECT_EQ(now, ChecksumOf(*memory));
+    previous = now;
+  }
+
+  // One descriptor byte more or less makes a different map.
+  std::unique_ptr<LandmarkStore> changed = Open(":memory:");
+  ASSERT_NE(changed, nullptr);
+  for (int sequence = 0; sequence < 3; ++sequence) {
+    Place place = MakePlace("r", sequence);
+    std::vector<Landmark> landmarks = MakeLandmarks(sequence * 10, 2, 8);
+    if (sequence == 2) landmarks[1].descriptors.at<uint8_t>(3, 7) ^= 1;
+    ASSERT_TRUE(changed->AddPlace(&place, &landmarks).ok());
+  }
+  EXPECT_NE(ChecksumOf(*changed), previous);
+
+  // So does a change made behind the store's back.
+  file.reset();
+  ExecSql(map.path(), "UPDATE places SET utime = utime + 1 WHERE id = 2");
+  file = Open(map.path());
+  ASSERT_NE(file, nullptr);
+  EXPECT_NE(ChecksumOf(*file), previous);
+}
+
+TEST(SqliteStoreTest, NewFileHasVersionOneAndWalJournal) {
+  TempMap map("fresh");
+  ASSERT_NE(Open(map.path()), nullptr);
+  EXPECT_EQ(QuerySql(map.path(), "SELECT value FROM meta WHERE key = 'schema_version'"), "1");
+  EXPECT_EQ(QuerySql(map.path(), "PRAGMA journal_mode"), "wal");
+  // Opening again neither fails nor changes the version.
+  ASSERT_NE(Open(map.path()), nullptr);
+  EXPECT_EQ(QuerySql(map.path(), "SELECT COUNT(*) FROM meta"), "1");
+}
+
+TEST(SqliteStoreTest, RefusesNewerSchemaVersion) {
+  TempMap map("newer");
+  ASSERT_NE(Open(map.path()), nullptr);
+  ExecSql(map.path(), "UPDATE meta SET value = '999' WHERE key = 'schema_version'");
+  StatusOr<std::unique_ptr<LandmarkStore>> store =
+      OpenSqliteStore(map.path(), SqliteStoreOptions());
+  ASSERT_FALSE(store.ok());
+  const std::string& message = store.status().message();
+  EXPECT_TRUE(Contains(message, "schema version 999")) << message;
+  EXPECT_TRUE(Contains(message, "up to 1")) << message;
+  EXPECT_TRUE(Contains(message, "upgrade placerec")) << message;
+  // The file is left as it was.
+  EXPECT_EQ(QuerySql(map.path(), "SELECT value FROM meta WHERE key = 'schema_version'"), "999");
+}
+
+TEST(SqliteStoreTest, RefusesFilesThatAreNotPlacerecMaps) {
+  TempMap random_bytes("random");
+  {
+    std::mt19937 rng(7);
+    std::ofstream out(random_bytes.path(), std::ios::binary);
+    for (int i = 0; i < 8192; ++i) out.put(static_cast<char>(rng() & 0xff));
+  }
+  StatusOr<std::unique_ptr<LandmarkStore>> store =
+      OpenSqliteStore(random_bytes.path(), SqliteStoreOptions());
+  ASSERT_FALSE(store.ok());
+  EXPECT_EQ(store.status().code(), StatusCode::kIoError);
+  EXPECT_TRUE(Contains(store.status().message(), "not a SQLite database"))
+      << store.status().message();
+
+  TempMap foreign("foreign");
+  ExecSql(foreign.path(), "CREATE TABLE things(id INTEGER PRIMARY KEY, name TEXT)");
+  store = OpenSqliteStore(foreign.path(), SqliteStoreOptions());
+  ASSERT_FALSE(store.ok());
+  EXPECT_TRUE(Contains(store.status().message(), "not a placerec map")) << store.status().message();
+  // Still only the foreign table: nothing was created in it.
+  EXPECT_EQ(QuerySql(foreign.path(), "SELECT COUNT(*) FROM sqlite_master"), "1");
+
+  TempMap no_version("no_version");
+  ExecSql(no_version.path(), "CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT)");
+  store = OpenSqliteStore(no_version.path(), SqliteStoreOptions());
+  ASSERT_FALSE(store.ok());
+  EXPECT_TRUE(Contains(store.status().message(), "no schema_version")) << store.status().message();
+}
+
+TEST(SqliteStoreTest, MustExist) {
+  TempMap map("must_exist");
+  SqliteStoreOptions options;
+  options.must_exist = true;
+  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(map.path(), options);
+  ASSERT_FALSE(store.ok());
+  EXPECT_EQ(store.status().code(), StatusCode::kNotFound);
+  EXPECT_FALSE(FileExists(map.path()));
+  EXPECT_FALSE(OpenSqliteStore(":memory:", options).ok());
+
+  ASSERT_NE(Open(map.path()), nullptr);  // creates it
+  EXPECT_NE(Open(map.path(), options), nullptr);
+}
+
+TEST(SqliteStoreTest, DataSurvivesDestroyWithoutClose) {
+  TempMap map("destroy");
+  Place place = MakePlace("r", 1);
+  std::vector<Landmark> landmarks = MakeLandmarks(0, 3, 20);
+  std::unique_ptr<LandmarkStore> store = Open(map.path());
+  ASSERT_NE(store, nullptr);
+  ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
+  const uint64_t checksum = ChecksumOf(*store);
+  store.reset();
+
+  store = Open(map.path());
+  ASSERT_NE(store, nullptr);
+  ExpectCounts(*store, 1, 3, 60);
+  EXPECT_EQ(ChecksumOf(*store), checksum);
+}
+
+// "A killed server loses no acknowledged landmark": a child process adds a place, acknowledges it
+// through a pipe and is killed with SIGKILL while the map is still open (no destructor runs).
+TEST(SqliteStoreTest, DataSurvivesKilledProcess) {
+  TempMap map("killed");
+  int ack[2];
+  ASSERT_EQ(pipe(ack), 0);
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    close(ack[0]);
+    StatusOr<std::unique_ptr<LandmarkStore>> store =
+        OpenSqliteStore(map.path(), SqliteStoreOptions());
+    char reply = '0';
+    if (store.ok()) {
+      Place place = MakePlace("r", 1);
+      std::vector<Landmark> landmarks = MakeLandmarks(0, 4, 25);
+      if ((*store)->AddPlace(&place, &landmarks).ok()) reply = '1';
+    }
+    if (write(ack[1], &reply, 1) != 1) _exit(2);
+    for (;;) pause();
+  }
+  close(ack[1]);
+  char reply = 0;
+  ASSERT_EQ(read(ack[0], &reply, 1), 1);
+  close(ack[0]);
+  kill(child, SIGKILL);
+  int wait_status = 0;
+  ASSERT_EQ(waitpid(child, &wait_status, 0), child);
+  EXPECT_TRUE(WIFSIGNALED(wait_status));
+  ASSERT_EQ(reply, '1');
+
+  std::unique_ptr<LandmarkStore> store = Open(map.path());
+  ASSERT_NE(store, nullptr);
+  ExpectCounts(*store, 1, 4, 100);
+  const Contents contents = ReadAll(*store);
+  const std::vector<Landmark> expected = MakeLandmarks(0, 4, 25);
+  ASSERT_EQ(contents.landmarks.size(), 4u);
+  for (size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_EQ(cv::countNonZero(contents.landmarks[i].descriptors != expected[i].descriptors), 0);
+  }
+}
+
+TEST(SqliteStoreTest, DamagedLandmarkIsAnIoErrorNamingIt) {
+  TempMap map("damaged");
+  {
+    std::unique_ptr<LandmarkStore> store = Open(map.path());
+    ASSERT_NE(store, nullptr);
+    Place place = MakePlace("r", 1);
+    std::vector<Landmark> landmarks = MakeLandmarks(0, 3, 6);
+    ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
+    ASSERT_EQ(landmarks[1].id.value(), 2);
+  }
+  const char* const kDamage[] = {
+      "UPDATE landmarks SET descriptors = zeroblob(10) WHERE id = 2",
+      "UPDATE landmarks SET keypoints = zeroblob(3) WHERE id = 2",
+      "UPDATE landmarks SET colour_peaks = zeroblob(5) WHERE id = 2",
+      "UPDATE landmarks SET segment_class = 99 WHERE id = 2",
+      "UPDATE landmarks SET num_descriptors = NULL WHERE id = 2",
+  };
+  for (const char* damage : kDamage) {
+    SCOPED_TRACE(damage);
+    TempMap copy("damaged_copy");
+    {
+      std::ifstream in(map.path(), std::ios::binary);
+      std::ofstream out(copy.path(), std::ios::binary);
+      out << in.rdbuf();
+    }
+    ExecSql(copy.path(), damage);
+    std::unique_ptr<LandmarkStore> store = Open(copy.path());
+    ASSERT_NE(store, nullptr);
+    int visited = 0;
+    const Status status = store->LoadLandmarks([&visited](Landmark&&) { ++visited; });
+    EXPECT_EQ(status.code(), StatusCode::kIoError);
+    EXPECT_TRUE(Contains(status.message(), "landmark 2 is corrupt")) << status.message();
+    EXPECT_EQ(visited, 1);  // the landmark before the damaged one
+    EXPECT_EQ(store->Checksum().status().code(), StatusCode::kIoError);
+  }
+}
+
+TEST(SqliteStoreTest, InMemoryStoresAreSeparate) {
+  std::unique_ptr<LandmarkStore> a = Open(":memory:");
+  std::unique_ptr<LandmarkStore> b = Open(":memory:");
+  ASSERT_NE(a, nullptr);
+  ASSERT_NE(b, nullptr);
+  EXPECT_EQ(a->Describe(), "sqlite::memory:");
+  Place place = MakePlace("r", 1);
+  std::vector<Landmark> landmarks = MakeLandmarks(0, 1, 3);
+  ASSERT_TRUE(a->AddPlace(&place, &landmarks).ok());
+  ExpectCounts(*a, 1, 1, 3);
+  ExpectCounts(*b, 0, 0, 0);
+}
+
+// The server's status thread reads counts while a worker writes.
+TEST(SqliteStoreTest, CountsFromAnotherThreadWhileWriting) {
+  TempMap map("threads");
+  SqliteStoreOptions options;
+  options.synchronous_full = false;
+  std::unique_ptr<LandmarkStore> store = Open(map.path(), options);
+  ASSERT_NE(store, nullptr);
+  constexpr int64_t kPlaces = 40;
+  std::atomic<bool> writer_ok{true};
+  std::thread writer([&] {
+    for (int i = 0; i < kPlaces; ++i) {
+      Place place = MakePlace("r", i);
+      std::vector<Landmark> landmarks = MakeLandmarks(i, 2, 4);
+      if (!store->AddPlace(&place, &landmarks).ok()) writer_ok = false;
+    }
+  });
+  int64_t last_places = 0;
+  for (int i = 0; i < 200; ++i) {
+    StatusOr<StoreCounts> counts = store->Counts();
+    ASSERT_TRUE(counts.ok()) << counts.status().ToString();
+    // Each place is committed whole: always 2 landmarks and 8 descriptors per place.
+    EXPECT_EQ(counts->landmarks, 2 * counts->places);
+    EXPECT_EQ(counts->descriptors, 8 * counts->places);
+    EXPECT_GE(counts->places, last_places);
+    last_places = counts->places;
+    ASSERT_TRUE(store->Checksum().ok());
+  }
+  writer.join();
+  EXPECT_TRUE(writer_ok);
+  ExpectCounts(*store, kPlaces, 2 * kPlaces, 8 * kPlaces);
+}
+
+}  // namespace
+}  // namespace placerec
