@@ -14,12 +14,13 @@
 namespace placerec {
 
 struct RunFrame {
-  int frame = 0;       // counts from 0 in feeding order
+  int frame = 0;  // counts from 0 in feeding order
   std::string robot;
-  std::string image;   // absolute or dataset-relative path joined with the dataset directory
-  int64_t utime = 0;   // capture time, microseconds since the epoch
+  std::string image;  // absolute or dataset-relative path joined with the dataset directory
+  int64_t utime = 0;  // capture time, microseconds since the epoch
 };
 
+// A loaded run. (Inside a GoogleTest body write placerec::Run: testing::Test::Run() hides it.)
 struct Run {
   std::string dataset_dir;
   std::string name;
@@ -33,11 +34,15 @@ struct Run {
   }
 };
 
-// Loads a run and checks it: frames numbered 0..n-1 in order, utime monotonic per robot,
-// positives referring to existing frames with reference < query. Errors name the file and line.
+// Loads a run and checks it: the header columns, frames numbered 0..n-1 in file order (at least
+// one), non-empty robot and image, utime monotonic non-decreasing per robot, positives referring
+// to existing frames with reference < query. Fills is_revisit and num_revisits. NotFound (listing
+// the available runs) when the run or its positives file is missing; InvalidArgument naming the
+// file and line, and what to fix, for malformed content. Numbers are parsed locale-independently.
 StatusOr<Run> LoadRun(const std::string& dataset_dir, const std::string& run_name);
 
-// Names of the runs in <dataset>/runs (the <run> of each <run>.frames.csv), sorted.
+// Names of the runs in <dataset>/runs (the <run> of each <run>.frames.csv), sorted; empty when
+// the folder does not exist.
 std::vector<std::string> ListRuns(const std::string& dataset_dir);
 
 }  // namespace placerec

@@ -1,0 +1,370 @@
+#include "common/eval/plots.h"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace placerec {
+namespace {
+
+constexpr int kFont = cv::FONT_HERSHEY_SIMPLEX;
+constexpr int kShift = 4;  // fractional bits of the polyline and marker coordinates
+constexpr double kOne = 1 << kShift;
+constexpr int kMinWidth = 200;
+constexpr int kMinHeight = 150;
+constexpr int kMaxSide = 8000;
+
+const cv::Scalar kWhite(255, 255, 255);
+const cv::Scalar kText(40, 40, 40);
+const cv::Scalar kAxis(90, 90, 90);
+const cv::Scalar kGrid(230, 230, 230);
+const cv::Scalar kLegendBorder(175, 175, 175);
+
+// Ten well-separated colours (the "tab10" set of many plotting tools), in BGR order.
+const cv::Scalar kPalette[] = {{180, 119, 31},  {14, 127, 255}, {44, 160, 44},   {40, 39, 214},
+                               {189, 103, 148}, {75, 86, 140},  {194, 119, 227}, {127, 127, 127},
+                               {34, 189, 188},  {207, 190, 23}};
+constexpr int kPaletteSize = sizeof(kPalette) / sizeof(kPalette[0]);
+
+struct Font {
+  double scale = 0.5;
+  int thickness = 1;
+
+  // Width, and height above plus below the baseline.
+  cv::Size Measure(const std::string& text) const {
+    int baseline = 0;
+    const cv::Size size = cv::getTextSize(text, kFont, scale, thickness, &baseline);
+    return {size.width, size.height + baseline};
+  }
+  int Ascent() const {
+    int baseline = 0;
+    return cv::getTextSize("0", kFont, scale, thickness, &baseline).height;
+  }
+  // Draws `text` with its top-left corner (of the ascent box) at `top_left`.
+  void Draw(cv::Mat& image, const std::string& text, cv::Point top_left,
+            const cv::Scalar& colour) const {
+    int baseline = 0;
+    const cv::Size size = cv::getTextSize(text, kFont, scale, thickness, &baseline);
+    cv::putText(image, text, {top_left.x, top_left.y + size.height}, kFont, scale, colour,
+                thickness, cv::LINE_AA);
+  }
+};
+
+// Maps data coordinates (0..1 with a small margin so that lines on 0 and 1 stay visible) to
+// pixels of the plot area.
+struct Axes {
+  cv::Rect box;
+  double lo = -0.02;
+  double hi = 1.02;
+
+  cv::Point2d ToPixel(double x, double y) const {
+    x = std::isnan(x) ? 0.0 : std::clamp(x, 0.0, 1.0);
+    y = std::isnan(y) ? 0.0 : std::clamp(y, 0.0, 1.0);
+    return {box.x + (x - lo) / (hi - lo) * box.width,
+            box.y + box.height - (y - lo) / (hi - lo) * box.height};
+  }
+  // The same point in fixed-point coordinates for drawing with kShift.
+  cv::Point ToFixed(double x, double y) const {
+    const cv::Point2d p = ToPixel(x, y);
+    return {cvRound(p.x * kOne), cvRound(p.y * kOne)};
+  }
+};
+
+std::string TickLabel(int tenths) {
+  return std::to_string(tenths / 10) + "." + std::to_string(tenths % 10);
+}
+
+// The step curve whose area is the average precision: precision P_i holds from recall R_{i-1}
+// to R_i, starting at recall 0.
+std::vector<cv::Point2d> StepCurve(const RunScore& score) {
+  std::vector<cv::Point2d> points;
+  double recall = 0;
+  for (const PrPoint& p : score.curve) {
+    points.push_back({recall, p.precision});
+    points.push_back({p.recall, p.precision});
+    recall = p.recall;
+  }
+  return points;
+}
+
+bool HasMarker(const RunScore& score) { return !score.curve.empty() && score.max_f1 > 0; }
+
+// Shortens `text` with "..." until it fits in `width` pixels.
+std::string Fit(const std::string& text, const Font& font, int width) {
+  if (font.Measure(text).width <= width) return text;
+  std::string shortened = text;
+  while (!shortened.empty() && font.Measure(shortened + "...").width > width) shortened.pop_back();
+  return shortened + "...";
+}
+
+void DrawMarker(cv::Mat& image, cv::Point centre_fixed, int radius, const cv::Scalar& fill) {
+  cv::circle(image, centre_fixed, radius << kShift, fill, cv::FILLED, cv::LINE_AA, kShift);
+  cv::circle(image, centre_fixed, radius << kShift, kText, 1, cv::LINE_AA, kShift);
+}
+
+// The legend: one row per curve (a line sample, its max-F1 marker, the label), and a last row
+// explaining the marker.
+struct Legend {
+  std::vector<std::string> labels;
+  std::vector<bool> markers;  // per curve row
+  Font font;
+  int pad = 8;
+  int sample = 30;  // length of the line sample, pixels
+  int text_height = 0;
+  int row = 0;
+  cv::Size size;
+
+  bool empty() const { return labels.empty(); }
+};
+
+// Lays the legend out for at most `max_width` pixels: shrinks the font until the longest label
+// fits, then cuts what still does not.
+Legend MakeLegend(const std::vector<PrCurve>& curves, int max_width, double k) {
+  Legend legend;
+  for (const PrCurve& curve : curves) {
+    legend.labels.push_back(curve.label);
+    legend.markers.push_back(HasMarker(curve.score));
+  }
+  if (std::find(legend.markers.begin(), legend.markers.end(), true) != legend.markers.end()) {
+    legend.labels.push_back("max F1");
+  }
+  legend.font = Font{0.5 * k, 1};
+  legend.pad = std::max(4, cvRound(8 * k));
+  legend.sample = std::max(16, cvRound(30 * k));
+  auto widest = [&legend] {
+    int w = 0;
+    for (const std::string& label : legend.labels)
+      w = std::max(w, legend.font.Measure(label).width);
+    return w;
+  };
+  const int room = max_width - 3 * legend.pad - legend.sample;
+  while (legend.font.scale > 0.3 && widest() > room) legend.font.scale *= 0.9;
+  for (std::string& label : legend.labels) label = Fit(label, legend.font, room);
+  legend.text_height = legend.font.Measure("Ag").height;
+  legend.row = legend.text_height + legend.pad;
+  legend.size = cv::Size(3 * legend.pad + legend.sample + widest(),
+                         static_cast<int>(legend.labels.size()) * legend.row + legend.pad);
+  return legend;
+}
+
+// How much `where` would hide: pixels of curve under it, plus a large penalty per max-F1 marker
+// it covers or crowds.
+double Hidden(const cv::Rect& where, const Axes& axes, const std::vector<PrCurve>& curves,
+              const std::vector<std::vector<cv::Point2d>>& steps, int margin) {
+  double hidden = 0;
+  for (const std::vector<cv::Point2d>& step : steps) {
+    for (size_t i = 1; i < step.size(); ++i) {
+      const cv::Point2d from = axes.ToPixel(step[i - 1].x, step[i - 1].y);
+      const cv::Point2d to = axes.ToPixel(step[i].x, step[i].y);
+      const double length = cv::norm(to - from);
+      const int samples = std::max(1, static_cast<int>(std::ceil(length / 2)));
+      for (int s = 0; s <= samples; ++s) {
+        const cv::Point2d p = from + (to - from) * (static_cast<double>(s) / samples);
+        if (where.contains(cv::Point(cvRound(p.x), cvRound(p.y)))) hidden += length / (samples + 1);
+      }
+    }
+  }
+  const cv::Rect crowded(where.x - margin, where.y - margin, where.width + 2 * margin,
+                         where.height + 2 * margin);
+  for (const PrCurve& curve : curves) {
+    if (!HasMarker(curve.score)) continue;
+    const cv::Point2d m =
+        axes.ToPixel(curve.score.recall_at_max_f1, curve.score.precision_at_max_f1);
+    if (crowded.contains(cv::Point(cvRound(m.x), cvRound(m.y)))) hidden += 1e6;
+  }
+  return hidden;
+}
+
+// Of nine places in the plot area (corners, edge middles, centre), the one that hides least;
+// lower left first, since PR curves usually start high on the left and fall to the right.
+cv::Rect BestPlaceInside(const Legend& legend, const Axes& axes, const std::vector<PrCurve>& curves,
+                         const std::vector<std::vector<cv::Point2d>>& steps, int inset,
+                         double* hidden) {
+  const cv::Rect& b = axes.box;
+  const cv::Size& size = legend.size;
+  const int x0 = b.x + inset;
+  const int x1 = b.x + (b.width - size.width) / 2;
+  const int x2 = b.br().x - inset - size.width;
+  const int y0 = b.y + inset;
+  const int y1 = b.y + (b.height - size.height) / 2;
+  const int y2 = b.br().y - inset - size.height;
+  const cv::Point places[] = {{x0, y2}, {x2, y2}, {x2, y0}, {x0, y0}, {x1, y2},
+                              {x2, y1}, {x1, y0}, {x0, y1}, {x1, y1}};
+  cv::Rect best(places[0], size);
+  *hidden = -1;
+  for (const cv::Point& place : places) {
+    const cv::Rect candidate(place, size);
+    const double h = Hidden(candidate, axes, curves, steps, inset);
+    if (*hidden < 0 || h < *hidden) {
+      *hidden = h;
+      best = candidate;
+    }
+  }
+  return best;
+}
+
+void DrawLegend(cv::Mat& image, const Legend& legend, const cv::Rect& where, double k) {
+  // A slightly see-through box, so that a curve under it still shows faintly.
+  cv::Mat under = image(where & cv::Rect(0, 0, image.cols, image.rows));
+  cv::addWeighted(under, 0.12, cv::Mat(under.size(), under.type(), kWhite), 0.88, 0, under);
+  cv::rectangle(image, where, kLegendBorder, 1, cv::LINE_AA);
+  const int line_thickness = std::max(1, cvRound(2 * k));
+  const int radius = std::max(3, cvRound(5 * k));
+  const int pad = legend.pad;
+  for (size_t i = 0; i < legend.labels.size(); ++i) {
+    const int middle = where.y + pad + static_cast<int>(i) * legend.row + legend.text_height / 2;
+    const cv::Point left(where.x + pad, middle);
+    const cv::Point right(where.x + pad + legend.sample, middle);
+    const cv::Point centre_fixed = ((left + right) / 2) * static_cast<int>(kOne);
+    if (i < legend.markers.size()) {
+      const cv::Scalar& colour = kPalette[i % kPaletteSize];
+      cv::line(image, left, right, colour, line_thickness, cv::LINE_AA);
+      if (legend.markers[i]) DrawMarker(image, centre_fixed, radius, colour);
+    } else {
+      DrawMarker(image, centre_fixed, radius, kWhite);
+    }
+    legend.font.Draw(image, legend.labels[i],
+                     {where.x + 2 * pad + legend.sample, middle - legend.font.Ascent() / 2}, kText);
+  }
+}
+
+Status WritePng(const std::string& path, const cv::Mat& image) {
+  std::vector<uchar> bytes;
+  try {
+    if (!cv::imencode(".png", image, bytes)) return Status::Internal("PNG encoding failed");
+  } catch (const cv::Exception& e) {
+    return Status::Internal(std::string("PNG encoding failed: ") + e.what());
+  }
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) return Status::IoError("cannot write " + path + ": " + std::strerror(errno));
+  out.write(reinterpret_cast<const char*>(bytes.data()),
+            static_cast<std::streamsize>(bytes.size()));
+  out.close();
+  if (!out) return Status::IoError("error while writing " + path + " (disk full?)");
+  return Status::Ok();
+}
+
+}  // namespace
+
+Status WritePrCurvePng(const std::string& path, const std::string& title,
+                       const std::vector<PrCurve>& curves, int width, int height) {
+  if (width < kMinWidth || height < kMinHeight || width > kMaxSide || height > kMaxSide) {
+    return Status::InvalidArgument(
+        "PR plot size " + std::to_string(width) + "x" + std::to_string(height) + " is outside " +
+        std::to_string(kMinWidth) + "x" + std::to_string(kMinHeight) + " .. " +
+        std::to_string(kMaxSide) + "x" + std::to_string(kMaxSide));
+  }
+  if (path.empty()) return Status::InvalidArgument("PR plot path is empty");
+
+  // Everything scales with the picture; 800x600 is scale 1.
+  const double k = std::clamp(std::min(width / 800.0, height / 600.0), 0.4, 4.0);
+  const int pad = std::max(4, cvRound(10 * k));
+  const int tick = std::max(3, cvRound(5 * k));
+  Font title_font{0.75 * k, std::max(1, cvRound(2 * k))};
+  const Font tick_font{0.45 * k, 1};
+  const Font label_font{0.6 * k, 1};
+  while (title_font.scale > 0.3 && title_font.Measure(title).width > width - 2 * pad) {
+    title_font.scale *= 0.9;
+  }
+
+  const cv::Size title_size = title_font.Measure(title);
+  const cv::Size tick_size = tick_font.Measure("0.0");
+  const cv::Size label_size = label_font.Measure("precision");
+  const int top = pad + (title.empty() ? 0 : title_size.height + pad);
+  const int left = pad + label_size.height + pad + tick_size.width + tick + pad / 2;
+  int bottom = tick + pad / 2 + tick_size.height + pad + label_size.height + pad;
+  const int right = 2 * pad + tick_size.width / 2;
+  Axes axes;
+  axes.box = cv::Rect(left, top, width - left - right, height - top - bottom);
+
+  // The curves as steps; the legend goes inside the plot area where it hides (almost) nothing,
+  // otherwise below the plot when there is room for it.
+  std::vector<std::vector<cv::Point2d>> steps;
+  double curve_length = 0;
+  for (const PrCurve& curve : curves) {
+    steps.push_back(StepCurve(curve.score));
+    for (size_t i = 1; i < steps.back().size(); ++i) {
+      curve_length += cv::norm(axes.ToPixel(steps.back()[i].x, steps.back()[i].y) -
+                               axes.ToPixel(steps.back()[i - 1].x, steps.back()[i - 1].y));
+    }
+  }
+  const int inset = std::max(6, cvRound(12 * k));
+  const Legend legend = MakeLegend(curves, axes.box.width - 2 * inset, k);
+  cv::Rect legend_at;
+  if (!legend.empty()) {
+    double hidden = 0;
+    legend_at = BestPlaceInside(legend, axes, curves, steps, inset, &hidden);
+    const int below = legend.size.height + pad;
+    if (hidden > 0.01 * curve_length && axes.box.height - below >= axes.box.width / 3) {
+      bottom += below;
+      axes.box.height -= below;
+      legend_at = cv::Rect(cv::Point(axes.box.x + axes.box.width / 2 - legend.size.width / 2,
+                                     height - pad - legend.size.height),
+                           legend.size);
+    }
+  }
+
+  cv::Mat image(height, width, CV_8UC3, kWhite);
+  const cv::Rect& box = axes.box;
+
+  // Grid, ticks and tick labels every 0.1.
+  for (int i = 0; i <= 10; ++i) {
+    const double v = i / 10.0;
+    const int x = cvRound(axes.ToPixel(v, 0).x);
+    const int y = cvRound(axes.ToPixel(0, v).y);
+    cv::line(image, {x, box.y + 1}, {x, box.br().y - 2}, kGrid, 1, cv::LINE_AA);
+    cv::line(image, {box.x + 1, y}, {box.br().x - 2, y}, kGrid, 1, cv::LINE_AA);
+    cv::line(image, {x, box.br().y - 1}, {x, box.br().y - 1 + tick}, kAxis, 1, cv::LINE_AA);
+    cv::line(image, {box.x - tick, y}, {box.x, y}, kAxis, 1, cv::LINE_AA);
+    const std::string text = TickLabel(i);
+    const cv::Size size = tick_font.Measure(text);
+    tick_font.Draw(image, text, {x - size.width / 2, box.br().y + tick + pad / 2}, kText);
+    tick_font.Draw(image, text, {box.x - tick - pad / 2 - size.width, y - tick_font.Ascent() / 2},
+                   kText);
+  }
+  cv::rectangle(image, box, kAxis, 1, cv::LINE_AA);
+
+  // Axis labels; "precision" is drawn on its own strip and turned to read bottom to top.
+  label_font.Draw(image, "recall",
+                  {box.x + box.width / 2 - label_font.Measure("recall").width / 2,
+                   box.br().y + tick + pad / 2 + tick_size.height + pad},
+                  kText);
+  cv::Mat strip(label_size.height, label_size.width, CV_8UC3, kWhite);
+  label_font.Draw(strip, "precision", {0, 0}, kText);
+  cv::Mat turned;
+  cv::rotate(strip, turned, cv::ROTATE_90_COUNTERCLOCKWISE);
+  const cv::Rect strip_at(pad, box.y + box.height / 2 - turned.rows / 2, turned.cols, turned.rows);
+  if ((strip_at & cv::Rect(0, 0, width, height)) == strip_at) turned.copyTo(image(strip_at));
+
+  if (!title.empty()) {
+    title_font.Draw(image, title, {width / 2 - title_size.width / 2, pad}, kText);
+  }
+
+  // Curves, then their max-F1 markers on top, then the legend.
+  const int line_thickness = std::max(1, cvRound(2 * k));
+  for (size_t i = 0; i < curves.size(); ++i) {
+    std::vector<cv::Point> fixed;
+    for (const cv::Point2d& p : steps[i]) fixed.push_back(axes.ToFixed(p.x, p.y));
+    if (!fixed.empty()) {
+      cv::polylines(image, fixed, false, kPalette[i % kPaletteSize], line_thickness, cv::LINE_AA,
+                    kShift);
+    }
+  }
+  const int radius = std::max(3, cvRound(5 * k));
+  for (size_t i = 0; i < curves.size(); ++i) {
+    const RunScore& score = curves[i].score;
+    if (!HasMarker(score)) continue;
+    DrawMarker(image, axes.ToFixed(score.recall_at_max_f1, score.precision_at_max_f1), radius,
+               kPalette[i % kPaletteSize]);
+  }
+  if (!legend.empty()) DrawLegend(image, legend, legend_at, k);
+
+  return WritePng(path, image);
+}
+
+}  // namespace placerec
