@@ -28,6 +28,14 @@ bool FeatureOptions::Check(std::string* error) const {
     *error = "sift sigma must be positive";
     return false;
   }
+  if (min_keypoints < 0) {
+    *error = "sift min_keypoints must be >= 0 (0 never retries)";
+    return false;
+  }
+  if (low_contrast_threshold <= 0 || low_contrast_threshold >= 1) {
+    *error = "sift low_contrast_threshold must be in (0, 1)";
+    return false;
+  }
   return true;
 }
 
@@ -39,11 +47,19 @@ Features ExtractFeatures(const cv::Mat& image, const FeatureOptions& options) {
   } else {
     gray = image;
   }
-  cv::Ptr<cv::SIFT> sift =
-      cv::SIFT::create(options.max_features, options.octave_layers, options.contrast_threshold,
-                       options.edge_threshold, options.sigma, CV_8U);
-  Features features;
-  sift->detectAndCompute(gray, cv::noArray(), features.keypoints, features.descriptors);
+  auto run = [&](double contrast_threshold) {
+    cv::Ptr<cv::SIFT> sift =
+        cv::SIFT::create(options.max_features, options.octave_layers, contrast_threshold,
+                         options.edge_threshold, options.sigma, CV_8U);
+    Features features;
+    sift->detectAndCompute(gray, cv::noArray(), features.keypoints, features.descriptors);
+    return features;
+  };
+  Features features = run(options.contrast_threshold);
+  if (features.size() < options.min_keypoints &&
+      options.low_contrast_threshold < options.contrast_threshold) {
+    features = run(options.low_contrast_threshold);
+  }
   if (features.descriptors.empty()) {
     features.descriptors.create(0, kDescriptorSize, CV_8U);
   }

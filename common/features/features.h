@@ -23,6 +23,11 @@ struct FeatureOptions {
   double edge_threshold = 10.0;
   // Gaussian sigma of the first octave (cv::SIFT default).
   double sigma = 1.6;
+  // Plain scenes (an indoor corridor) give few keypoints at the default contrast threshold:
+  // when a frame has fewer than this many, SIFT runs again with low_contrast_threshold.
+  // 0 never retries.
+  int min_keypoints = 1000;
+  double low_contrast_threshold = 0.01;
 
   bool Check(std::string* error) const;
 };

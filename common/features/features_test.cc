@@ -44,6 +44,20 @@ TEST(FeaturesTest, FlatImageGivesNoKeypointsButAValidMatrix) {
   EXPECT_EQ(features.descriptors.rows, 0);
 }
 
+TEST(FeaturesTest, PlainFramesRetryWithALowerContrastThreshold) {
+  // A faint pattern: few keypoints at the default threshold, many more after the retry.
+  cv::Mat faint = Checkerboard(256, 16);
+  faint.convertTo(faint, -1, 0.04, 120);
+  FeatureOptions once;
+  once.min_keypoints = 0;
+  FeatureOptions adaptive;
+  adaptive.min_keypoints = 1000;
+  const int without = ExtractFeatures(faint, once).size();
+  const int with = ExtractFeatures(faint, adaptive).size();
+  EXPECT_LT(without, 50);
+  EXPECT_GT(with, 2 * without + 10);
+}
+
 TEST(FeaturesTest, MaxFeaturesCaps) {
   FeatureOptions options;
   options.max_features = 5;

@@ -71,8 +71,7 @@ StatusOr<cv::Mat> DecodeImage(const uint8_t* data, size_t size, ImageEncoding en
                                 SizeText(width, height) + " needs " + std::to_string(expected) +
                                 " bytes, got " + std::to_string(size));
       }
-      cv::Mat wrapped(height, width, channels == 3 ? CV_8UC3 : CV_8UC1,
-                      const_cast<uint8_t*>(data));
+      cv::Mat wrapped(height, width, channels == 3 ? CV_8UC3 : CV_8UC1, const_cast<uint8_t*>(data));
       cv::Mat bgr;
       if (channels == 3) {
         bgr = wrapped.clone();
@@ -89,8 +88,8 @@ StatusOr<cv::Mat> DecodeImage(const uint8_t* data, size_t size, ImageEncoding en
       }
       if (width > 0) PLACEREC_RETURN_IF_ERROR(CheckDimensions(width, height, options));
       const bool is_jpeg = size >= 3 && data[0] == 0xFF && data[1] == 0xD8 && data[2] == 0xFF;
-      const bool is_png = size >= 8 && data[0] == 0x89 && data[1] == 'P' && data[2] == 'N' &&
-                          data[3] == 'G';
+      const bool is_png =
+          size >= 8 && data[0] == 0x89 && data[1] == 'P' && data[2] == 'N' && data[3] == 'G';
       if (encoding == ImageEncoding::kJpeg && !is_jpeg) {
         return Status::BadImage("bytes do not start with a JPEG signature");
       }
@@ -103,8 +102,8 @@ StatusOr<cv::Mat> DecodeImage(const uint8_t* data, size_t size, ImageEncoding en
       try {
         bgr = cv::imdecode(bytes, cv::IMREAD_COLOR);
       } catch (const cv::Exception& e) {
-        return Status::BadImage(std::string("cannot decode ") + ImageEncodingName(encoding) +
-                                ": " + e.what());
+        return Status::BadImage(std::string("cannot decode ") + ImageEncodingName(encoding) + ": " +
+                                e.what());
       }
       if (bgr.empty()) {
         return Status::BadImage(std::string("cannot decode ") + ImageEncodingName(encoding) +
@@ -151,9 +150,9 @@ cv::Mat GaussianColourModel(const cv::Mat& bgr) {
   // Rows of seed eq. 5.6 applied to (R, G, B); OpenCV stores B, G, R, so the columns are
   // reversed and the 1/255 scaling is folded in.
   const float s = 1.0f / 255.0f;
-  const cv::Matx33f m(0.27f * s, 0.63f * s, 0.06f * s,     //
-                      -0.35f * s, 0.04f * s, 0.30f * s,    //
-                      0.17f * s, -0.60f * s, 0.34f * s);   //
+  const cv::Matx33f m(0.27f * s, 0.63f * s, 0.06f * s,    //
+                      -0.35f * s, 0.04f * s, 0.30f * s,   //
+                      0.17f * s, -0.60f * s, 0.34f * s);  //
   cv::Mat bgr_float;
   bgr.convertTo(bgr_float, CV_32F);
   cv::Mat model;
@@ -191,8 +190,8 @@ cv::Mat ColourInvariantH(const cv::Mat& bgr, const ColourInvariantOptions& optio
       const float d = in[x][0];
       const float d_l = in[x][1];
       const float d_ll = in[x][2];
-      const bool usable = d >= options.min_intensity &&
-                          std::abs(d_ll) >= options.min_denominator * d;
+      const bool usable =
+          d >= options.min_intensity && std::abs(d_ll) >= options.min_denominator * d;
       ok[x] = usable ? 255 : 0;
       const float ratio = std::abs(d_ll) > 1e-9f ? d_l / d_ll : (d_l >= 0 ? max_h : -max_h);
       out[x] = std::clamp(ratio, -max_h, max_h);

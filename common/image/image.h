@@ -66,7 +66,6 @@ struct ColourInvariantOptions {
 
 // Colour invariant H = D_lambda / D_lambdalambda per pixel (seed eq. 5.13), CV_32F, clamped.
 // `valid` (CV_8U, 255 = usable) marks pixels that pass the intensity and pole tests.
-cv::Mat ColourInvariantH(const cv::Mat& bgr, const ColourInvariantOptions& options,
-                         cv::Mat* valid);
+cv::Mat ColourInvariantH(const cv::Mat& bgr, const ColourInvariantOptions& options, cv::Mat* valid);
 
 }  // namespace placerec

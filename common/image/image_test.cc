@@ -8,9 +8,7 @@
 namespace placerec {
 namespace {
 
-cv::Mat Flat(int width, int height, cv::Scalar bgr) {
-  return cv::Mat(height, width, CV_8UC3, bgr);
-}
+cv::Mat Flat(int width, int height, cv::Scalar bgr) { return cv::Mat(height, width, CV_8UC3, bgr); }
 
 TEST(DecodeTest, DefaultOptionsPass) {
   std::string error;
@@ -49,7 +47,8 @@ TEST(DecodeTest, RejectsWhatIsWrongWithAMessage) {
   const DecodeOptions options;
 
   // Declared size does not match the JPEG.
-  StatusOr<cv::Mat> r = DecodeImage(jpeg.data(), jpeg.size(), ImageEncoding::kJpeg, 65, 48, options);
+  StatusOr<cv::Mat> r =
+      DecodeImage(jpeg.data(), jpeg.size(), ImageEncoding::kJpeg, 65, 48, options);
   EXPECT_EQ(r.status().code(), StatusCode::kBadImage);
   EXPECT_NE(r.status().message().find("does not match"), std::string::npos);
 
@@ -73,7 +72,8 @@ TEST(DecodeTest, RejectsWhatIsWrongWithAMessage) {
   EXPECT_FALSE(DecodeImage(nullptr, 0, ImageEncoding::kPng, 0, 0, options).ok());
 
   // Raw that is right decodes, gray becomes BGR.
-  StatusOr<cv::Mat> ok = DecodeImage(raw.data(), 64 * 48, ImageEncoding::kRawGray8, 64, 48, options);
+  StatusOr<cv::Mat> ok =
+      DecodeImage(raw.data(), 64 * 48, ImageEncoding::kRawGray8, 64, 48, options);
   ASSERT_TRUE(ok.ok());
   EXPECT_EQ(ok->type(), CV_8UC3);
 }
@@ -102,10 +102,10 @@ TEST(ColourTest, InvariantHOfKnownColours) {
   };
   // H = D_lambda / D_lambdalambda with eq. 5.6 rows (0.3, 0.04, -0.35) and (0.34, -0.6, 0.17).
   const Case cases[] = {
-      {cv::Scalar(0, 0, 255), 0.30f / 0.34f},       // red
-      {cv::Scalar(0, 255, 0), 0.04f / -0.60f},      // green
-      {cv::Scalar(255, 0, 0), -0.35f / 0.17f},      // blue
-      {cv::Scalar(128, 128, 128), -0.01f / -0.09f}, // grey: the same for any grey level
+      {cv::Scalar(0, 0, 255), 0.30f / 0.34f},        // red
+      {cv::Scalar(0, 255, 0), 0.04f / -0.60f},       // green
+      {cv::Scalar(255, 0, 0), -0.35f / 0.17f},       // blue
+      {cv::Scalar(128, 128, 128), -0.01f / -0.09f},  // grey: the same for any grey level
       {cv::Scalar(200, 200, 200), -0.01f / -0.09f},
   };
   for (const Case& c : cases) {

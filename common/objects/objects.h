@@ -54,14 +54,14 @@ struct ObjectOptions {
 };
 
 struct SceneObject {
-  int segment = -1;                     // id in the SceneSegmentation
+  int segment = -1;  // id in the SceneSegmentation
   SegmentClass segment_class = SegmentClass::kStructured;
-  cv::Rect box;                         // full-resolution pixels
-  cv::Rect working_box;                 // the same box at the segmentation's working resolution
-  cv::Mat mask;                         // CV_8U, 255 inside; working resolution, working_box size
-  std::vector<int> keypoints;           // indices into the frame's Features
-  cv::Mat descriptors;                  // CV_8U, rows in the order of `keypoints`
-  std::vector<float> h_histogram;       // normalised H histogram (sums to 1, or all 0)
+  cv::Rect box;                    // full-resolution pixels
+  cv::Rect working_box;            // the same box at the segmentation's working resolution
+  cv::Mat mask;                    // CV_8U, 255 inside; working resolution, working_box size
+  std::vector<int> keypoints;      // indices into the frame's Features
+  cv::Mat descriptors;             // CV_8U, rows in the order of `keypoints`
+  std::vector<float> h_histogram;  // normalised H histogram (sums to 1, or all 0)
   ColourSignature colour;
 
   int sift_count() const { return static_cast<int>(keypoints.size()); }
@@ -74,6 +74,5 @@ std::vector<SceneObject> ExtractObjects(const Features& features,
                                         const SceneSegmentation& segmentation, const cv::Mat& h,
                                         const cv::Mat& h_valid, double max_abs_h,
                                         const ObjectOptions& options);
-
 
 }  // namespace placerec

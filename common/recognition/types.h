@@ -39,7 +39,7 @@ struct Landmark {
   ColourSignature colour;  // dominant H peaks (seed §5.6)
   cv::Rect box;            // full-resolution pixels in the place's frame
   SegmentClass segment_class = SegmentClass::kStructured;
-  cv::Mat descriptors;     // CV_8U, the stored SIFT descriptors, one 128-byte row each
+  cv::Mat descriptors;                  // CV_8U, the stored SIFT descriptors, one 128-byte row each
   std::vector<cv::KeyPoint> keypoints;  // one per stored descriptor (x, y, size, angle kept)
 
   int num_descriptors() const { return descriptors.rows; }

@@ -14,14 +14,15 @@ namespace placerec {
 
 class FlagParser {
  public:
-  // `usage` is printed first by --help, e.g. "placerec-eval run --dataset DIR --run NAME --out OUT".
+  // `usage` is printed first by --help, e.g. "placerec-eval run --dataset DIR --run NAME --out
+  // OUT".
   explicit FlagParser(std::string usage);
 
   // Adds `--name` bound to *field; `help` should give units and the seed section.
   template <typename T>
   void Add(const std::string& name, T* field, const std::string& help) {
-    options_.add_options()(name.c_str(),
-                           boost::program_options::value<T>(field)->default_value(*field), help.c_str());
+    options_.add_options()(
+        name.c_str(), boost::program_options::value<T>(field)->default_value(*field), help.c_str());
   }
   // A flag without a default that must be given.
   template <typename T>

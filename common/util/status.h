@@ -15,8 +15,8 @@ enum class StatusCode {
   kInvalidArgument,  // a bad option value or a malformed request
   kBadImage,         // bytes that do not decode to an image of the stated kind and size
   kNotFound,
-  kIoError,          // a file or database that cannot be read or written
-  kOverloaded,       // the server's queue is full
+  kIoError,     // a file or database that cannot be read or written
+  kOverloaded,  // the server's queue is full
   kInternal,
 };
 
@@ -28,7 +28,9 @@ class Status {
   Status(StatusCode code, std::string message) : code_(code), message_(std::move(message)) {}
 
   static Status Ok() { return Status(); }
-  static Status InvalidArgument(std::string m) { return {StatusCode::kInvalidArgument, std::move(m)}; }
+  static Status InvalidArgument(std::string m) {
+    return {StatusCode::kInvalidArgument, std::move(m)};
+  }
   static Status BadImage(std::string m) { return {StatusCode::kBadImage, std::move(m)}; }
   static Status NotFound(std::string m) { return {StatusCode::kNotFound, std::move(m)}; }
   static Status IoError(std::string m) { return {StatusCode::kIoError, std::move(m)}; }
@@ -82,8 +84,8 @@ class StatusOr {
 }  // namespace placerec
 
 // Returns early from the calling function when `expr` yields a non-ok Status.
-#define PLACEREC_RETURN_IF_ERROR(expr)               \
-  do {                                               \
-    ::placerec::Status placerec_status_ = (expr);    \
+#define PLACEREC_RETURN_IF_ERROR(expr)                   \
+  do {                                                   \
+    ::placerec::Status placerec_status_ = (expr);        \
     if (!placerec_status_.ok()) return placerec_status_; \
   } while (0)

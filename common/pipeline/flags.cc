@@ -1,0 +1,144 @@
+#include "common/pipeline/flags.h"
+
+#include <istream>
+#include <ostream>
+
+namespace placerec {
+
+std::ostream& operator<<(std::ostream& os, QueryObjects value) {
+  return os << (value == QueryObjects::kAll ? "all" : "landmarks");
+}
+
+std::istream& operator>>(std::istream& is, QueryObjects& value) {
+  std::string text;
+  is >> text;
+  if (text == "all") {
+    value = QueryObjects::kAll;
+  } else if (text == "landmarks") {
+    value = QueryObjects::kLandmarks;
+  } else {
+    is.setstate(std::ios::failbit);
+  }
+  return is;
+}
+
+std::ostream& operator<<(std::ostream& os, IndexSearch value) {
+  return os << (value == IndexSearch::kFlann ? "flann" : "exhaustive");
+}
+
+std::istream& operator>>(std::istream& is, IndexSearch& value) {
+  std::string text;
+  is >> text;
+  if (text == "flann") {
+    value = IndexSearch::kFlann;
+  } else if (text == "exhaustive") {
+    value = IndexSearch::kExhaustive;
+  } else {
+    is.setstate(std::ios::failbit);
+  }
+  return is;
+}
+
+void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
+  AnalyzerOptions& a = o->analyzer;
+  p->Add("max-image-width", &a.max_image_width,
+         "frames wider than this are scaled down before SIFT (pixels; 0 keeps the size)");
+  p->Add("sift-max-features", &a.features.max_features, "keep the strongest N keypoints (0: all)");
+  p->Add("sift-octave-layers", &a.features.octave_layers, "SIFT scale-space layers per octave");
+  p->Add("sift-contrast-threshold", &a.features.contrast_threshold,
+         "SIFT DoG contrast threshold (lower finds more keypoints on plain scenes)");
+  p->Add("sift-edge-threshold", &a.features.edge_threshold, "SIFT edge-response threshold");
+  p->Add("sift-sigma", &a.features.sigma, "SIFT first-octave Gaussian sigma");
+  p->Add("sift-min-keypoints", &a.features.min_keypoints,
+         "frames with fewer keypoints are run again at the low contrast threshold (0: never)");
+  p->Add("sift-low-contrast-threshold", &a.features.low_contrast_threshold,
+         "contrast threshold of the retry on plain frames");
+  p->Add("segment-width", &a.superpixels.working_width,
+         "segmentation working width in pixels (seed §6.1: about 320x240; 0: frame size)");
+  p->Add("fh-sigma", &a.superpixels.sigma, "Felzenszwalb-Huttenlocher smoothing sigma (§6.1.2)");
+  p->Add("fh-k", &a.superpixels.k, "FH threshold k at 640x480, scaled by area (§6.1.2)");
+  p->Add("fh-min-size", &a.superpixels.min_size,
+         "FH minimum component at 640x480 in pixels, scaled by area (§6.1.2)");
+  p->Add("min-region-fraction", &a.superpixels.min_region_fraction,
+         "regions below this fraction of the image merge into a neighbour (§3.6: 0.0003)");
+  p->Add("colour-merge-distance", &a.superpixels.colour_merge_distance,
+         "merge adjacent regions closer than this in CIE Lab (Delta E; §3.6; 0 disables)");
+  p->Add("h-min-intensity", &a.colour.min_intensity,
+         "colour invariant: ignore pixels darker than this (eq. 5.6 D, 0..1)");
+  p->Add("h-min-denominator", &a.colour.min_denominator,
+         "colour invariant: ignore pixels with |D_ll| below this fraction of D");
+  p->Add("h-max", &a.colour.max_abs_h, "colour invariant H is clamped to [-h-max, h-max]");
+  p->Add("min-frame-chroma", &a.min_frame_chroma,
+         "frames with less mean Lab chroma are treated as grey (no colour filter)");
+  p->Add("object-min-keypoints", &a.objects.min_keypoints,
+         "a segment is an object with at least this many keypoints (§5.7: more than 8)");
+  p->Add("objects-include-background", &a.objects.include_background,
+         "background segments (sky, road, tree, grass, water) may be objects too");
+  p->Add("h-bin-width", &a.objects.colour.bin_width, "H histogram bin width");
+  p->Add("h-peak-fraction", &a.objects.colour.peak_fraction,
+         "dominant H peaks are within this fraction of the highest (§5.6: 0.8)");
+  p->Add("h-peak-separation", &a.objects.colour.min_peak_separation,
+         "dominant peaks closer than this are one colour");
+  p->Add("landmark-history", &o->landmarks.history_frames,
+         "previous frames of the same robot an object is compared with (§5.7: 3)");
+  p->Add("landmark-min-matches", &o->landmarks.matching.min_matches,
+         "matched descriptors that make an object a landmark (§5.3: 6)");
+  p->Add("landmark-ratio", &o->landmarks.matching.ratio, "ratio test for landmark selection");
+  p->Add("landmark-knn", &o->landmarks.matching.knn,
+         "nearest neighbours per descriptor when comparing with previous frames");
+  p->Add("landmark-min-votes", &o->landmarks.matching.min_votes,
+         "neighbour votes an object pair needs before verification (landmarks)");
+  p->Add("landmark-exhaustive", &o->landmarks.matching.exhaustive_verification,
+         "verify voted object pairs with the exact ratio test over all rows (landmarks)");
+  p->Add("query-objects", &o->query_objects,
+         "objects looked up in the map: all | landmarks (seed §5.7)");
+  p->Add("store-tracked-only", &o->store_tracked_descriptors_only,
+         "store only the landmark descriptors that matched into previous frames");
+  p->Add("index-search", &o->index.search,
+         "verification: flann (nearest neighbours vote) | exhaustive (every candidate)");
+  p->Add("use-count-range", &o->index.use_count_range,
+         "restrict candidates by SIFT count (range tree, §5.6)");
+  p->Add("count-range-low", &o->index.count_range_low,
+         "candidates have at least this times the query's SIFT count (§5.6: 2/3)");
+  p->Add("count-range-high", &o->index.count_range_high,
+         "candidates have at most this times the query's SIFT count (§5.6: 4/3)");
+  p->Add("use-colour-filter", &o->index.use_colour_filter,
+         "restrict candidates by dominant colour invariant (§5.6)");
+  p->Add("colour-tolerance", &o->index.colour.tolerance, "dominant H difference (§5.6: 0.2)");
+  p->Add("multi-peak-needs-multi-peak", &o->index.colour.multi_peak_needs_multi_peak,
+         "a multi-colour query only matches multi-colour objects (§5.6)");
+  p->Add("match-ratio", &o->index.matching.ratio, "ratio test for retrieval");
+  p->Add("match-min", &o->index.matching.min_matches,
+         "matched descriptors that make two objects the same (§5.6: more than 6)");
+  p->Add("match-knn", &o->index.matching.knn, "nearest neighbours per query descriptor");
+  p->Add("match-min-votes", &o->index.matching.min_votes,
+         "neighbour votes a candidate pair needs before verification");
+  p->Add("match-exhaustive", &o->index.matching.exhaustive_verification,
+         "verify voted object pairs with the exact ratio test over all rows");
+  p->Add(
+      "vote-places", &o->index.vote_places,
+      "also verify the places most query descriptors have neighbours in (0: object matches only)");
+  p->Add("vote-window", &o->index.vote_window,
+         "a robot's places this many frames apart count as one location for the votes");
+  p->Add("flann-checks", &o->index.flann.checks, "FLANN leaves checked per query descriptor");
+  p->Add("min-same-robot-gap", &o->loop.min_same_robot_gap,
+         "a robot's own places count only this many frames back (§5.7)");
+  p->Add("min-same-robot-gap-seconds", &o->loop.min_same_robot_gap_seconds,
+         "... and this many seconds back");
+  p->Add("geometric-verification", &o->loop.geometric_verification,
+         "score places by fundamental-matrix RANSAC inliers");
+  p->Add("orientation-tolerance", &o->loop.orientation_tolerance,
+         "keep matches whose orientation change is this close to the place's usual one "
+         "(degrees; 0 keeps all)");
+  p->Add("max-inliers-per-landmark", &o->loop.max_inliers_per_landmark,
+         "a place scores at most this many inliers per landmark (0: no cap)");
+  p->Add("ransac-threshold", &o->loop.ransac_threshold,
+         "RANSAC epipolar distance in pixels of the processed frame");
+  p->Add("max-verified-places", &o->loop.max_verified_places,
+         "candidate places checked geometrically per frame");
+  p->Add("max-matches", &o->loop.max_matches, "places returned per frame");
+  p->Add("loop-min-score", &o->loop.min_score,
+         "a frame is a loop closure when its best place scores at least this");
+}
+
+}  // namespace placerec

@@ -1,0 +1,75 @@
+#include "common/pipeline/frame_analyzer.h"
+
+#include <cmath>
+
+#include "common/util/logging.h"
+
+namespace placerec {
+
+SceneSegmentation SuperpixelSegmenter::Segment(const WorkingImage& image) const {
+  return ComputeSuperpixels(image, options_);
+}
+
+bool AnalyzerOptions::Check(std::string* error) const {
+  if (max_image_width != 0 && max_image_width < 64) {
+    *error = "max_image_width must be 0 (keep) or at least 64 pixels";
+    return false;
+  }
+  if (min_frame_chroma < 0) {
+    *error = "min_frame_chroma must be non-negative";
+    return false;
+  }
+  return features.Check(error) && superpixels.Check(error) && colour.Check(error) &&
+         objects.Check(error);
+}
+
+FrameAnalyzer::FrameAnalyzer(const AnalyzerOptions& options, std::unique_ptr<Segmenter> segmenter)
+    : options_(options), segmenter_(std::move(segmenter)) {
+  if (!segmenter_) segmenter_ = std::make_unique<SuperpixelSegmenter>(options_.superpixels);
+}
+
+namespace {
+
+double MeanChroma(const cv::Mat& lab) {
+  double sum = 0;
+  for (int y = 0; y < lab.rows; ++y) {
+    const cv::Vec3f* row = lab.ptr<cv::Vec3f>(y);
+    for (int x = 0; x < lab.cols; ++x) sum += std::hypot(row[x][1], row[x][2]);
+  }
+  return lab.total() > 0 ? sum / static_cast<double>(lab.total()) : 0.0;
+}
+
+}  // namespace
+
+FrameObservation FrameAnalyzer::Analyze(const cv::Mat& bgr) const {
+  CHECK_EQ(bgr.type(), CV_8UC3);
+  FrameObservation observation;
+  observation.original_size = bgr.size();
+  Timer timer;
+  const cv::Mat frame = LimitWidth(bgr, options_.max_image_width, &observation.scale);
+  observation.processed_size = frame.size();
+  observation.timings.emplace_back("resize", timer.ElapsedMs());
+
+  timer.Restart();
+  observation.features = ExtractFeatures(frame, options_.features);
+  observation.timings.emplace_back("sift", timer.ElapsedMs());
+
+  timer.Restart();
+  const WorkingImage working = MakeWorkingImage(frame, options_.superpixels.working_width);
+  observation.segmentation = segmenter_->Segment(working);
+  observation.timings.emplace_back("segmentation", timer.ElapsedMs());
+
+  timer.Restart();
+  cv::Mat h_valid;
+  const cv::Mat h = ColourInvariantH(working.bgr, options_.colour, &h_valid);
+  observation.colourless = MeanChroma(working.lab) < options_.min_frame_chroma;
+  observation.objects = ExtractObjects(observation.features, observation.segmentation, h, h_valid,
+                                       options_.colour.max_abs_h, options_.objects);
+  if (observation.colourless) {
+    for (SceneObject& object : observation.objects) object.colour = ColourSignature();
+  }
+  observation.timings.emplace_back("objects", timer.ElapsedMs());
+  return observation;
+}
+
+}  // namespace placerec

@@ -1,0 +1,90 @@
+// Pipeline steps 1-6 for one frame, without any state: scale, SIFT, segmentation, colour
+// invariant and objects. Segmentation is pluggable: superpixels now, Perceptual Organization
+// (seed Ch. 3) later, with nothing downstream changing.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "common/features/features.h"
+#include "common/image/image.h"
+#include "common/objects/objects.h"
+#include "common/segmentation/segmentation.h"
+#include "common/segmentation/superpixels.h"
+#include "common/util/timer.h"
+
+namespace placerec {
+
+// Produces the segmentation objects are cut from.
+class Segmenter {
+ public:
+  virtual ~Segmenter() = default;
+  virtual SceneSegmentation Segment(const WorkingImage& image) const = 0;
+  virtual std::string name() const = 0;
+};
+
+// Improved superpixels (seed §3.6) as the segmentation, every segment structured.
+class SuperpixelSegmenter : public Segmenter {
+ public:
+  explicit SuperpixelSegmenter(const SuperpixelOptions& options) : options_(options) {}
+  SceneSegmentation Segment(const WorkingImage& image) const override;
+  std::string name() const override { return "superpixels"; }
+
+ private:
+  SuperpixelOptions options_;
+};
+
+struct AnalyzerOptions {
+  // Frames wider than this are scaled down (pixels) before SIFT; 0 keeps the frame's size.
+  int max_image_width = 0;
+  FeatureOptions features;
+  // Until Perceptual Organization groups object parts into objects, superpixels serve as the
+  // objects, so they are four times coarser than the seed's initial partition (k 1200 instead
+  // of 300 at 640x480): segments of that size hold enough keypoints to be matched as objects.
+  SuperpixelOptions superpixels = [] {
+    SuperpixelOptions o;
+    o.k = 1200.0;
+    return o;
+  }();
+  ColourInvariantOptions colour;
+  ObjectOptions objects;
+  // A frame whose mean chroma (CIE Lab sqrt(a^2 + b^2)) is below this carries no colour (a
+  // grey-level camera, seen at night): its objects get no colour signature, so the colour
+  // filter lets them through instead of calling everything grey.
+  double min_frame_chroma = 1.0;
+
+  bool Check(std::string* error) const;
+};
+
+struct FrameObservation {
+  cv::Size original_size;   // pixels of the decoded frame
+  cv::Size processed_size;  // after max_image_width
+  double scale = 1.0;       // processed / original
+  Features features;        // keypoints in processed pixels
+  SceneSegmentation segmentation;
+  std::vector<SceneObject> objects;  // boxes in processed pixels
+  bool colourless = false;
+  StageTimings timings;  // milliseconds per stage
+};
+
+class FrameAnalyzer {
+ public:
+  // Uses superpixels when `segmenter` is null.
+  explicit FrameAnalyzer(const AnalyzerOptions& options,
+                         std::unique_ptr<Segmenter> segmenter = nullptr);
+
+  // Thread-safe; `bgr` is a decoded 8-bit BGR frame.
+  FrameObservation Analyze(const cv::Mat& bgr) const;
+
+  const AnalyzerOptions& options() const { return options_; }
+  const Segmenter& segmenter() const { return *segmenter_; }
+
+ private:
+  AnalyzerOptions options_;
+  std::unique_ptr<Segmenter> segmenter_;
+};
+
+}  // namespace placerec

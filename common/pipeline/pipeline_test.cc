@@ -1,0 +1,177 @@
+#include <cstdio>
+#include <random>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "common/pipeline/frame_analyzer.h"
+#include "common/pipeline/place_map.h"
+#include "common/pipeline/recognizer.h"
+#include "common/storage/sqlite_store.h"
+
+namespace placerec {
+namespace {
+
+// A synthetic street, 3200 x 240: sky, ground and 60 textured "buildings" of random colours,
+// each sprinkled with darker and brighter spots so that SIFT finds keypoints inside them.
+constexpr int kViewWidth = 320;
+constexpr int kStep = 80;  // robots move a quarter view per frame
+
+cv::Mat World(unsigned seed) {
+  std::mt19937 rng(seed);
+  cv::Mat world(240, 3200, CV_8UC3);
+  world.rowRange(0, 100).setTo(cv::Scalar(230, 200, 150));
+  world.rowRange(100, 240).setTo(cv::Scalar(90, 100, 100));
+  std::uniform_int_distribution<int> colour(30, 230);
+  std::uniform_int_distribution<int> x(0, 3150);
+  std::uniform_int_distribution<int> width(40, 110);
+  std::uniform_int_distribution<int> height(40, 130);
+  std::uniform_int_distribution<int> shade(-60, 60);
+  std::uniform_int_distribution<int> radius(1, 3);
+  for (int i = 0; i < 60; ++i) {
+    cv::Rect r(x(rng), 30 + colour(rng) / 4, width(rng), height(rng));
+    r &= cv::Rect(0, 0, world.cols, world.rows);
+    const cv::Scalar base(colour(rng), colour(rng), colour(rng));
+    world(r).setTo(base);
+    std::uniform_int_distribution<int> px(r.x, r.x + r.width - 1);
+    std::uniform_int_distribution<int> py(r.y, r.y + r.height - 1);
+    for (int k = 0; k < r.area() / 80; ++k) {
+      cv::circle(world, cv::Point(px(rng), py(rng)), radius(rng),
+                 base + cv::Scalar::all(shade(rng)), cv::FILLED);
+    }
+  }
+  return world;
+}
+
+cv::Mat View(const cv::Mat& world, int x) {
+  return world(cv::Rect(x, 0, kViewWidth, world.rows)).clone();
+}
+
+RecognizerOptions TestOptions() {
+  RecognizerOptions options;
+  // Views 4 steps apart do not overlap: a robot's own places that close are not revisits.
+  options.loop.min_same_robot_gap = 4;
+  return options;
+}
+
+TEST(PipelineOptionsTest, DefaultsPass) {
+  std::string error;
+  EXPECT_TRUE(RecognizerOptions().Check(&error)) << error;
+  RecognizerOptions bad;
+  bad.analyzer.max_image_width = 10;
+  EXPECT_FALSE(bad.Check(&error));
+  EXPECT_NE(error.find("max_image_width"), std::string::npos);
+}
+
+TEST(FrameAnalyzerTest, FindsObjectsOnTexturedBuildings) {
+  const cv::Mat world = World(1);
+  const FrameAnalyzer analyzer{AnalyzerOptions()};
+  const FrameObservation observation = analyzer.Analyze(View(world, 300));
+  EXPECT_GT(observation.features.size(), 50);
+  EXPECT_GE(observation.objects.size(), 3u);
+  EXPECT_FALSE(observation.colourless);
+  for (const SceneObject& object : observation.objects) {
+    EXPECT_GE(object.sift_count(), 9);
+    EXPECT_TRUE(object.colour.known());
+  }
+  // A grey copy of the frame carries no colour: no object gets a colour signature.
+  cv::Mat grey;
+  cv::cvtColor(View(world, 300), grey, cv::COLOR_BGR2GRAY);
+  cv::cvtColor(grey, grey, cv::COLOR_GRAY2BGR);
+  const FrameObservation grey_observation = analyzer.Analyze(grey);
+  EXPECT_TRUE(grey_observation.colourless);
+  for (const SceneObject& object : grey_observation.objects) EXPECT_FALSE(object.colour.known());
+}
+
+std::unique_ptr<PlaceMap> OpenMap(const std::string& path, const RecognizerOptions& options) {
+  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(path, SqliteStoreOptions());
+  EXPECT_TRUE(store.ok()) << store.status().ToString();
+  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
+  EXPECT_TRUE(map.ok()) << map.status().ToString();
+  return std::move(*map);
+}
+
+TEST(RecognizerTest, RejectsBadRequestsWithoutChangingAnything) {
+  const RecognizerOptions options = TestOptions();
+  std::unique_ptr<PlaceMap> map = OpenMap(":memory:", options);
+  Recognizer recognizer(options, map.get());
+  const cv::Mat frame = View(World(2), 0);
+  EXPECT_EQ(recognizer.Process({"", 0, 0, true}, frame).status.code(),
+            StatusCode::kInvalidArgument);
+  EXPECT_EQ(recognizer.Process({std::string(65, 'r'), 0, 0, true}, frame).status.code(),
+            StatusCode::kInvalidArgument);
+  ASSERT_TRUE(recognizer.Process({"a", 5, 0, true}, frame).status.ok());
+  const RecognitionResult stale = recognizer.Process({"a", 5, 0, true}, frame);
+  EXPECT_EQ(stale.status.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(stale.status.message().find("not after 5"), std::string::npos);
+  // Query-only frames need no order.
+  EXPECT_TRUE(recognizer.Process({"a", 1, 0, false}, frame).status.ok());
+}
+
+// Robot "a" drives along the street; robot "b" drives it again 13 pixels to the side. Every frame
+// of "b" should be recognised as the frame of "a" taken at the nearest position.
+TEST(RecognizerTest, SecondRobotRecognisesThePlacesTheFirstMapped) {
+  const cv::Mat world = World(3);
+  const RecognizerOptions options = TestOptions();
+  const std::string path = ::testing::TempDir() + "/placerec_pipeline_test.db";
+  std::remove(path.c_str());
+  std::unique_ptr<PlaceMap> map = OpenMap(path, options);
+  Recognizer recognizer(options, map.get());
+  const int step = kStep;
+  const int frames = (world.cols - kViewWidth) / step + 1;
+  int64_t sequence = 0;
+  int landmarks = 0;
+  for (int i = 0; i < frames; ++i) {
+    const RecognitionResult result =
+        recognizer.Process({"a", sequence++, i * 1000000LL, true}, View(world, i * step));
+    ASSERT_TRUE(result.status.ok()) << result.status.ToString();
+    landmarks += result.landmarks;
+    if (i > 0) {
+      EXPECT_GT(result.landmarks, 0) << "frame " << i;
+    }
+  }
+  const MapCounts mapped = map->Counts();
+  EXPECT_EQ(mapped.landmarks, landmarks);
+  EXPECT_EQ(mapped.places, frames - 1);  // the first frame has no landmarks yet
+
+  // Query-only frames leave the map exactly as it was.
+  const StatusOr<uint64_t> before = map->Checksum();
+  ASSERT_TRUE(before.ok());
+  const RecognitionResult query = recognizer.Process({"handheld", 0, 0, false}, View(world, 1213));
+  ASSERT_TRUE(query.status.ok());
+  ASSERT_FALSE(query.matches.empty());
+  EXPECT_NEAR(query.matches.front().place.sequence, 1213 / step, 1);
+  EXPECT_EQ(query.landmarks, 0);
+  EXPECT_EQ(*map->Checksum(), *before);
+  EXPECT_EQ(map->Counts().landmarks, mapped.landmarks);
+
+  int correct = 0;
+  for (int i = 0; i < frames; ++i) {
+    const RecognitionResult result = recognizer.Process(
+        {"b", 1000 + i, 0, true}, View(world, std::min(i * step + 13, world.cols - kViewWidth)));
+    ASSERT_TRUE(result.status.ok());
+    if (result.matches.empty()) continue;
+    const PlaceMatch& best = result.matches.front();
+    if (best.place.robot == "a" && std::abs(best.place.sequence - i) <= 1) ++correct;
+  }
+  EXPECT_GE(correct, frames * 8 / 10) << correct << " of " << frames;
+
+  // Reopening the file gives the same map and the same answers.
+  const RecognitionResult before_close =
+      recognizer.Process({"handheld", 0, 0, false}, View(world, 1213));
+  ASSERT_FALSE(before_close.matches.empty());
+  const MapCounts counts = map->Counts();
+  map.reset();
+  std::unique_ptr<PlaceMap> reopened = OpenMap(path, options);
+  EXPECT_EQ(reopened->Counts().landmarks, counts.landmarks);
+  EXPECT_EQ(reopened->Counts().descriptors, counts.descriptors);
+  Recognizer again(options, reopened.get());
+  const RecognitionResult after = again.Process({"handheld", 0, 0, false}, View(world, 1213));
+  ASSERT_FALSE(after.matches.empty());
+  EXPECT_EQ(after.matches.front().place.id, before_close.matches.front().place.id);
+  EXPECT_EQ(after.matches.front().score, before_close.matches.front().score);
+  std::remove(path.c_str());
+}
+
+}  // namespace
+}  // namespace placerec

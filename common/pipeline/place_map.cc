@@ -1,0 +1,90 @@
+#include "common/pipeline/place_map.h"
+
+#include <mutex>
+
+#include "common/util/logging.h"
+#include "common/util/timer.h"
+
+namespace placerec {
+
+PlaceMap::PlaceMap(std::unique_ptr<LandmarkStore> store, const LandmarkIndexOptions& index_options)
+    : store_(std::move(store)), index_(index_options) {}
+
+StatusOr<std::unique_ptr<PlaceMap>> PlaceMap::Open(std::unique_ptr<LandmarkStore> store,
+                                                   const LandmarkIndexOptions& index_options) {
+  CHECK(store != nullptr);
+  Timer timer;
+  std::unique_ptr<PlaceMap> map(new PlaceMap(std::move(store), index_options));
+  PLACEREC_RETURN_IF_ERROR(map->store_->LoadPlaces([&map](const Place& place) {
+    map->places_[place.id] = place;
+    map->index_.AddPlace(place);
+  }));
+  Status status;
+  PLACEREC_RETURN_IF_ERROR(map->store_->LoadLandmarks([&map, &status](Landmark&& landmark) {
+    if (!status.ok()) return;
+    if (map->places_.count(landmark.place) == 0) {
+      status =
+          Status::IoError("landmark " + std::to_string(landmark.id.value()) +
+                          " refers to missing place " + std::to_string(landmark.place.value()));
+      return;
+    }
+    map->index_.Add(landmark);
+  }));
+  PLACEREC_RETURN_IF_ERROR(status);
+  map->open_ms_ = timer.ElapsedMs();
+  LOG(INFO) << "opened " << map->store_->Describe() << ": " << map->places_.size() << " places, "
+            << map->index_.num_landmarks() << " landmarks, " << map->index_.num_descriptors()
+            << " descriptors in " << map->open_ms_ << " ms";
+  return map;
+}
+
+MapLookupResult PlaceMap::Lookup(const MapLookup& lookup,
+                                 const LoopDecisionOptions& options) const {
+  std::shared_lock lock(mutex_);
+  MapLookupResult result;
+  Timer timer;
+  const IndexResult found = index_.Query(lookup.objects, [&](PlaceId id) {
+    const auto it = places_.find(id);
+    return it != places_.end() &&
+           PlaceAllowed(it->second, lookup.robot, lookup.sequence, lookup.utime, options);
+  });
+  result.stats = found.stats;
+  result.index_ms = timer.ElapsedMs();
+  timer.Restart();
+  result.places = RankPlaces(
+      found, lookup.object_keypoints, index_,
+      [this](PlaceId id) -> const Place* {
+        const auto it = places_.find(id);
+        return it == places_.end() ? nullptr : &it->second;
+      },
+      options);
+  result.ranking_ms = timer.ElapsedMs();
+  return result;
+}
+
+Status PlaceMap::Insert(Place* place, std::vector<Landmark>* landmarks) {
+  std::unique_lock lock(mutex_);
+  PLACEREC_RETURN_IF_ERROR(store_->AddPlace(place, landmarks));
+  places_[place->id] = *place;
+  index_.AddPlace(*place);
+  for (const Landmark& landmark : *landmarks) index_.Add(landmark);
+  return Status::Ok();
+}
+
+MapCounts PlaceMap::Counts() const {
+  std::shared_lock lock(mutex_);
+  MapCounts counts;
+  counts.places = static_cast<int64_t>(places_.size());
+  counts.landmarks = static_cast<int64_t>(index_.num_landmarks());
+  counts.descriptors = static_cast<int64_t>(index_.num_descriptors());
+  return counts;
+}
+
+StatusOr<uint64_t> PlaceMap::Checksum() const {
+  std::shared_lock lock(mutex_);
+  return store_->Checksum();
+}
+
+std::string PlaceMap::Describe() const { return store_->Describe(); }
+
+}  // namespace placerec

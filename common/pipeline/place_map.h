@@ -1,0 +1,71 @@
+// The shared landmark map of a site: the persistent store plus the in-memory index built from
+// it. Opening a map streams every stored landmark back into the index. Thread-safe: lookups run
+// concurrently, an insert waits for them and commits to the store before the index sees it.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <shared_mutex>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "common/recognition/landmark_index.h"
+#include "common/recognition/loop_decision.h"
+#include "common/recognition/types.h"
+#include "common/storage/landmark_store.h"
+#include "common/util/status.h"
+
+namespace placerec {
+
+struct MapCounts {
+  int64_t places = 0;
+  int64_t landmarks = 0;
+  int64_t descriptors = 0;
+};
+
+// What a frame looks up: its objects and where their descriptors sit in the frame.
+struct MapLookup {
+  std::string robot;
+  int64_t sequence = 0;
+  int64_t utime = 0;
+  std::vector<IndexQuery> objects;
+  std::vector<std::vector<cv::KeyPoint>> object_keypoints;  // per object, per descriptor row
+};
+
+struct MapLookupResult {
+  std::vector<PlaceMatch> places;  // best first
+  IndexQueryStats stats;
+  double index_ms = 0;    // candidate filtering and descriptor verification
+  double ranking_ms = 0;  // voting and geometric verification
+};
+
+class PlaceMap {
+ public:
+  // Takes over `store` and loads it into a new index.
+  static StatusOr<std::unique_ptr<PlaceMap>> Open(std::unique_ptr<LandmarkStore> store,
+                                                  const LandmarkIndexOptions& index_options);
+
+  MapLookupResult Lookup(const MapLookup& lookup, const LoopDecisionOptions& options) const;
+
+  // Commits the place and its landmarks to the store (assigning ids), then indexes them. On
+  // error nothing changes.
+  Status Insert(Place* place, std::vector<Landmark>* landmarks);
+
+  MapCounts Counts() const;
+  StatusOr<uint64_t> Checksum() const;
+  std::string Describe() const;
+  // Milliseconds Open spent loading the store and building the index.
+  double open_ms() const { return open_ms_; }
+
+ private:
+  PlaceMap(std::unique_ptr<LandmarkStore> store, const LandmarkIndexOptions& index_options);
+
+  mutable std::shared_mutex mutex_;
+  std::unique_ptr<LandmarkStore> store_;
+  LandmarkIndex index_;
+  std::unordered_map<PlaceId, Place> places_;
+  double open_ms_ = 0;
+};
+
+}  // namespace placerec

@@ -1,0 +1,188 @@
+#include "common/pipeline/recognizer.h"
+
+#include <algorithm>
+
+#include "common/util/logging.h"
+
+namespace placerec {
+
+bool RecognizerOptions::Check(std::string* error) const {
+  return analyzer.Check(error) && landmarks.Check(error) && index.Check(error) && loop.Check(error);
+}
+
+Recognizer::Recognizer(const RecognizerOptions& options, PlaceMap* map,
+                       std::unique_ptr<Segmenter> segmenter)
+    : options_(options), map_(map), analyzer_(options.analyzer, std::move(segmenter)) {
+  CHECK(map_ != nullptr);
+}
+
+Recognizer::RobotState* Recognizer::StateOf(const std::string& robot) {
+  std::lock_guard lock(robots_mutex_);
+  std::unique_ptr<RobotState>& state = robots_[robot];
+  if (!state) state = std::make_unique<RobotState>(options_.landmarks);
+  return state.get();
+}
+
+Status Recognizer::Validate(const FrameRequest& request) const {
+  if (request.robot.empty()) return Status::InvalidArgument("robot id is empty");
+  if (request.robot.size() > kMaxRobotIdLength) {
+    return Status::InvalidArgument("robot id is " + std::to_string(request.robot.size()) +
+                                   " bytes; the limit is " + std::to_string(kMaxRobotIdLength));
+  }
+  for (unsigned char c : request.robot) {
+    if (c < 0x20 || c == 0x7f) {
+      return Status::InvalidArgument("robot id contains a control character");
+    }
+  }
+  if (request.insert) {
+    std::lock_guard lock(robots_mutex_);
+    const auto it = robots_.find(request.robot);
+    if (it != robots_.end() && request.sequence <= it->second->last_sequence) {
+      return Status::InvalidArgument("sequence " + std::to_string(request.sequence) +
+                                     " of robot '" + request.robot + "' is not after " +
+                                     std::to_string(it->second->last_sequence));
+    }
+  }
+  return Status::Ok();
+}
+
+RecognitionResult Recognizer::Process(const FrameRequest& request, const cv::Mat& bgr) {
+  const Status status = Validate(request);
+  if (!status.ok()) {
+    RecognitionResult result;
+    result.status = status;
+    result.map = map_->Counts();
+    return result;
+  }
+  return Recognize(request, analyzer_.Analyze(bgr));
+}
+
+RecognitionResult Recognizer::Recognize(const FrameRequest& request,
+                                        const FrameObservation& observation) {
+  RecognitionResult result;
+  result.status = Validate(request);
+  result.timings = observation.timings;
+  result.keypoints = observation.features.size();
+  result.image_scale = observation.scale;
+  result.objects = static_cast<int>(observation.objects.size());
+  if (!result.status.ok()) {
+    result.map = map_->Counts();
+    return result;
+  }
+  RobotState* state = StateOf(request.robot);
+
+  // Landmark selection (seed §5.7 step 4).
+  Timer timer;
+  std::vector<cv::Mat> object_descriptors;
+  object_descriptors.reserve(observation.objects.size());
+  for (const SceneObject& object : observation.objects) {
+    object_descriptors.push_back(object.descriptors);
+  }
+  const LandmarkSelection selection = state->selector.Select(object_descriptors);
+  result.timings.emplace_back("landmarks", timer.ElapsedMs());
+
+  // Lookup (seed §5.7 step 5) and decision (step 6).
+  MapLookup lookup;
+  lookup.robot = request.robot;
+  lookup.sequence = request.sequence;
+  lookup.utime = request.utime;
+  auto add_query = [&](int o) {
+    const SceneObject& object = observation.objects[o];
+    lookup.objects.push_back({object.sift_count(), object.colour, object.descriptors});
+    std::vector<cv::KeyPoint> keypoints;
+    keypoints.reserve(object.keypoints.size());
+    for (int k : object.keypoints) keypoints.push_back(observation.features.keypoints[k]);
+    lookup.object_keypoints.push_back(std::move(keypoints));
+  };
+  std::vector<int> query_to_object;
+  if (options_.query_objects == QueryObjects::kAll) {
+    for (int o = 0; o < result.objects; ++o) query_to_object.push_back(o);
+  } else {
+    query_to_object = selection.landmarks;
+  }
+  for (int o : query_to_object) add_query(o);
+  MapLookupResult found = map_->Lookup(lookup, options_.loop);
+  VLOG(1) << request.robot << " #" << request.sequence << ": " << lookup.objects.size()
+          << " query objects, " << found.stats.candidates << " candidates, "
+          << found.stats.matching.query_descriptors << " descriptors, "
+          << found.stats.matching.candidate_pairs << " voted pairs, "
+          << found.stats.matching.verified_pairs << " verified, "
+          << found.stats.matching.matched_pairs << " matched, " << found.stats.candidate_places
+          << " places; best "
+          << (found.places.empty()
+                  ? std::string("none")
+                  : found.places[0].place.robot + " #" +
+                        std::to_string(found.places[0].place.sequence) + " score " +
+                        std::to_string(found.places[0].score) + " points " +
+                        std::to_string(found.places[0].matched_descriptors));
+  if (VLOG_IS_ON(2)) {
+    std::string list;
+    for (const PlaceMatch& m : found.places) {
+      list += " " + std::to_string(m.place.sequence) + ":" +
+              std::to_string(static_cast<int>(m.score)) + "/" +
+              std::to_string(m.matched_descriptors) + "/" + std::to_string(m.matched_landmarks);
+    }
+    VLOG(2) << "places (sequence:score/points/landmarks):" << list;
+  }
+  for (PlaceMatch& match : found.places) {
+    for (auto& pair : match.object_pairs) pair.first = query_to_object[pair.first];
+  }
+  result.matches = std::move(found.places);
+  result.loop_closure =
+      !result.matches.empty() && result.matches.front().score >= options_.loop.min_score;
+  result.timings.emplace_back("index", found.index_ms);
+  result.timings.emplace_back("decision", found.ranking_ms);
+
+  if (!request.insert) {
+    result.map = map_->Counts();
+    return result;
+  }
+
+  // Store this frame's landmarks, committed before the answer goes out.
+  timer.Restart();
+  std::vector<Landmark> landmarks;
+  for (size_t i = 0; i < selection.landmarks.size(); ++i) {
+    const SceneObject& object = observation.objects[selection.landmarks[i]];
+    Landmark landmark;
+    landmark.sift_count = object.sift_count();
+    landmark.colour = object.colour;
+    landmark.box = object.box;
+    landmark.segment_class = object.segment_class;
+    std::vector<int> rows;
+    if (options_.store_tracked_descriptors_only) {
+      rows = selection.tracked_rows[i];
+    } else {
+      rows.resize(object.keypoints.size());
+      for (size_t r = 0; r < rows.size(); ++r) rows[r] = static_cast<int>(r);
+    }
+    landmark.descriptors.create(static_cast<int>(rows.size()), kDescriptorSize, CV_8U);
+    for (size_t r = 0; r < rows.size(); ++r) {
+      object.descriptors.row(rows[r]).copyTo(landmark.descriptors.row(static_cast<int>(r)));
+      landmark.keypoints.push_back(observation.features.keypoints[object.keypoints[rows[r]]]);
+    }
+    result.stored_descriptors += static_cast<int>(rows.size());
+    landmarks.push_back(std::move(landmark));
+  }
+  result.landmarks = static_cast<int>(landmarks.size());
+  if (!landmarks.empty()) {
+    Place place;
+    place.robot = request.robot;
+    place.sequence = request.sequence;
+    place.utime = request.utime;
+    const Status inserted = map_->Insert(&place, &landmarks);
+    if (!inserted.ok()) {
+      result.status = inserted;
+      result.stored_descriptors = 0;
+      result.map = map_->Counts();
+      return result;
+    }
+    result.place = place.id;
+  }
+  state->selector.Remember(object_descriptors);
+  state->last_sequence = request.sequence;
+  result.timings.emplace_back("insert", timer.ElapsedMs());
+  result.map = map_->Counts();
+  return result;
+}
+
+}  // namespace placerec

@@ -1,0 +1,102 @@
+// Place recognition for a fleet (seed §5.7): for each frame of a robot, find its objects, ask
+// the shared map which earlier places they were seen at, decide whether this is a loop closure,
+// and store the frame's landmarks. Per-robot short-term memory (the previous frames' objects)
+// lives here; the map is shared by every robot.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "common/pipeline/frame_analyzer.h"
+#include "common/pipeline/place_map.h"
+#include "common/recognition/landmark_selector.h"
+#include "common/recognition/loop_decision.h"
+#include "common/util/status.h"
+#include "common/util/timer.h"
+
+namespace placerec {
+
+// Which objects of a frame are looked up in the map.
+enum class QueryObjects {
+  kAll,        // every object: a revisit is found from the first frame at a place
+  kLandmarks,  // only landmarks, as in seed §5.7 step 5
+};
+
+struct RecognizerOptions {
+  AnalyzerOptions analyzer;
+  LandmarkSelectorOptions landmarks;
+  LandmarkIndexOptions index;
+  LoopDecisionOptions loop;
+  QueryObjects query_objects = QueryObjects::kAll;
+  // Store only a landmark's descriptors that matched into the previous frames (its widely
+  // visible features); off stores every descriptor of the landmark object.
+  bool store_tracked_descriptors_only = true;
+
+  bool Check(std::string* error) const;
+};
+
+struct FrameRequest {
+  std::string robot;     // 1..kMaxRobotIdLength bytes
+  int64_t sequence = 0;  // increasing per robot for inserted frames
+  int64_t utime = 0;     // capture time, microseconds since the epoch
+  bool insert = true;    // false: query only, the map and the robot's state stay unchanged
+};
+
+struct RecognitionResult {
+  Status status;
+  bool loop_closure = false;        // best place scored at least loop.min_score
+  std::vector<PlaceMatch> matches;  // best first
+  int keypoints = 0;
+  int objects = 0;
+  int landmarks = 0;           // this frame's landmarks (0 for query-only frames)
+  int stored_descriptors = 0;  // descriptors this frame added to the map
+  PlaceId place;               // the place inserted for this frame, if any
+  MapCounts map;               // map size after this frame
+  double image_scale = 1.0;    // processed / original frame size (max_image_width)
+  StageTimings timings;        // milliseconds
+};
+
+class Recognizer {
+ public:
+  Recognizer(const RecognizerOptions& options, PlaceMap* map,
+             std::unique_ptr<Segmenter> segmenter = nullptr);
+
+  // Analyze + Recognize. Frames of different robots may be processed from different threads at
+  // once; frames of one robot must arrive in order, one at a time.
+  RecognitionResult Process(const FrameRequest& request, const cv::Mat& bgr);
+
+  // The stateless half (thread-safe for any frames).
+  FrameObservation Analyze(const cv::Mat& bgr) const { return analyzer_.Analyze(bgr); }
+
+  // The stateful half: landmark selection, lookup, decision, insertion.
+  RecognitionResult Recognize(const FrameRequest& request, const FrameObservation& observation);
+
+  // Checks a request before any work (robot id, sequence order for inserts).
+  Status Validate(const FrameRequest& request) const;
+
+  const RecognizerOptions& options() const { return options_; }
+  const Segmenter& segmenter() const { return analyzer_.segmenter(); }
+  PlaceMap& map() { return *map_; }
+
+ private:
+  struct RobotState {
+    explicit RobotState(const LandmarkSelectorOptions& options) : selector(options) {}
+    LandmarkSelector selector;
+    int64_t last_sequence = INT64_MIN;
+  };
+  RobotState* StateOf(const std::string& robot);
+
+  RecognizerOptions options_;
+  PlaceMap* map_;
+  FrameAnalyzer analyzer_;
+  mutable std::mutex robots_mutex_;
+  std::map<std::string, std::unique_ptr<RobotState>> robots_;
+};
+
+}  // namespace placerec

@@ -1,0 +1,30 @@
+// Exact SIFT descriptor matching with Lowe's ratio test, used to verify that two objects are the
+// same (seed §5.3: at least six matched descriptors; §5.6: more than six).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace placerec {
+
+// Squared Euclidean distance of two 128-byte SIFT descriptors.
+int SquaredDistance(const uint8_t* a, const uint8_t* b);
+
+// A match of row `query` of one object's descriptors with row `train` of another's.
+struct DescriptorMatch {
+  int query = -1;
+  int train = -1;
+  int distance = 0;  // squared Euclidean
+};
+
+// For each query row, the nearest train row, kept when its distance is below ratio^2 times the
+// second nearest (Lowe's ratio test on Euclidean distances) and, when several query rows pick
+// the same train row, only the closest. Both matrices are CV_8U with 128 columns. A train
+// matrix with one row passes every nearest match (there is no second neighbour).
+std::vector<DescriptorMatch> MatchRatioTest(const cv::Mat& query, const cv::Mat& train,
+                                            double ratio);
+
+}  // namespace placerec

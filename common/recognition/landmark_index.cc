@@ -1,0 +1,264 @@
+#include "common/recognition/landmark_index.h"
+
+#include <algorithm>
+#include <climits>
+#include <limits>
+
+#include "common/features/features.h"
+#include "common/util/logging.h"
+
+namespace placerec {
+
+bool LandmarkIndexOptions::Check(std::string* error) const {
+  if (count_range_low < 0 || count_range_low > 1) {
+    *error = "index count_range_low must be in [0, 1]";
+    return false;
+  }
+  if (count_range_high < 1) {
+    *error = "index count_range_high must be at least 1";
+    return false;
+  }
+  return colour.Check(error) && matching.Check(error) && flann.Check(error);
+}
+
+LandmarkIndex::LandmarkIndex(const LandmarkIndexOptions& options)
+    : options_(options), descriptors_(options.flann) {}
+
+void LandmarkIndex::Add(const Landmark& landmark) {
+  CHECK(landmark.id.IsValid());
+  CHECK(landmark.place.IsValid());
+  CHECK(place_info_.count(landmark.place) > 0) << "AddPlace(" << landmark.place << ") first";
+  CHECK(landmark.descriptors.empty() ||
+        (landmark.descriptors.type() == CV_8U && landmark.descriptors.cols == kDescriptorSize));
+  CHECK_EQ(static_cast<int>(landmark.keypoints.size()), landmark.descriptors.rows);
+  const int32_t slot = static_cast<int32_t>(landmarks_.size());
+  landmarks_.push_back(landmark);
+  const auto id = static_cast<size_t>(landmark.id.value());
+  if (slot_of_id_.size() <= id) slot_of_id_.resize(id + 1, -1);
+  slot_of_id_[id] = slot;
+  by_count_.Insert(landmark.sift_count, slot);
+  slots_of_place_[landmark.place].push_back(slot);
+  descriptors_.Add(slot, landmark.descriptors);
+  num_descriptors_ += landmark.descriptors.rows;
+}
+
+void LandmarkIndex::AddPlace(const Place& place) {
+  CHECK(place.id.IsValid());
+  auto [it, inserted] = robot_number_.emplace(place.robot, static_cast<int>(robot_number_.size()));
+  place_info_[place.id] = {it->second, place.sequence};
+  place_by_sequence_[{it->second, place.sequence}] = place.id;
+}
+
+bool LandmarkIndex::SameLocation(PlaceId a, PlaceId b) const {
+  if (a == b) return true;
+  const auto ia = place_info_.find(a);
+  const auto ib = place_info_.find(b);
+  if (ia == place_info_.end() || ib == place_info_.end()) return false;
+  return ia->second.robot == ib->second.robot &&
+         std::abs(ia->second.sequence - ib->second.sequence) <= options_.vote_window;
+}
+
+int32_t LandmarkIndex::SlotOf(LandmarkId id) const {
+  if (!id.IsValid() || static_cast<size_t>(id.value()) >= slot_of_id_.size()) return -1;
+  return slot_of_id_[id.value()];
+}
+
+bool LandmarkIndex::CandidateByColour(const IndexQuery& object, int32_t slot) const {
+  return !options_.use_colour_filter ||
+         ColoursCompatible(object.colour, landmarks_[slot].colour, options_.colour);
+}
+
+std::vector<int32_t> LandmarkIndex::Candidates(const IndexQuery& object) const {
+  std::vector<int32_t> slots;
+  if (options_.use_count_range) {
+    int lo = 0;
+    int hi = 0;
+    CountRange(object.sift_count, options_.count_range_low, options_.count_range_high, &lo, &hi);
+    by_count_.ForEachInRange(lo, hi, [&](int, int32_t slot) {
+      if (CandidateByColour(object, slot)) slots.push_back(slot);
+    });
+    std::sort(slots.begin(), slots.end());
+  } else {
+    for (int32_t slot = 0; slot < static_cast<int32_t>(landmarks_.size()); ++slot) {
+      if (CandidateByColour(object, slot)) slots.push_back(slot);
+    }
+  }
+  return slots;
+}
+
+IndexResult LandmarkIndex::Query(const std::vector<IndexQuery>& objects,
+                                 const std::function<bool(PlaceId)>& place_allowed) const {
+  IndexResult result;
+  if (landmarks_.empty() || objects.empty()) return result;
+  // Places are checked once per landmark slot, lazily.
+  std::vector<int8_t> place_ok(landmarks_.size(), -1);
+  auto allowed_slot = [&](int32_t slot) {
+    int8_t& ok = place_ok[slot];
+    if (ok < 0) ok = place_allowed(landmarks_[slot].place) ? 1 : 0;
+    return ok == 1;
+  };
+
+  std::vector<cv::Mat> query_descriptors;
+  query_descriptors.reserve(objects.size());
+  for (const IndexQuery& object : objects) query_descriptors.push_back(object.descriptors);
+  const StackedQuery query = StackedQuery::Stack(query_descriptors);
+
+  if (options_.search == IndexSearch::kExhaustive) {
+    for (size_t o = 0; o < objects.size(); ++o) {
+      const std::vector<int32_t> candidates = Candidates(objects[o]);
+      result.stats.candidates += static_cast<int64_t>(candidates.size());
+      for (int32_t slot : candidates) {
+        if (!allowed_slot(slot)) continue;
+        ++result.stats.matching.verified_pairs;
+        std::vector<DescriptorMatch> matches = MatchRatioTest(
+            objects[o].descriptors, landmarks_[slot].descriptors, options_.matching.ratio);
+        if (static_cast<int>(matches.size()) < options_.matching.min_matches) continue;
+        const Landmark& landmark = landmarks_[slot];
+        result.objects.push_back(
+            {static_cast<int>(o), landmark.id, landmark.place, std::move(matches)});
+      }
+    }
+    result.stats.matching.matched_pairs = static_cast<int64_t>(result.objects.size());
+    // Place-level matches by exact search over each matched place.
+    std::map<PlaceId, std::vector<int32_t>> places;
+    for (const LandmarkMatch& m : result.objects) places[m.place];
+    for (auto& [place, unused] : places) {
+      const std::vector<int32_t>& slots = slots_of_place_.at(place);
+      std::vector<PointMatch>& points = result.place_points[place];
+      std::map<std::pair<int32_t, int>, size_t> taken;
+      const float ratio_squared =
+          static_cast<float>(options_.matching.ratio * options_.matching.ratio);
+      for (int q = 0; q < query.size(); ++q) {
+        const uint8_t* qd = query.rows.ptr<uint8_t>(q);
+        int best = INT32_MAX;
+        int second = INT32_MAX;
+        int32_t best_slot = -1;
+        int best_row = -1;
+        for (int32_t slot : slots) {
+          const cv::Mat& d = landmarks_[slot].descriptors;
+          for (int t = 0; t < d.rows; ++t) {
+            const int dist = SquaredDistance(qd, d.ptr<uint8_t>(t));
+            if (dist < best) {
+              second = best;
+              best = dist;
+              best_slot = slot;
+              best_row = t;
+            } else if (dist < second) {
+              second = dist;
+            }
+          }
+        }
+        if (best_slot < 0 || !(best < ratio_squared * static_cast<float>(second))) continue;
+        const auto [it, inserted] =
+            taken.emplace(std::make_pair(best_slot, best_row), points.size());
+        const PointMatch match{query.object[q], query.row_in_object[q], best_slot, best_row,
+                               static_cast<float>(best)};
+        if (inserted) {
+          points.push_back(match);
+        } else if (match.distance < points[it->second].distance) {
+          points[it->second] = match;
+        }
+      }
+    }
+    result.stats.candidate_places = static_cast<int64_t>(places.size());
+    return result;
+  }
+
+  // Candidate marks per query object from the range tree and the colour filter.
+  std::vector<std::vector<uint8_t>> candidate(objects.size());
+  for (size_t o = 0; o < objects.size(); ++o) {
+    candidate[o].assign(landmarks_.size(), 0);
+    const std::vector<int32_t> slots = Candidates(objects[o]);
+    for (int32_t slot : slots) candidate[o][slot] = 1;
+    result.stats.candidates += static_cast<int64_t>(slots.size());
+  }
+
+  NeighbourLists neighbours;
+  descriptors_.Search(query.rows, options_.matching.knn, &neighbours);
+  const std::vector<ObjectPair> pairs = MatchObjectPairs(
+      query, neighbours,
+      [this](int32_t slot) -> const cv::Mat& { return landmarks_[slot].descriptors; },
+      [&](int object, int32_t slot) { return candidate[object][slot] && allowed_slot(slot); },
+      options_.matching, &result.stats.matching);
+  result.objects.reserve(pairs.size());
+  std::unordered_map<PlaceId, bool> matched_places;
+  for (const ObjectPair& pair : pairs) {
+    const Landmark& landmark = landmarks_[pair.owner];
+    result.objects.push_back({pair.query_object, landmark.id, landmark.place, pair.matches});
+    matched_places[landmark.place] = true;
+  }
+  if (options_.vote_places > 0) {
+    // Distinctive votes: a query row votes for the place of its nearest allowed neighbour when
+    // that neighbour passes the ratio test against the nearest neighbour of another location
+    // (not the same robot within vote_window frames, which shows the same scene).
+    const float ratio_squared =
+        static_cast<float>(options_.matching.ratio * options_.matching.ratio);
+    std::unordered_map<PlaceId, int> votes;
+    for (int q = 0; q < query.size(); ++q) {
+      const DescriptorIndex::Neighbour* first = nullptr;
+      float other = -1;
+      for (const DescriptorIndex::Neighbour& n : neighbours[q]) {
+        if (!allowed_slot(n.owner)) continue;
+        if (first == nullptr) {
+          first = &n;
+          continue;
+        }
+        if (!SameLocation(landmarks_[first->owner].place, landmarks_[n.owner].place)) {
+          other = n.distance;
+          break;
+        }
+      }
+      if (first == nullptr) continue;
+      if (other < 0) other = neighbours[q].back().distance;  // a lower bound on the true one
+      if (first->distance < ratio_squared * other) ++votes[landmarks_[first->owner].place];
+    }
+    std::vector<std::pair<int, PlaceId>> ranked;
+    for (const auto& [place, count] : votes) ranked.emplace_back(-count, place);
+    std::sort(ranked.begin(), ranked.end());
+    for (size_t i = 0; i < ranked.size() && static_cast<int>(i) < options_.vote_places; ++i) {
+      const PlaceId place = ranked[i].second;
+      matched_places[place] = true;
+      // Votes merge neighbouring frames; let the geometric check choose among them.
+      const PlaceInfo& info = place_info_.at(place);
+      for (auto it =
+               place_by_sequence_.lower_bound({info.robot, info.sequence - options_.vote_window});
+           it != place_by_sequence_.end() && it->first.first == info.robot &&
+           it->first.second <= info.sequence + options_.vote_window;
+           ++it) {
+        if (place_allowed(it->second)) matched_places[it->second] = true;
+      }
+    }
+  }
+  result.stats.candidate_places = static_cast<int64_t>(matched_places.size());
+
+  // Place-level matches: group every query row's neighbours by place.
+  const auto hits = GroupNeighbours(neighbours, [&](int, int32_t slot) -> int64_t {
+    const PlaceId place = landmarks_[slot].place;
+    return matched_places.count(place) > 0 ? place.value() : -1;
+  });
+  for (const auto& [place_value, list] : hits) {
+    const PlaceId place(place_value);
+    const std::vector<int32_t>& slots = slots_of_place_.at(place);
+    const std::vector<GroupHit> passed =
+        RatioTestHits(list, neighbours, options_.matching.ratio, [&](const GroupHit& hit) {
+          float second = std::numeric_limits<float>::max();
+          const uint8_t* q = query.rows.ptr<uint8_t>(hit.query);
+          for (int32_t slot : slots) {
+            const cv::Mat& d = landmarks_[slot].descriptors;
+            for (int t = 0; t < d.rows; ++t) {
+              if (slot == hit.owner && t == hit.train) continue;
+              second = std::min(second, static_cast<float>(SquaredDistance(q, d.ptr<uint8_t>(t))));
+            }
+          }
+          return second;
+        });
+    std::vector<PointMatch>& points = result.place_points[place];
+    for (const GroupHit& hit : passed) {
+      points.push_back(
+          {query.object[hit.query], query.row_in_object[hit.query], hit.owner, hit.train, hit.d1});
+    }
+  }
+  return result;
+}
+
+}  // namespace placerec

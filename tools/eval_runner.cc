@@ -1,0 +1,278 @@
+#include "tools/eval_runner.h"
+
+#include <cstdio>
+#include <fstream>
+#include <iomanip>
+#include <map>
+#include <sstream>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "common/eval/plots.h"
+#include "common/eval/stats.h"
+#include "common/image/image.h"
+#include "common/pipeline/pictures.h"
+#include "common/storage/sqlite_store.h"
+#include "common/util/logging.h"
+#include "common/util/paths.h"
+#include "common/util/timer.h"
+
+namespace placerec {
+namespace {
+
+struct FrameRecord {
+  bool has_match = false;
+  PlaceMatch best;
+  double scale = 1.0;
+};
+
+std::string Fixed(double value, int digits) {
+  std::ostringstream out;
+  out << std::fixed << std::setprecision(digits) << value;
+  return out.str();
+}
+
+nlohmann::json OptionsJson(const RecognizerOptions& o) {
+  nlohmann::json j;
+  j["max_image_width"] = o.analyzer.max_image_width;
+  j["segmentation_width"] = o.analyzer.superpixels.working_width;
+  j["fh_k"] = o.analyzer.superpixels.k;
+  j["fh_min_size"] = o.analyzer.superpixels.min_size;
+  j["colour_merge_distance"] = o.analyzer.superpixels.colour_merge_distance;
+  j["sift_contrast_threshold"] = o.analyzer.features.contrast_threshold;
+  j["object_min_keypoints"] = o.analyzer.objects.min_keypoints;
+  j["landmark_history"] = o.landmarks.history_frames;
+  j["landmark_min_matches"] = o.landmarks.matching.min_matches;
+  j["query_objects"] = o.query_objects == QueryObjects::kAll ? "all" : "landmarks";
+  j["store_tracked_only"] = o.store_tracked_descriptors_only;
+  j["use_count_range"] = o.index.use_count_range;
+  j["count_range"] = {o.index.count_range_low, o.index.count_range_high};
+  j["use_colour_filter"] = o.index.use_colour_filter;
+  j["colour_tolerance"] = o.index.colour.tolerance;
+  j["match_min"] = o.index.matching.min_matches;
+  j["match_ratio"] = o.index.matching.ratio;
+  j["index_search"] = o.index.search == IndexSearch::kFlann ? "flann" : "exhaustive";
+  j["min_same_robot_gap"] = o.loop.min_same_robot_gap;
+  j["geometric_verification"] = o.loop.geometric_verification;
+  j["loop_min_score"] = o.loop.min_score;
+  return j;
+}
+
+}  // namespace
+
+StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& options,
+                                 const EvalOptions& eval) {
+  std::string error;
+  if (!options.Check(&error)) return Status::InvalidArgument(error);
+  if (!eval.out_dir.empty() && !MakeDirectories(eval.out_dir)) {
+    return Status::IoError("cannot create output directory " + eval.out_dir);
+  }
+  SqliteStoreOptions store_options;
+  StatusOr<std::unique_ptr<LandmarkStore>> store =
+      OpenSqliteStore(eval.db_path.empty() ? ":memory:" : eval.db_path, store_options);
+  if (!store.ok()) return store.status();
+  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
+  if (!map.ok()) return map.status();
+  Recognizer recognizer(options, map->get(), eval.make_segmenter ? eval.make_segmenter() : nullptr);
+
+  const int frames = eval.max_frames > 0 ? std::min<int>(eval.max_frames, run.frames.size())
+                                         : static_cast<int>(run.frames.size());
+  EvalReport report;
+  std::vector<FrameRecord> records(frames);
+  std::map<std::string, std::vector<double>> stage_ms;
+  std::vector<double> total_ms;
+  std::vector<double> frame_scale(frames, 1.0);
+  int64_t extracted = 0;
+  int64_t stored = 0;
+  int64_t objects = 0;
+  int64_t landmarks = 0;
+  int loop_closures = 0;
+  Timer run_timer;
+
+  for (int f = 0; f < frames; ++f) {
+    const RunFrame& frame = run.frames[f];
+    Timer frame_timer;
+    StatusOr<cv::Mat> image = ReadImageFile(frame.image);
+    if (!image.ok()) return image.status();
+    const double decode_ms = frame_timer.ElapsedMs();
+    FrameRequest request;
+    request.robot = frame.robot;
+    request.sequence = frame.frame;
+    request.utime = frame.utime;
+    RecognitionResult result = recognizer.Process(request, *image);
+    if (!result.status.ok()) {
+      return Status(result.status.code(),
+                    "frame " + std::to_string(f) + ": " + result.status.message());
+    }
+    total_ms.push_back(frame_timer.ElapsedMs());
+    stage_ms["decode"].push_back(decode_ms);
+    for (const auto& [stage, ms] : result.timings) stage_ms[stage].push_back(ms);
+    extracted += result.keypoints;
+    stored += result.stored_descriptors;
+    objects += result.objects;
+    landmarks += result.landmarks;
+
+    Answer answer;
+    answer.frame = frame.frame;
+    if (!result.matches.empty()) {
+      const PlaceMatch& best = result.matches.front();
+      answer.reference = static_cast<int>(best.place.sequence);
+      answer.score = best.score;
+      records[f].has_match = true;
+      records[f].best = best;
+    }
+    frame_scale[f] = result.image_scale;
+    report.answers.push_back(answer);
+    if (result.loop_closure) {
+      ++loop_closures;
+      if (eval.print_loop_closures) {
+        const PlaceMatch& best = result.matches.front();
+        const bool correct = run.IsPositive(frame.frame, answer.reference);
+        std::printf(
+            "loop closure: frame %d (%s) revisits frame %lld (%s), score %.0f, %d "
+            "landmarks matched%s\n",
+            frame.frame, frame.robot.c_str(), static_cast<long long>(best.place.sequence),
+            best.place.robot.c_str(), best.score, best.matched_landmarks,
+            run.is_revisit[frame.frame] ? (correct ? "  [correct]" : "  [wrong place]")
+                                        : "  [not a revisit]");
+        std::fflush(stdout);
+      }
+    }
+    if (eval.progress) {
+      const double elapsed = run_timer.ElapsedMs() / 1000.0;
+      const double eta = elapsed / (f + 1) * (frames - f - 1);
+      std::fprintf(stderr,
+                   "\r[%4d/%d] %5.1f%%  %s  kp %4d  obj %3d  lm %3d  map %6lld lm  loops %d  "
+                   "eta %4.0fs ",
+                   f + 1, frames, 100.0 * (f + 1) / frames, frame.robot.c_str(), result.keypoints,
+                   result.objects, result.landmarks, static_cast<long long>(result.map.landmarks),
+                   loop_closures, eta);
+      if (f + 1 == frames) std::fprintf(stderr, "\n");
+    }
+  }
+
+  Run scored = run;
+  if (frames < static_cast<int>(run.frames.size())) {
+    // Score only the frames that ran.
+    scored.frames.resize(frames);
+    std::set<std::pair<int, int>> kept;
+    for (const auto& p : run.positives) {
+      if (p.first < frames) kept.insert(p);
+    }
+    scored.positives = kept;
+    scored.is_revisit.assign(frames, false);
+    scored.num_revisits = 0;
+    for (const auto& p : kept) scored.is_revisit[p.first] = true;
+    for (bool r : scored.is_revisit) scored.num_revisits += r ? 1 : 0;
+  }
+  StatusOr<RunScore> score = ScoreAnswers(scored, report.answers);
+  if (!score.ok()) return score.status();
+  report.score = *score;
+
+  // Precision and recall at the decision threshold.
+  int tp = 0;
+  int fp = 0;
+  for (const Answer& a : report.answers) {
+    if (a.reference < 0 || a.score < options.loop.min_score) continue;
+    if (scored.IsPositive(a.frame, a.reference)) {
+      ++tp;
+    } else {
+      ++fp;
+    }
+  }
+
+  nlohmann::json& s = report.summary;
+  s["dataset"] = run.dataset_dir;
+  s["run"] = run.name;
+  s["frames"] = frames;
+  s["revisit_frames"] = report.score.revisit_frames;
+  s["answered_frames"] = report.score.answered_frames;
+  s["recall_at_100_precision"] = report.score.recall_at_100_precision;
+  s["threshold_at_100_precision"] = report.score.threshold_at_100_precision;
+  s["max_f1"] = report.score.max_f1;
+  s["threshold_at_max_f1"] = report.score.threshold_at_max_f1;
+  s["precision_at_max_f1"] = report.score.precision_at_max_f1;
+  s["recall_at_max_f1"] = report.score.recall_at_max_f1;
+  s["average_precision"] = report.score.average_precision;
+  s["loop_closures"] = loop_closures;
+  s["decision"] = {{"min_score", options.loop.min_score},
+                   {"true_positives", tp},
+                   {"false_positives", fp},
+                   {"precision", tp + fp > 0 ? static_cast<double>(tp) / (tp + fp) : 1.0},
+                   {"recall", report.score.revisit_frames > 0
+                                  ? static_cast<double>(tp) / report.score.revisit_frames
+                                  : 0.0}};
+  s["descriptors_extracted"] = extracted;
+  s["descriptors_stored"] = stored;
+  s["stored_over_extracted"] = extracted > 0 ? static_cast<double>(stored) / extracted : 0.0;
+  s["objects"] = objects;
+  s["landmarks"] = landmarks;
+  const MapCounts counts = (*map)->Counts();
+  s["map"] = {{"places", counts.places},
+              {"landmarks", counts.landmarks},
+              {"descriptors", counts.descriptors}};
+  nlohmann::json timing;
+  for (const auto& [stage, values] : stage_ms) {
+    timing[stage] = {{"median_ms", Median(values)}, {"p90_ms", Percentile(values, 90)}};
+  }
+  timing["frame_total"] = {{"median_ms", Median(total_ms)}, {"p90_ms", Percentile(total_ms, 90)}};
+  s["time"] = timing;
+  s["wall_seconds"] = run_timer.ElapsedMs() / 1000.0;
+  s["segmentation"] = recognizer.segmenter().name();
+  s["options"] = OptionsJson(options);
+
+  if (eval.out_dir.empty()) return report;
+
+  PLACEREC_RETURN_IF_ERROR(WriteAnswers(eval.out_dir + "/answers.csv", report.answers));
+  {
+    std::ofstream out(eval.out_dir + "/summary.json");
+    if (!out) return Status::IoError("cannot write " + eval.out_dir + "/summary.json");
+    out << s.dump(2) << "\n";
+  }
+  PrCurve curve;
+  curve.label = "placerec (R@100P " + Fixed(report.score.recall_at_100_precision, 2) + ", max F1 " +
+                Fixed(report.score.max_f1, 2) + ")";
+  curve.score = report.score;
+  PLACEREC_RETURN_IF_ERROR(
+      WritePrCurvePng(eval.out_dir + "/pr_curve.png", run.name + ": precision-recall", {curve}));
+
+  // Match pictures: the strongest correct answers and the strongest wrong ones.
+  if (eval.pictures > 0) {
+    const std::string dir = eval.out_dir + "/matches";
+    if (!MakeDirectories(dir)) return Status::IoError("cannot create " + dir);
+    std::vector<int> correct;
+    std::vector<int> wrong;
+    for (int f = 0; f < frames; ++f) {
+      if (!records[f].has_match) continue;
+      (scored.IsPositive(f, report.answers[f].reference) ? correct : wrong).push_back(f);
+    }
+    auto by_score = [&](int a, int b) { return report.answers[a].score > report.answers[b].score; };
+    std::sort(correct.begin(), correct.end(), by_score);
+    std::sort(wrong.begin(), wrong.end(), by_score);
+    const int n_wrong = std::min<int>(wrong.size(), eval.pictures / 3);
+    const int n_correct = std::min<int>(correct.size(), eval.pictures - n_wrong);
+    std::vector<std::pair<int, bool>> chosen;
+    for (int i = 0; i < n_correct; ++i) chosen.emplace_back(correct[i], true);
+    for (int i = 0; i < n_wrong; ++i) chosen.emplace_back(wrong[i], false);
+    for (const auto& [f, is_correct] : chosen) {
+      const int reference = report.answers[f].reference;
+      StatusOr<cv::Mat> query = ReadImageFile(run.frames[f].image);
+      StatusOr<cv::Mat> ref = ReadImageFile(run.frames[reference].image);
+      if (!query.ok() || !ref.ok()) continue;
+      const FrameObservation observation = recognizer.Analyze(*query);
+      const std::string caption =
+          "frame " + std::to_string(f) + " (" + run.frames[f].robot + ") -> frame " +
+          std::to_string(reference) + " (" + run.frames[reference].robot + ")  score " +
+          Fixed(report.answers[f].score, 0) + "  " + (is_correct ? "correct" : "WRONG");
+      const cv::Mat picture = DrawMatchPicture(*query, observation, *ref, frame_scale[reference],
+                                               records[f].best, caption);
+      char name[64];
+      std::snprintf(name, sizeof(name), "/%s_%03d_to_%03d.jpg", is_correct ? "correct" : "wrong", f,
+                    reference);
+      cv::imwrite(dir + name, picture);
+    }
+  }
+  return report;
+}
+
+}  // namespace placerec

@@ -1,0 +1,39 @@
+// Feeds a run (../shared/data layout) through the recognition pipeline in-process and writes
+// what placerec-eval promises: answers.csv, summary.json, pr_curve.png and match pictures.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "common/eval/answers.h"
+#include "common/eval/run.h"
+#include "common/eval/scoring.h"
+#include "common/pipeline/recognizer.h"
+#include "common/util/status.h"
+
+namespace placerec {
+
+struct EvalOptions {
+  std::string out_dir;               // created if missing; empty writes nothing
+  std::string db_path;               // SQLite map; empty keeps the map in memory
+  int pictures = 6;                  // match pictures to draw (best true and false positives)
+  bool progress = true;              // a progress line on stderr
+  bool print_loop_closures = false;  // one stdout line per loop closure as it is found
+  int max_frames = 0;                // stop after this many frames (0: all)
+  // Segmentation used by the analyzer; null means superpixels.
+  std::function<std::unique_ptr<Segmenter>()> make_segmenter;
+};
+
+struct EvalReport {
+  std::vector<Answer> answers;
+  RunScore score;
+  nlohmann::json summary;  // what summary.json holds
+};
+
+StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& options,
+                                 const EvalOptions& eval);
+
+}  // namespace placerec
