@@ -15,7 +15,8 @@ StatusOr<placerec::Run> LoadOrSkip(const std::string& dataset, const std::string
   return LoadRun(DataRoot() + "/" + dataset, name);
 }
 
-constexpr double kCorridorRecallFloor = 0.0;  // set after measuring
+// Measured 0.64-0.68 with the defaults (README, "Figures"); the floor leaves room for noise.
+constexpr double kCorridorRecallFloor = 0.5;
 
 TEST(EndToEndTest, CorridorLoopRecallAtFullPrecision) {
   const std::string dataset = DataRoot() + "/rtabmap_indoor";

@@ -26,7 +26,7 @@ struct FeatureOptions {
   // Plain scenes (an indoor corridor) give few keypoints at the default contrast threshold:
   // when a frame has fewer than this many, SIFT runs again with low_contrast_threshold.
   // 0 never retries.
-  int min_keypoints = 1000;
+  int min_keypoints = 400;
   double low_contrast_threshold = 0.01;
 
   bool Check(std::string* error) const;

@@ -88,10 +88,16 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
          "nearest neighbours per descriptor when comparing with previous frames");
   p->Add("landmark-min-votes", &o->landmarks.matching.min_votes,
          "neighbour votes an object pair needs before verification (landmarks)");
+  p->Add("landmark-flann-checks", &o->landmarks.flann.checks,
+         "FLANN leaves checked per descriptor when comparing with previous frames");
   p->Add("landmark-exhaustive", &o->landmarks.matching.exhaustive_verification,
          "verify voted object pairs with the exact ratio test over all rows (landmarks)");
   p->Add("query-objects", &o->query_objects,
          "objects looked up in the map: all | landmarks (seed §5.7)");
+  p->Add("max-query-descriptors", &o->max_query_descriptors,
+         "look up at most this many descriptors per frame, strongest first (0: all)");
+  p->Add("query-unassigned", &o->query_unassigned_keypoints,
+         "also look up keypoints outside every object (place-level matching only)");
   p->Add("store-tracked-only", &o->store_tracked_descriptors_only,
          "store only the landmark descriptors that matched into previous frames");
   p->Add("index-search", &o->index.search,
@@ -132,10 +138,18 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
          "(degrees; 0 keeps all)");
   p->Add("max-inliers-per-landmark", &o->loop.max_inliers_per_landmark,
          "a place scores at most this many inliers per landmark (0: no cap)");
+  p->Add("max-inliers-per-cell", &o->loop.max_inliers_per_cell,
+         "a place scores at most this many inliers per grid cell of the query frame (0: no cap)");
+  p->Add("inlier-cell-size", &o->loop.inlier_cell_size, "grid cell size for that cap (pixels)");
   p->Add("ransac-threshold", &o->loop.ransac_threshold,
          "RANSAC epipolar distance in pixels of the processed frame");
   p->Add("max-verified-places", &o->loop.max_verified_places,
          "candidate places checked geometrically per frame");
+  p->Add("localization-window", &o->loop.localization_window,
+         "answer with the place nearest the inlier-weighted centre of the best place's "
+         "neighbours within this many frames (0: the best place)");
+  p->Add("noise-inliers", &o->loop.noise_inliers,
+         "inliers a wrong place reaches by chance; only the excess weighs in localization");
   p->Add("max-matches", &o->loop.max_matches, "places returned per frame");
   p->Add("loop-min-score", &o->loop.min_score,
          "a frame is a loop closure when its best place scores at least this");

@@ -1,6 +1,7 @@
 #include "common/pipeline/recognizer.h"
 
 #include <algorithm>
+#include <functional>
 
 #include "common/util/logging.h"
 
@@ -86,21 +87,63 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   lookup.robot = request.robot;
   lookup.sequence = request.sequence;
   lookup.utime = request.utime;
-  auto add_query = [&](int o) {
-    const SceneObject& object = observation.objects[o];
-    lookup.objects.push_back({object.sift_count(), object.colour, object.descriptors});
-    std::vector<cv::KeyPoint> keypoints;
-    keypoints.reserve(object.keypoints.size());
-    for (int k : object.keypoints) keypoints.push_back(observation.features.keypoints[k]);
-    lookup.object_keypoints.push_back(std::move(keypoints));
-  };
   std::vector<int> query_to_object;
   if (options_.query_objects == QueryObjects::kAll) {
     for (int o = 0; o < result.objects; ++o) query_to_object.push_back(o);
   } else {
     query_to_object = selection.landmarks;
   }
-  for (int o : query_to_object) add_query(o);
+  // Which keypoints are searched: all, or the strongest max_query_descriptors of them.
+  float min_response = -1.0f;
+  if (options_.max_query_descriptors > 0) {
+    std::vector<float> responses;
+    for (int o : query_to_object) {
+      for (int k : observation.objects[o].keypoints) {
+        responses.push_back(observation.features.keypoints[k].response);
+      }
+    }
+    if (static_cast<int>(responses.size()) > options_.max_query_descriptors) {
+      std::nth_element(responses.begin(), responses.begin() + options_.max_query_descriptors - 1,
+                       responses.end(), std::greater<float>());
+      min_response = responses[options_.max_query_descriptors - 1];
+    }
+  }
+  std::vector<int> searched_objects;
+  for (int o : query_to_object) {
+    const SceneObject& object = observation.objects[o];
+    IndexQuery query{object.sift_count(), object.colour, cv::Mat()};
+    std::vector<cv::KeyPoint> keypoints;
+    for (int r = 0; r < object.sift_count(); ++r) {
+      const cv::KeyPoint& keypoint = observation.features.keypoints[object.keypoints[r]];
+      if (keypoint.response < min_response) continue;
+      query.descriptors.push_back(object.descriptors.row(r));
+      keypoints.push_back(keypoint);
+    }
+    if (keypoints.empty()) continue;
+    lookup.objects.push_back(std::move(query));
+    lookup.object_keypoints.push_back(std::move(keypoints));
+    searched_objects.push_back(o);
+  }
+  if (options_.query_unassigned_keypoints) {
+    std::vector<bool> in_object(observation.features.size(), false);
+    for (const SceneObject& object : observation.objects) {
+      for (int k : object.keypoints) in_object[k] = true;
+    }
+    IndexQuery rest{0, ColourSignature(), cv::Mat(), false};
+    std::vector<cv::KeyPoint> keypoints;
+    for (int k = 0; k < observation.features.size(); ++k) {
+      const cv::KeyPoint& keypoint = observation.features.keypoints[k];
+      if (in_object[k] || keypoint.response < min_response) continue;
+      rest.descriptors.push_back(observation.features.descriptors.row(k));
+      keypoints.push_back(keypoint);
+    }
+    if (!keypoints.empty()) {
+      rest.sift_count = static_cast<int>(keypoints.size());
+      lookup.objects.push_back(std::move(rest));
+      lookup.object_keypoints.push_back(std::move(keypoints));
+      searched_objects.push_back(-1);
+    }
+  }
   MapLookupResult found = map_->Lookup(lookup, options_.loop);
   VLOG(1) << request.robot << " #" << request.sequence << ": " << lookup.objects.size()
           << " query objects, " << found.stats.candidates << " candidates, "
@@ -125,7 +168,7 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
     VLOG(2) << "places (sequence:score/points/landmarks):" << list;
   }
   for (PlaceMatch& match : found.places) {
-    for (auto& pair : match.object_pairs) pair.first = query_to_object[pair.first];
+    for (auto& pair : match.object_pairs) pair.first = searched_objects[pair.first];
   }
   result.matches = std::move(found.places);
   result.loop_closure =

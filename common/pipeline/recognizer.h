@@ -34,6 +34,14 @@ struct RecognizerOptions {
   LandmarkIndexOptions index;
   LoopDecisionOptions loop;
   QueryObjects query_objects = QueryObjects::kAll;
+  // Look up at most this many of the query objects' descriptors, the strongest keypoints
+  // (largest DoG response) first: the cost of a lookup grows with the descriptors searched.
+  // 0 searches all.
+  int max_query_descriptors = 0;
+  // Also look up the keypoints that fall in no object (small segments, segment borders), for
+  // place-level matching only: plain frames (a corridor) have few objects but still show the
+  // place.
+  bool query_unassigned_keypoints = true;
   // Store only a landmark's descriptors that matched into the previous frames (its widely
   // visible features); off stores every descriptor of the landmark object.
   bool store_tracked_descriptors_only = true;

@@ -19,7 +19,7 @@ namespace placerec {
 
 struct DescriptorIndexOptions {
   // Leaves checked per query: more is slower and closer to exact (FLANN SearchParams).
-  int checks = 64;
+  int checks = 32;
 
   bool Check(std::string* error) const;
 };

@@ -6,6 +6,7 @@
 
 #include "common/features/features.h"
 #include "common/util/logging.h"
+#include "common/util/timer.h"
 
 namespace placerec {
 
@@ -105,6 +106,7 @@ IndexResult LandmarkIndex::Query(const std::vector<IndexQuery>& objects,
 
   if (options_.search == IndexSearch::kExhaustive) {
     for (size_t o = 0; o < objects.size(); ++o) {
+      if (!objects[o].is_object) continue;
       const std::vector<int32_t> candidates = Candidates(objects[o]);
       result.stats.candidates += static_cast<int64_t>(candidates.size());
       for (int32_t slot : candidates) {
@@ -164,23 +166,36 @@ IndexResult LandmarkIndex::Query(const std::vector<IndexQuery>& objects,
     return result;
   }
 
-  // Candidate marks per query object from the range tree and the colour filter.
-  std::vector<std::vector<uint8_t>> candidate(objects.size());
-  for (size_t o = 0; o < objects.size(); ++o) {
-    candidate[o].assign(landmarks_.size(), 0);
-    const std::vector<int32_t> slots = Candidates(objects[o]);
-    for (int32_t slot : slots) candidate[o][slot] = 1;
-    result.stats.candidates += static_cast<int64_t>(slots.size());
+  // The texture range of each query object; the range and colour filters are applied to every
+  // neighbour FLANN returns (the same predicate the range tree answers, in O(1) per neighbour).
+  Timer timer;
+  std::vector<std::pair<int, int>> range(objects.size(), {INT32_MIN, INT32_MAX});
+  if (options_.use_count_range) {
+    for (size_t o = 0; o < objects.size(); ++o) {
+      CountRange(objects[o].sift_count, options_.count_range_low, options_.count_range_high,
+                 &range[o].first, &range[o].second);
+    }
   }
-
+  auto candidate = [&](int object, int32_t slot) {
+    if (!objects[object].is_object) return false;
+    const int count = landmarks_[slot].sift_count;
+    return count >= range[object].first && count <= range[object].second &&
+           CandidateByColour(objects[object], slot);
+  };
+  result.stats.filter_ms = timer.ElapsedMs();
+  timer.Restart();
   NeighbourLists neighbours;
   descriptors_.Search(query.rows, options_.matching.knn, &neighbours);
+  result.stats.search_ms = timer.ElapsedMs();
+  timer.Restart();
   const std::vector<ObjectPair> pairs = MatchObjectPairs(
       query, neighbours,
       [this](int32_t slot) -> const cv::Mat& { return landmarks_[slot].descriptors; },
-      [&](int object, int32_t slot) { return candidate[object][slot] && allowed_slot(slot); },
+      [&](int object, int32_t slot) { return candidate(object, slot) && allowed_slot(slot); },
       options_.matching, &result.stats.matching);
   result.objects.reserve(pairs.size());
+  result.stats.objects_ms = timer.ElapsedMs();
+  timer.Restart();
   std::unordered_map<PlaceId, bool> matched_places;
   for (const ObjectPair& pair : pairs) {
     const Landmark& landmark = landmarks_[pair.owner];

@@ -1,10 +1,13 @@
-// Retrieval of stored landmark objects (pipeline step 8, seed §5.6): candidates come from the
-// range tree keyed by SIFT count (a query with n keypoints looks at [2n/3, 4n/3]), are filtered
-// by colour (dominant H within 0.2), and are verified by descriptor matching with the ratio
-// test (more than 6 matches). Verification searches FLANN over every stored descriptor and
-// keeps only neighbours in candidate objects, so its cost grows with the logarithm of the map,
-// not with the number of candidates; kExhaustive matches every candidate exactly, as the seed
-// describes, and serves as the reference.
+// Retrieval of stored landmark objects (pipeline step 8, seed §5.6): candidates are the stored
+// objects whose SIFT count lies in [2n/3, 4n/3] for a query object with n keypoints (the range
+// tree) and whose dominant colour invariant is within 0.2 (the colour filter); a candidate is
+// the same object when more than 6 descriptors match with the ratio test.
+//
+// kExhaustive does exactly that: it enumerates the candidates with the range tree and matches
+// each one. kFlann (the default) turns the cascade around so that its cost does not grow with
+// the number of candidates: every query descriptor's nearest neighbours come from one FLANN
+// index over all stored descriptors, and only neighbours in candidate objects (the same range
+// and colour predicate, checked per neighbour) vote for and verify object pairs.
 #pragma once
 
 #include <cstdint>
@@ -58,6 +61,9 @@ struct IndexQuery {
   int sift_count = 0;
   ColourSignature colour;
   cv::Mat descriptors;  // CV_8U x 128
+  // False for descriptors that belong to no object (keypoints outside every object of the
+  // frame): they vote for places and match at place level, but form no object pairs.
+  bool is_object = true;
 };
 
 struct LandmarkMatch {
@@ -78,9 +84,13 @@ struct PointMatch {
 };
 
 struct IndexQueryStats {
-  int64_t candidates = 0;  // sum over query objects of candidate landmarks (range and colour)
+  int64_t candidates = 0;  // kExhaustive: sum over query objects of candidate landmarks
   int64_t candidate_places = 0;
   ObjectMatchingStats matching;
+  double filter_ms = 0;   // query ranges and filters
+  double search_ms = 0;   // nearest neighbours of every query descriptor
+  double objects_ms = 0;  // object pairs
+  double places_ms = 0;   // votes and place-level matches
 };
 
 struct IndexResult {

@@ -17,15 +17,25 @@ LandmarkSelector::LandmarkSelector(const LandmarkSelectorOptions& options) : opt
 LandmarkSelection LandmarkSelector::Select(const std::vector<cv::Mat>& object_descriptors) const {
   std::vector<std::vector<int>> tracked(object_descriptors.size());
   std::vector<bool> is_landmark(object_descriptors.size(), false);
-  for (const auto& frame : history_) {
+  // Newest frame first; an object matched there is not looked up in older frames (it is a
+  // landmark already, and its tracked features are those of the newest match).
+  std::vector<cv::Mat> unmatched = object_descriptors;
+  for (auto it = history_.rbegin(); it != history_.rend(); ++it) {
+    const auto& frame = *it;
     const std::vector<ObjectPair> pairs = MatchObjects(
-        object_descriptors, *frame->index,
+        unmatched, *frame->index,
         [&frame](int32_t owner) -> const cv::Mat& { return frame->objects[owner]; },
         [](int, int32_t) { return true; }, options_.matching, nullptr);
     for (const ObjectPair& pair : pairs) {
       is_landmark[pair.query_object] = true;
       for (const DescriptorMatch& m : pair.matches) tracked[pair.query_object].push_back(m.query);
     }
+    bool any_left = false;
+    for (size_t o = 0; o < unmatched.size(); ++o) {
+      if (is_landmark[o]) unmatched[o] = cv::Mat();
+      any_left = any_left || !unmatched[o].empty();
+    }
+    if (!any_left) break;
   }
   LandmarkSelection selection;
   for (size_t o = 0; o < object_descriptors.size(); ++o) {

@@ -26,7 +26,12 @@ struct LandmarkSelectorOptions {
     m.min_votes = 2;
     return m;
   }();
-  DescriptorIndexOptions flann;
+  // One frame's descriptors are few; fewer checks find their neighbours as well.
+  DescriptorIndexOptions flann = [] {
+    DescriptorIndexOptions f;
+    f.checks = 24;
+    return f;
+  }();
 
   bool Check(std::string* error) const;
 };

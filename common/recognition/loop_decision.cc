@@ -36,6 +36,10 @@ bool LoopDecisionOptions::Check(std::string* error) const {
     *error = "loop max_inliers_per_landmark must be >= 0 (0: no cap)";
     return false;
   }
+  if (ransac_iterations < 1 || min_verification_points < 0) {
+    *error = "loop ransac_iterations must be >= 1 and min_verification_points >= 0";
+    return false;
+  }
   if (max_verified_places < 1 || max_matches < 1) {
     *error = "loop max_verified_places and max_matches must be at least 1";
     return false;
@@ -102,13 +106,26 @@ std::vector<KeypointPair> ConsistentOrientation(const std::vector<KeypointPair>&
   return kept;
 }
 
-// Inliers counted at most `cap` times per landmark (all of them when cap is 0).
-double CappedScore(const std::vector<LandmarkId>& inlier_landmarks, int cap) {
-  if (cap <= 0) return static_cast<double>(inlier_landmarks.size());
+// Inliers counted at most max_inliers_per_landmark times per landmark and at most
+// max_inliers_per_cell times per grid cell of the query frame (no cap where a cap is 0).
+double CappedScore(const PlaceMatch& match, const LoopDecisionOptions& options) {
   std::map<int64_t, int> per_landmark;
-  for (LandmarkId id : inlier_landmarks) ++per_landmark[id.value()];
+  std::map<std::pair<int, int>, int> per_cell;
+  const int cell = std::max(1, options.inlier_cell_size);
   double score = 0;
-  for (const auto& [id, count] : per_landmark) score += std::min(count, cap);
+  for (size_t i = 0; i < match.point_pairs.size(); ++i) {
+    if (options.max_inliers_per_landmark > 0 &&
+        ++per_landmark[match.point_landmarks[i].value()] > options.max_inliers_per_landmark) {
+      continue;
+    }
+    const cv::Point2f& p = match.point_pairs[i].first;
+    if (options.max_inliers_per_cell > 0 &&
+        ++per_cell[{static_cast<int>(p.x) / cell, static_cast<int>(p.y) / cell}] >
+            options.max_inliers_per_cell) {
+      continue;
+    }
+    score += 1;
+  }
   return score;
 }
 
@@ -161,10 +178,16 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
 
   if (options.geometric_verification) {
     const size_t verified = std::min<size_t>(ranked.size(), options.max_verified_places);
+    double best_score = 0;
     for (size_t i = 0; i < verified; ++i) {
       PlaceMatch& match = ranked[i];
       match.inliers = 0;
-      if (match.point_pairs.size() >= 8) {
+      // A place with fewer matches than the best score so far cannot beat it, and barely weighs
+      // in localization.
+      const bool promising = static_cast<int>(match.point_pairs.size()) >=
+                                 std::max(8, options.min_verification_points) &&
+                             static_cast<double>(match.point_pairs.size()) >= 0.5 * best_score;
+      if (promising) {
         std::vector<cv::Point2f> a;
         std::vector<cv::Point2f> b;
         for (const auto& [p, q] : match.point_pairs) {
@@ -172,8 +195,9 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
           b.push_back(q);
         }
         std::vector<uint8_t> mask;
-        const cv::Mat f = cv::findFundamentalMat(a, b, cv::FM_RANSAC, options.ransac_threshold,
-                                                 options.ransac_confidence, mask);
+        const cv::Mat f =
+            cv::findFundamentalMat(a, b, cv::USAC_ACCURATE, options.ransac_threshold,
+                                   options.ransac_confidence, options.ransac_iterations, mask);
         if (!f.empty() && mask.size() == a.size()) {
           std::vector<std::pair<cv::Point2f, cv::Point2f>> inliers;
           std::vector<LandmarkId> inlier_landmarks;
@@ -191,7 +215,8 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
         match.point_pairs.clear();
         match.point_landmarks.clear();
       }
-      match.score = CappedScore(match.point_landmarks, options.max_inliers_per_landmark);
+      match.score = CappedScore(match, options);
+      best_score = std::max(best_score, match.score);
     }
     // Unverified places rank below every verified one.
     for (size_t i = verified; i < ranked.size(); ++i) ranked[i].score = 0;

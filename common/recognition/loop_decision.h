@@ -31,15 +31,25 @@ struct LoopDecisionOptions {
   // this many degrees of the place's most common difference: two views of a scene from upright
   // cameras rotate their features alike, random matches do not. 0 keeps every match.
   double orientation_tolerance = 20.0;
+  // The fundamental matrix is fitted with OpenCV's USAC (LO-RANSAC with SPRT, deterministic
+  // seed): as selective as plain RANSAC here and about ten times faster.
   // RANSAC inlier distance to the epipolar line, pixels of the processed frame.
   double ransac_threshold = 3.0;
   double ransac_confidence = 0.999;
+  int ransac_iterations = 500;
+  // Places with fewer orientation-consistent matches than this are not checked (score 0).
+  int min_verification_points = 10;
   // A place scores the geometric inliers of each of its landmarks up to this many (0: no cap),
   // so that one object seen in two places (a newspaper stand, a poster) does not make a loop:
   // the seed asks for about half of a frame's landmarks to match (§5.7 step 6).
   int max_inliers_per_landmark = 10;
+  // ... and at most this many inliers per cell of a grid over the query frame (cells of
+  // inlier_cell_size pixels; 0: no cap). Inliers crowded on one distant structure say little
+  // about where along the route the robot is; inliers spread over the frame do.
+  int max_inliers_per_cell = 0;
+  int inlier_cell_size = 48;
   // Places verified geometrically, best by matched descriptors first.
-  int max_verified_places = 40;
+  int max_verified_places = 20;
   // The answer's place is the one nearest the inlier-weighted mean sequence of the best place's
   // neighbours (same robot, within this many frames, scores above `noise_inliers`), not simply
   // the best: neighbouring frames share the evidence and the peak is noisy. 0 takes the best.

@@ -1,0 +1,342 @@
+// placerec-bench: speed of the pipeline, measured against OpenCV's SIFT on the same frame in the
+// same run (the machine is shared and noisy, so only ratios from one run mean much), and
+// retrieval time against synthetic maps of 1,000 to 100,000 landmark objects.
+//
+//   placerec-bench [--benchmark_filter=REGEX] [--benchmark_repetitions=N] ...
+//
+// Frames come from ../shared/data (or PLACEREC_DATA); without the data a synthetic frame is
+// used and the output says so.
+#include <algorithm>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <benchmark/benchmark.h>
+#include <opencv2/core.hpp>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "common/image/image.h"
+#include "common/pipeline/frame_analyzer.h"
+#include "common/pipeline/place_map.h"
+#include "common/pipeline/recognizer.h"
+#include "common/storage/sqlite_store.h"
+#include "common/util/logging.h"
+#include "common/util/paths.h"
+
+namespace placerec {
+namespace {
+
+std::string DataRoot() { return DataDir("", PLACEREC_DEFAULT_DATA_DIR); }
+
+// A synthetic textured frame for machines without the evaluation data.
+cv::Mat SyntheticFrame(int width, int height, unsigned seed) {
+  std::mt19937 rng(seed);
+  cv::Mat frame(height, width, CV_8UC3, cv::Scalar(200, 180, 150));
+  std::uniform_int_distribution<int> x(0, width - 1);
+  std::uniform_int_distribution<int> y(0, height - 1);
+  std::uniform_int_distribution<int> c(0, 255);
+  std::uniform_int_distribution<int> r(2, 30);
+  for (int i = 0; i < 400; ++i) {
+    cv::circle(frame, cv::Point(x(rng), y(rng)), r(rng), cv::Scalar(c(rng), c(rng), c(rng)),
+               cv::FILLED);
+  }
+  return frame;
+}
+
+// Gardens Point day_left frame `index` resized to 640x480, or a synthetic frame.
+cv::Mat Frame640(int index, bool* real) {
+  char path[512];
+  std::snprintf(path, sizeof(path), "%s/gardens_point/day_left/Image%03d.jpg", DataRoot().c_str(),
+                index);
+  StatusOr<cv::Mat> image = ReadImageFile(path);
+  *real = image.ok();
+  cv::Mat frame = image.ok() ? *image : SyntheticFrame(960, 540, static_cast<unsigned>(index));
+  cv::resize(frame, frame, cv::Size(640, 480), 0, 0, cv::INTER_AREA);
+  return frame;
+}
+
+// Frames 100-139 of a walk: the pipeline benchmarks cycle through them like a moving robot, and
+// the SIFT reference runs on the same frames, so their ratio compares like with like.
+constexpr int kFirstFrame = 100;
+constexpr int kWalkFrames = 40;
+
+struct Fixture {
+  Fixture() {
+    cv::setNumThreads(1);
+    for (int i = 0; i < kWalkFrames; ++i) {
+      bool real = false;
+      walk.push_back(Frame640(kFirstFrame + i, &real));
+      real_data = real_data || real;
+    }
+    frame = walk[20];
+    previous.assign(walk.begin() + 17, walk.begin() + 20);
+  }
+  cv::Mat frame;                  // one frame for the single-stage benchmarks
+  std::vector<cv::Mat> previous;  // the three frames before it
+  std::vector<cv::Mat> walk;
+  bool real_data = false;
+};
+
+Fixture& Data() {
+  static Fixture fixture;
+  return fixture;
+}
+
+// The reference: OpenCV SIFT alone (keypoints and descriptors, default settings) on the 640x480
+// frames of the walk, in turn.
+void BM_SiftReference(benchmark::State& state) {
+  std::vector<cv::Mat> gray(Data().walk.size());
+  for (size_t i = 0; i < gray.size(); ++i)
+    cv::cvtColor(Data().walk[i], gray[i], cv::COLOR_BGR2GRAY);
+  size_t i = 0;
+  double keypoints = 0;
+  for (auto _ : state) {
+    cv::Ptr<cv::SIFT> sift = cv::SIFT::create();
+    std::vector<cv::KeyPoint> found;
+    cv::Mat descriptors;
+    sift->detectAndCompute(gray[i++ % gray.size()], cv::noArray(), found, descriptors);
+    benchmark::DoNotOptimize(descriptors.data);
+    keypoints += static_cast<double>(found.size());
+  }
+  state.counters["keypoints"] =
+      keypoints / std::max<double>(1, static_cast<double>(state.iterations()));
+}
+BENCHMARK(BM_SiftReference)->Unit(benchmark::kMillisecond)->Iterations(120);
+
+void BM_StageFeatures(benchmark::State& state) {
+  const RecognizerOptions options;
+  for (auto _ : state) {
+    Features features = ExtractFeatures(Data().frame, options.analyzer.features);
+    benchmark::DoNotOptimize(features.descriptors.data);
+  }
+}
+BENCHMARK(BM_StageFeatures)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+void BM_StageSegmentation(benchmark::State& state) {
+  const RecognizerOptions options;
+  const SuperpixelSegmenter segmenter(options.analyzer.superpixels);
+  for (auto _ : state) {
+    const WorkingImage working =
+        MakeWorkingImage(Data().frame, options.analyzer.superpixels.working_width);
+    SceneSegmentation segmentation = segmenter.Segment(working);
+    benchmark::DoNotOptimize(segmentation.labels.data);
+  }
+}
+BENCHMARK(BM_StageSegmentation)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// Everything the analyzer does: SIFT, segmentation, colour invariant, objects.
+void BM_StageAnalyze(benchmark::State& state) {
+  const FrameAnalyzer analyzer{AnalyzerOptions()};
+  for (auto _ : state) {
+    FrameObservation observation = analyzer.Analyze(Data().frame);
+    benchmark::DoNotOptimize(observation.objects.data());
+  }
+}
+BENCHMARK(BM_StageAnalyze)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// Landmark selection against three remembered frames.
+void BM_StageLandmarks(benchmark::State& state) {
+  const RecognizerOptions options;
+  const FrameAnalyzer analyzer(options.analyzer);
+  LandmarkSelector selector(options.landmarks);
+  auto descriptors_of = [](const FrameObservation& o) {
+    std::vector<cv::Mat> d;
+    for (const SceneObject& object : o.objects) d.push_back(object.descriptors);
+    return d;
+  };
+  for (const cv::Mat& frame : Data().previous)
+    selector.Remember(descriptors_of(analyzer.Analyze(frame)));
+  const std::vector<cv::Mat> current = descriptors_of(analyzer.Analyze(Data().frame));
+  for (auto _ : state) {
+    LandmarkSelection selection = selector.Select(current);
+    benchmark::DoNotOptimize(selection.landmarks.data());
+  }
+}
+BENCHMARK(BM_StageLandmarks)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// The whole pipeline per frame, a robot walking the 40 frames three times: analysis, landmark
+// selection, lookup in the map built so far (the second and third laps are revisits), decision
+// and insertion into an in-memory SQLite map.
+void BM_Pipeline(benchmark::State& state) {
+  const RecognizerOptions options;
+  StatusOr<std::unique_ptr<LandmarkStore>> store =
+      OpenSqliteStore(":memory:", SqliteStoreOptions());
+  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
+  Recognizer recognizer(options, map->get());
+  int64_t sequence = 0;
+  std::map<std::string, double> stage_ms;
+  for (auto _ : state) {
+    const cv::Mat& frame = Data().walk[sequence % Data().walk.size()];
+    RecognitionResult result = recognizer.Process({"bench", sequence++, 0, true}, frame);
+    benchmark::DoNotOptimize(result.matches.data());
+    for (const auto& [stage, ms] : result.timings) stage_ms[stage] += ms;
+  }
+  for (const auto& [stage, ms] : stage_ms) {
+    state.counters[stage + "_ms"] =
+        ms / std::max<double>(1, static_cast<double>(state.iterations()));
+  }
+  state.counters["map_landmarks"] = static_cast<double>((*map)->Counts().landmarks);
+}
+BENCHMARK(BM_Pipeline)->Unit(benchmark::kMillisecond)->Iterations(120);
+
+// ---- Retrieval against large synthetic maps ----
+
+// Real SIFT descriptors as the pool synthetic landmarks are drawn from (with noise), so the
+// index sees the structure of real descriptors rather than uniform noise.
+const cv::Mat& DescriptorPool() {
+  static cv::Mat pool = [] {
+    cv::Mat all;
+    const RecognizerOptions options;
+    for (int i = 0; i < 200; i += 8) {
+      bool real = false;
+      const cv::Mat frame = Frame640(i, &real);
+      all.push_back(ExtractFeatures(frame, options.analyzer.features).descriptors);
+    }
+    return all;
+  }();
+  return pool;
+}
+
+struct SyntheticMap {
+  std::unique_ptr<PlaceMap> map;
+  MapLookup query;
+};
+
+// A map of `landmarks` landmark objects, 10 per place, each with `per_landmark` descriptors
+// (the mean stored on the Gardens Point runs); SIFT counts log-uniform in [9, 400] and one or
+// two dominant colours. The query is the real frame's objects.
+SyntheticMap& MapOf(int landmarks) {
+  static std::map<int, SyntheticMap> maps;
+  auto it = maps.find(landmarks);
+  if (it != maps.end()) return it->second;
+  const int per_landmark = 24;
+  const RecognizerOptions options;
+  StatusOr<std::unique_ptr<LandmarkStore>> store =
+      OpenSqliteStore(":memory:", SqliteStoreOptions());
+  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
+  const cv::Mat& pool = DescriptorPool();
+  std::mt19937 rng(42);
+  std::uniform_int_distribution<int> pick(0, pool.rows - 1);
+  std::uniform_int_distribution<int> noise(-8, 8);
+  std::uniform_real_distribution<double> log_count(std::log(9.0), std::log(400.0));
+  std::uniform_real_distribution<float> hue(-1.5f, 1.5f);
+  std::uniform_real_distribution<float> coordinate(0.0f, 640.0f);
+  for (int place = 0; place * 10 < landmarks; ++place) {
+    Place p;
+    p.robot = "synthetic";
+    p.sequence = place;
+    std::vector<Landmark> batch;
+    for (int l = 0; l < 10 && place * 10 + l < landmarks; ++l) {
+      Landmark landmark;
+      landmark.sift_count = static_cast<int>(std::exp(log_count(rng)));
+      landmark.colour.peaks = {hue(rng)};
+      if (rng() % 4 == 0) landmark.colour.peaks.push_back(hue(rng));
+      landmark.descriptors.create(per_landmark, kDescriptorSize, CV_8U);
+      for (int r = 0; r < per_landmark; ++r) {
+        const uint8_t* source = pool.ptr<uint8_t>(pick(rng));
+        uint8_t* row = landmark.descriptors.ptr<uint8_t>(r);
+        for (int c = 0; c < kDescriptorSize; ++c) {
+          row[c] = cv::saturate_cast<uint8_t>(source[c] + noise(rng));
+        }
+        landmark.keypoints.emplace_back(cv::Point2f(coordinate(rng), coordinate(rng) * 0.75f),
+                                        4.0f);
+      }
+      landmark.box = cv::Rect(0, 0, 10, 10);
+      batch.push_back(std::move(landmark));
+    }
+    CHECK((*map)->Insert(&p, &batch).ok());
+  }
+  SyntheticMap& entry = maps[landmarks];
+  entry.map = std::move(*map);
+  const FrameAnalyzer analyzer(options.analyzer);
+  const FrameObservation observation = analyzer.Analyze(Data().frame);
+  entry.query.robot = "query";
+  for (const SceneObject& object : observation.objects) {
+    entry.query.objects.push_back({object.sift_count(), object.colour, object.descriptors});
+    std::vector<cv::KeyPoint> keypoints;
+    for (int k : object.keypoints) keypoints.push_back(observation.features.keypoints[k]);
+    entry.query.object_keypoints.push_back(std::move(keypoints));
+  }
+  return entry;
+}
+
+void BM_Retrieval(benchmark::State& state) {
+  SyntheticMap& synthetic = MapOf(static_cast<int>(state.range(0)));
+  const LoopDecisionOptions options;
+  int descriptors = 0;
+  for (const IndexQuery& q : synthetic.query.objects) descriptors += q.descriptors.rows;
+  IndexQueryStats stats;
+  double ranking_ms = 0;
+  int n = 0;
+  for (auto _ : state) {
+    MapLookupResult result = synthetic.map->Lookup(synthetic.query, options);
+    benchmark::DoNotOptimize(result.places.data());
+    stats = result.stats;
+    ranking_ms += result.ranking_ms;
+    ++n;
+  }
+  state.counters["filter_ms"] = stats.filter_ms;
+  state.counters["search_ms"] = stats.search_ms;
+  state.counters["objects_ms"] = stats.objects_ms;
+  state.counters["places_ms"] = stats.places_ms;
+  state.counters["ranking_ms"] = ranking_ms / std::max(1, n);
+  const MapCounts counts = synthetic.map->Counts();
+  state.counters["landmarks"] = static_cast<double>(counts.landmarks);
+  state.counters["map_descriptors"] = static_cast<double>(counts.descriptors);
+  state.counters["query_objects"] = static_cast<double>(synthetic.query.objects.size());
+  state.counters["query_descriptors"] = descriptors;
+}
+BENCHMARK(BM_Retrieval)->Arg(1000)->Arg(10000)->Arg(100000)->Unit(benchmark::kMillisecond);
+
+// Collects mean real time per benchmark so that ratios can be printed after the run.
+class RatioReporter : public benchmark::ConsoleReporter {
+ public:
+  void ReportRuns(const std::vector<Run>& runs) override {
+    ConsoleReporter::ReportRuns(runs);
+    for (const Run& run : runs) {
+      if (run.run_type != Run::RT_Iteration && run.aggregate_name != "mean") continue;
+      times_[run.run_name.function_name +
+             (run.run_name.args.empty() ? "" : "/" + run.run_name.args)] =
+          run.GetAdjustedRealTime();
+    }
+  }
+  std::map<std::string, double> times_;
+};
+
+}  // namespace
+}  // namespace placerec
+
+int main(int argc, char** argv) {
+  placerec::InitLogging(argv[0]);
+  FLAGS_minloglevel = 1;  // no INFO lines between benchmark rows
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  std::printf("frames: %s\n", placerec::Data().real_data
+                                  ? "Gardens Point day_left Image100-139 resized to 640x480"
+                                  : "synthetic 640x480 (no ../shared/data; set PLACEREC_DATA)");
+  placerec::RatioReporter reporter;
+  benchmark::RunSpecifiedBenchmarks(&reporter);
+  const auto& t = reporter.times_;
+  const auto sift = t.find("BM_SiftReference");
+  if (sift != t.end() && sift->second > 0) {
+    std::printf(
+        "\nRatios to OpenCV SIFT in this run (stages: frame Image120; pipeline: the same "
+        "40 frames as the SIFT reference):\n");
+    for (const char* name : {"BM_StageFeatures", "BM_StageSegmentation", "BM_StageAnalyze",
+                             "BM_StageLandmarks", "BM_Pipeline"}) {
+      const auto it = t.find(name);
+      if (it != t.end()) std::printf("  %-22s %6.2f\n", name, it->second / sift->second);
+    }
+  }
+  const auto r10k = t.find("BM_Retrieval/10000");
+  const auto r100k = t.find("BM_Retrieval/100000");
+  if (r10k != t.end() && r100k != t.end() && r10k->second > 0) {
+    std::printf("\nRetrieval growth 10,000 -> 100,000 landmark objects: %.2fx\n",
+                r100k->second / r10k->second);
+  }
+  return 0;
+}
