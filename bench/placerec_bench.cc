@@ -255,6 +255,7 @@ SyntheticMap& MapOf(int landmarks) {
   const FrameAnalyzer analyzer(options.analyzer);
   const FrameObservation observation = analyzer.Analyze(Data().frame);
   entry.query.robot = "query";
+  entry.query.image_width = observation.processed_size.width;
   for (const SceneObject& object : observation.objects) {
     entry.query.objects.push_back({object.sift_count(), object.colour, object.descriptors});
     std::vector<cv::KeyPoint> keypoints;

@@ -28,8 +28,8 @@ bool FeatureOptions::Check(std::string* error) const {
     *error = "sift sigma must be positive";
     return false;
   }
-  if (min_keypoints < 0) {
-    *error = "sift min_keypoints must be >= 0 (0 never retries)";
+  if (min_keypoints_per_megapixel < 0) {
+    *error = "sift min_keypoints_per_megapixel must be >= 0 (0 never retries)";
     return false;
   }
   if (low_contrast_threshold <= 0 || low_contrast_threshold >= 1) {
@@ -56,7 +56,8 @@ Features ExtractFeatures(const cv::Mat& image, const FeatureOptions& options) {
     return features;
   };
   Features features = run(options.contrast_threshold);
-  if (features.size() < options.min_keypoints &&
+  const double megapixels = static_cast<double>(gray.total()) * 1e-6;
+  if (features.size() < options.min_keypoints_per_megapixel * megapixels &&
       options.low_contrast_threshold < options.contrast_threshold) {
     features = run(options.low_contrast_threshold);
   }

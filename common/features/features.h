@@ -24,9 +24,9 @@ struct FeatureOptions {
   // Gaussian sigma of the first octave (cv::SIFT default).
   double sigma = 1.6;
   // Plain scenes (an indoor corridor) give few keypoints at the default contrast threshold:
-  // when a frame has fewer than this many, SIFT runs again with low_contrast_threshold.
-  // 0 never retries.
-  int min_keypoints = 400;
+  // when a frame has fewer than this many per megapixel (about 1,000 on a 960x540 frame, 600
+  // on 640x480), SIFT runs again with low_contrast_threshold. 0 never retries.
+  int min_keypoints_per_megapixel = 2000;
   double low_contrast_threshold = 0.01;
 
   bool Check(std::string* error) const;

@@ -49,9 +49,9 @@ TEST(FeaturesTest, PlainFramesRetryWithALowerContrastThreshold) {
   cv::Mat faint = Checkerboard(256, 16);
   faint.convertTo(faint, -1, 0.04, 120);
   FeatureOptions once;
-  once.min_keypoints = 0;
+  once.min_keypoints_per_megapixel = 0;
   FeatureOptions adaptive;
-  adaptive.min_keypoints = 1000;
+  adaptive.min_keypoints_per_megapixel = 20000;
   const int without = ExtractFeatures(faint, once).size();
   const int with = ExtractFeatures(faint, adaptive).size();
   EXPECT_LT(without, 50);

@@ -49,8 +49,9 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
          "SIFT DoG contrast threshold (lower finds more keypoints on plain scenes)");
   p->Add("sift-edge-threshold", &a.features.edge_threshold, "SIFT edge-response threshold");
   p->Add("sift-sigma", &a.features.sigma, "SIFT first-octave Gaussian sigma");
-  p->Add("sift-min-keypoints", &a.features.min_keypoints,
-         "frames with fewer keypoints are run again at the low contrast threshold (0: never)");
+  p->Add("sift-min-keypoints-per-mp", &a.features.min_keypoints_per_megapixel,
+         "frames with fewer keypoints per megapixel run again at the low contrast threshold "
+         "(0: never)");
   p->Add("sift-low-contrast-threshold", &a.features.low_contrast_threshold,
          "contrast threshold of the retry on plain frames");
   p->Add("segment-width", &a.superpixels.working_width,
@@ -146,10 +147,12 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add("max-verified-places", &o->loop.max_verified_places,
          "candidate places checked geometrically per frame");
   p->Add("localization-window", &o->loop.localization_window,
-         "answer with the place nearest the inlier-weighted centre of the best place's "
-         "neighbours within this many frames (0: the best place)");
+         "answer with the best place's neighbour (within this many frames) whose features have "
+         "the query's scale (0: the best place)");
+  p->Add("localization-score-fraction", &o->loop.localization_score_fraction,
+         "neighbours considered for localization score at least this fraction of the best");
   p->Add("noise-inliers", &o->loop.noise_inliers,
-         "inliers a wrong place reaches by chance; only the excess weighs in localization");
+         "inliers a wrong place reaches by chance; weaker neighbours are not considered");
   p->Add("max-matches", &o->loop.max_matches, "places returned per frame");
   p->Add("loop-min-score", &o->loop.min_score,
          "a frame is a loop closure when its best place scores at least this");

@@ -52,7 +52,7 @@ MapLookupResult PlaceMap::Lookup(const MapLookup& lookup,
   result.index_ms = timer.ElapsedMs();
   timer.Restart();
   result.places = RankPlaces(
-      found, lookup.object_keypoints, index_,
+      found, lookup.object_keypoints, lookup.image_width, index_,
       [this](PlaceId id) -> const Place* {
         const auto it = places_.find(id);
         return it == places_.end() ? nullptr : &it->second;

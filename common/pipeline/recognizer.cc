@@ -87,6 +87,7 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   lookup.robot = request.robot;
   lookup.sequence = request.sequence;
   lookup.utime = request.utime;
+  lookup.image_width = observation.processed_size.width;
   std::vector<int> query_to_object;
   if (options_.query_objects == QueryObjects::kAll) {
     for (int o = 0; o < result.objects; ++o) query_to_object.push_back(o);
@@ -212,6 +213,7 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
     place.robot = request.robot;
     place.sequence = request.sequence;
     place.utime = request.utime;
+    place.image_width = observation.processed_size.width;
     const Status inserted = map_->Insert(&place, &landmarks);
     if (!inserted.ok()) {
       result.status = inserted;

@@ -133,6 +133,7 @@ double CappedScore(const PlaceMatch& match, const LoopDecisionOptions& options) 
 
 std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
                                    const std::vector<std::vector<cv::KeyPoint>>& query_keypoints,
+                                   int query_width,
                                    const LandmarkIndex& index,
                                    const std::function<const Place*(PlaceId)>& place_of,
                                    const LoopDecisionOptions& options) {
@@ -146,6 +147,7 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
   }
   for (const auto& [place_id, points] : found.place_points) by_place[place_id];
   std::vector<PlaceMatch> ranked;
+  std::map<PlaceId, std::vector<double>> log_scales;  // per place, per point pair
   for (auto& [place_id, match] : by_place) {
     const Place* place = place_of(place_id);
     CHECK(place != nullptr) << "place " << place_id << " is in the index but not in the map";
@@ -161,9 +163,15 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
         pairs.push_back({&query_keypoints[p.query_object][p.query_row],
                          &landmark.keypoints[p.train], landmark.id});
       }
+      const double width_ratio = query_width > 0 && place->image_width > 0
+                                     ? static_cast<double>(place->image_width) / query_width
+                                     : 1.0;
       for (const KeypointPair& pair : ConsistentOrientation(pairs, options.orientation_tolerance)) {
         match.point_pairs.emplace_back(pair.query->pt, pair.stored->pt);
         match.point_landmarks.push_back(pair.landmark);
+        log_scales[place_id].push_back(
+            std::log(std::max(1e-3f, pair.query->size) / std::max(1e-3f, pair.stored->size) *
+                     width_ratio));
       }
     }
     match.matched_descriptors = static_cast<int>(match.point_pairs.size());
@@ -201,10 +209,18 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
         if (!f.empty() && mask.size() == a.size()) {
           std::vector<std::pair<cv::Point2f, cv::Point2f>> inliers;
           std::vector<LandmarkId> inlier_landmarks;
+          std::vector<double> inlier_scales;
+          const std::vector<double>& scales = log_scales[match.place.id];
           for (size_t k = 0; k < mask.size(); ++k) {
             if (!mask[k]) continue;
             inliers.push_back(match.point_pairs[k]);
             inlier_landmarks.push_back(match.point_landmarks[k]);
+            inlier_scales.push_back(scales[k]);
+          }
+          if (!inlier_scales.empty()) {
+            std::nth_element(inlier_scales.begin(),
+                             inlier_scales.begin() + inlier_scales.size() / 2, inlier_scales.end());
+            match.log_scale = inlier_scales[inlier_scales.size() / 2];
           }
           match.inliers = static_cast<int>(inliers.size());
           match.point_pairs = std::move(inliers);
@@ -222,39 +238,24 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
     for (size_t i = verified; i < ranked.size(); ++i) ranked[i].score = 0;
     std::sort(ranked.begin(), ranked.end(), by_score);
   }
-  if (options.localization_window > 0 && ranked.size() > 1) {
+  if (options.geometric_verification && options.localization_window > 0 && ranked.size() > 1) {
     const PlaceMatch& best = ranked.front();
-    double weight_sum = 0;
-    double sequence_sum = 0;
-    for (const PlaceMatch& m : ranked) {
-      if (m.place.robot != best.place.robot ||
+    const double floor =
+        std::max(options.noise_inliers, options.localization_score_fraction * best.score);
+    size_t chosen = 0;
+    for (size_t i = 1; i < ranked.size(); ++i) {
+      const PlaceMatch& m = ranked[i];
+      if (m.place.robot != best.place.robot || m.score < floor ||
           std::abs(m.place.sequence - best.place.sequence) > options.localization_window) {
         continue;
       }
-      const double weight = std::max(0.0, m.score - options.noise_inliers);
-      weight_sum += weight;
-      sequence_sum += weight * static_cast<double>(m.place.sequence);
+      if (std::abs(m.log_scale) < std::abs(ranked[chosen].log_scale)) chosen = i;
     }
-    if (weight_sum > 0) {
-      const double centre = sequence_sum / weight_sum;
-      size_t chosen = 0;
-      for (size_t i = 1; i < ranked.size(); ++i) {
-        const PlaceMatch& m = ranked[i];
-        if (m.place.robot != best.place.robot || m.score <= options.noise_inliers ||
-            std::abs(m.place.sequence - best.place.sequence) > options.localization_window) {
-          continue;
-        }
-        if (std::abs(m.place.sequence - centre) <
-            std::abs(ranked[chosen].place.sequence - centre) - 1e-9) {
-          chosen = i;
-        }
-      }
-      if (chosen != 0) {
-        // The chosen place answers with the evidence of its neighbourhood: the best score.
-        const double score = best.score;
-        std::rotate(ranked.begin(), ranked.begin() + chosen, ranked.begin() + chosen + 1);
-        ranked.front().score = score;
-      }
+    if (chosen != 0) {
+      // The chosen place answers with the evidence of its neighbourhood: the best score.
+      const double score = best.score;
+      std::rotate(ranked.begin(), ranked.begin() + chosen, ranked.begin() + chosen + 1);
+      ranked.front().score = score;
     }
   }
   if (static_cast<int>(ranked.size()) > options.max_matches) ranked.resize(options.max_matches);

@@ -50,10 +50,15 @@ struct LoopDecisionOptions {
   int inlier_cell_size = 48;
   // Places verified geometrically, best by matched descriptors first.
   int max_verified_places = 20;
-  // The answer's place is the one nearest the inlier-weighted mean sequence of the best place's
-  // neighbours (same robot, within this many frames, scores above `noise_inliers`), not simply
-  // the best: neighbouring frames share the evidence and the peak is noisy. 0 takes the best.
+  // Localization among the best place's neighbours (same robot, within this many frames, score
+  // at least `localization_score_fraction` of the best and above `noise_inliers`): the answer is
+  // the neighbour whose matched features have the same scale as in the query (median log scale
+  // ratio closest to 0), i.e. the frame taken at the same distance from the scene. Neighbouring
+  // frames share most matches, and distant structure matches equally well from several of
+  // them, so the best score alone often answers a few frames too early or too late.
+  // 0 answers with the best place.
   int localization_window = 3;
+  double localization_score_fraction = 0.5;
   // Inliers a wrong place typically reaches by chance; only the excess weighs in localization.
   double noise_inliers = 8.0;
   // Places returned in the answer, best first.
@@ -74,6 +79,9 @@ struct PlaceMatch {
   int matched_landmarks = 0;    // the place's landmarks matched by this frame's objects
   int matched_descriptors = 0;  // place-level descriptor matches (before the geometric check)
   int inliers = -1;             // geometric inliers; -1 when not verified
+  // Median over the inliers of log(query keypoint size / stored keypoint size), each size taken
+  // relative to its frame's width: 0 when the query was taken as far from the scene.
+  double log_scale = 0;
   std::vector<std::pair<int, LandmarkId>> object_pairs;  // (query object, landmark)
   std::vector<cv::Rect> landmark_boxes;  // per object pair: the landmark's box in its frame
   // Matched keypoint positions (query frame, place's frame) that are geometric inliers, or all
@@ -85,8 +93,10 @@ struct PlaceMatch {
 // Ranks the candidate places of `found`, best first, at most options.max_matches of them.
 // `query_keypoints[o][r]` is the keypoint of row r of query object o; `place_of(id)` looks a place
 // up (nullptr when unknown, which cannot happen for places in the index).
+// `query_width` is the processed query frame's width in pixels (0: unknown).
 std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
                                    const std::vector<std::vector<cv::KeyPoint>>& query_keypoints,
+                                   int query_width,
                                    const LandmarkIndex& index,
                                    const std::function<const Place*(PlaceId)>& place_of,
                                    const LoopDecisionOptions& options);

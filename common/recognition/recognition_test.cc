@@ -297,7 +297,7 @@ TEST(LoopDecisionTest, GeometricallyConsistentPlaceRanksFirst) {
   }
   const Place places[2] = {{PlaceId(0), "a", 0, 0, 1}, {PlaceId(1), "a", 1, 0, 1}};
   const std::vector<PlaceMatch> ranked = RankPlaces(
-      found, {query_points}, index, [&places](PlaceId id) { return &places[id.value()]; },
+      found, {query_points}, 0, index, [&places](PlaceId id) { return &places[id.value()]; },
       LoopDecisionOptions());
   ASSERT_EQ(ranked.size(), 2u);
   EXPECT_EQ(ranked[0].place.id, PlaceId(0));

@@ -238,6 +238,7 @@ CREATE TABLE places(
   sequence INTEGER NOT NULL,
   utime INTEGER NOT NULL,
   num_landmarks INTEGER NOT NULL,
+  image_width INTEGER NOT NULL,
   UNIQUE(robot, sequence));
 CREATE TABLE landmarks(
   id INTEGER PRIMARY KEY,
@@ -432,6 +433,7 @@ Status ValidateLandmark(const Landmark& landmark, size_t index) {
 
 Status ValidatePlace(const Place& place, const std::vector<Landmark>& landmarks) {
   if (place.robot.empty()) return Status::InvalidArgument("robot id is empty");
+  if (place.image_width < 0) return Status::InvalidArgument("place image width is negative");
   if (place.robot.size() > kMaxRobotIdLength) {
     return Status::InvalidArgument("robot id is " + std::to_string(place.robot.size()) +
                                    " bytes, longer than the limit of " +
@@ -469,7 +471,7 @@ constexpr char kSelectLandmarks[] =
     "num_descriptors, descriptors, keypoints FROM landmarks ORDER BY id";
 
 constexpr char kSelectPlaces[] =
-    "SELECT id, robot, sequence, utime, num_landmarks FROM places ORDER BY id";
+    "SELECT id, robot, sequence, utime, num_landmarks, image_width FROM places ORDER BY id";
 
 // One landmark row, checked, with its BLOBs still in SQLite's buffers (valid until the next step).
 struct LandmarkRow {
@@ -583,7 +585,7 @@ void HashLandmark(const LandmarkRow& row, Fnv1a64* hash) {
   hash->Bytes(row.keypoints.first, row.keypoints.second);
 }
 
-// Tag 'P', then id, robot length, robot bytes, sequence, utime, num_landmarks.
+// Tag 'P', then id, robot length, robot bytes, sequence, utime, num_landmarks, image_width.
 void HashPlace(const Place& place, Fnv1a64* hash) {
   hash->Byte('P');
   hash->Int(place.id.value());
@@ -592,6 +594,7 @@ void HashPlace(const Place& place, Fnv1a64* hash) {
   hash->Int(place.sequence);
   hash->Int(place.utime);
   hash->Int(place.num_landmarks);
+  hash->Int(place.image_width);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -653,6 +656,7 @@ Status SqliteStore::AddPlace(Place* place, std::vector<Landmark>* landmarks) {
       insert_place_.BindInt(2, place->sequence);
       insert_place_.BindInt(3, place->utime);
       insert_place_.BindInt(4, static_cast<int64_t>(items.size()));
+      insert_place_.BindInt(5, place->image_width);
       rc = insert_place_.Step();
       if (rc == SQLITE_CONSTRAINT_UNIQUE) {
         return Status::InvalidArgument("place robot/sequence already stored: robot '" +
@@ -708,9 +712,11 @@ Status SqliteStore::ScanPlaces(const std::function<void(const Place&)>& visit) c
     Place place;
     place.id = PlaceId(select.ColumnInt(0));
     int64_t num_landmarks = 0;
+    int64_t image_width = 0;
     // Types first: reading a column as another type converts it.
     if (select.ColumnType(1) != SQLITE_TEXT || select.ColumnType(2) != SQLITE_INTEGER ||
-        select.ColumnType(3) != SQLITE_INTEGER || !ReadInt(select, 4, 0, INT_MAX, &num_landmarks)) {
+        select.ColumnType(3) != SQLITE_INTEGER || !ReadInt(select, 4, 0, INT_MAX, &num_landmarks) ||
+        !ReadInt(select, 5, 0, INT_MAX, &image_width)) {
       return Status::IoError(Describe() + ": place " + std::to_string(place.id.value()) +
                              " is corrupt: a field is missing or out of range");
     }
@@ -718,6 +724,7 @@ Status SqliteStore::ScanPlaces(const std::function<void(const Place&)>& visit) c
     place.sequence = select.ColumnInt(2);
     place.utime = select.ColumnInt(3);
     place.num_landmarks = static_cast<int>(num_landmarks);
+    place.image_width = static_cast<int>(image_width);
     visit(place);
   }
   if (rc != SQLITE_DONE) return Error("cannot read places", rc);
@@ -846,8 +853,8 @@ StatusOr<std::unique_ptr<LandmarkStore>> OpenSqliteStore(const std::string& path
   Statement insert_place;
   Statement insert_landmark;
   rc = Statement::Prepare(db.get(),
-                          "INSERT INTO places(robot, sequence, utime, num_landmarks) "
-                          "VALUES(?, ?, ?, ?)",
+                          "INSERT INTO places(robot, sequence, utime, num_landmarks, image_width) "
+                          "VALUES(?, ?, ?, ?, ?)",
                           true, &insert_place);
   if (rc == SQLITE_OK) {
     rc = Statement::Prepare(db.get(),

@@ -79,6 +79,7 @@ Place MakePlace(const std::string& robot, int64_t sequence) {
   place.robot = robot;
   place.sequence = sequence;
   place.utime = 1700000000000000 + sequence * 100000;
+  place.image_width = 640 + static_cast<int>(sequence % 3);
   return place;
 }
 

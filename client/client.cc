@@ -1,0 +1,431 @@
+#include "client/client.h"
+
+#include <cctype>
+#include <cstdio>
+#include <exception>
+#include <fstream>
+#include <iterator>
+#include <random>
+#include <sstream>
+
+#include <lcm/lcm-cpp.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "common/util/logging.h"
+#include "placerec/frame_t.hpp"
+#include "placerec/result_t.hpp"
+#include "placerec/status_t.hpp"
+#include "proto/channels.h"
+
+namespace placerec {
+namespace {
+
+AnswerCode CodeFromWire(int8_t status) {
+  switch (status) {
+    case result_t::STATUS_OK:
+      return AnswerCode::kOk;
+    case result_t::STATUS_BAD_REQUEST:
+      return AnswerCode::kBadRequest;
+    case result_t::STATUS_BAD_IMAGE:
+      return AnswerCode::kBadImage;
+    case result_t::STATUS_UNKNOWN_ROBOT:
+      return AnswerCode::kUnknownRobot;
+    case result_t::STATUS_OVERLOADED:
+      return AnswerCode::kOverloaded;
+    case result_t::STATUS_UNAUTHORISED:
+      return AnswerCode::kUnauthorised;
+    case result_t::STATUS_INTERNAL_ERROR:
+      return AnswerCode::kInternalError;
+    case result_t::STATUS_STORAGE_ERROR:
+      return AnswerCode::kStorageError;
+    case result_t::STATUS_SHUTTING_DOWN:
+      return AnswerCode::kShuttingDown;
+    default:
+      return AnswerCode::kUnknownStatus;
+  }
+}
+
+FrameResult FromWire(const result_t& answer) {
+  FrameResult r;
+  r.code = CodeFromWire(answer.status);
+  r.message = answer.message;
+  if (r.code == AnswerCode::kUnknownStatus) {
+    r.message = "unknown status " + std::to_string(answer.status) + ": " + r.message;
+  }
+  r.robot = answer.robot;
+  r.sequence = answer.sequence;
+  r.request_id = answer.request_id;
+  r.insert = answer.insert;
+  r.loop_closure = answer.loop_closure;
+  for (const match_t& m : answer.matches) {
+    MatchedPlace place;
+    place.robot = m.robot;
+    place.sequence = m.sequence;
+    place.utime = m.utime;
+    place.place_id = m.place_id;
+    place.score = m.score;
+    place.matched_landmarks = m.matched_landmarks;
+    place.matched_descriptors = m.matched_descriptors;
+    place.inliers = m.inliers;
+    r.matches.push_back(std::move(place));
+  }
+  r.keypoints = answer.keypoints;
+  r.objects = answer.objects;
+  r.landmarks = answer.landmarks;
+  r.stored_descriptors = answer.stored_descriptors;
+  r.place_id = answer.place_id;
+  r.map_places = answer.map_places;
+  r.map_landmarks = answer.map_landmarks;
+  r.map_descriptors = answer.map_descriptors;
+  r.queue_ms = answer.queue_ms;
+  r.server_ms = answer.server_ms;
+  for (const stage_time_t& t : answer.timings) r.timings.emplace_back(t.stage, t.ms);
+  return r;
+}
+
+// Robot ids made of these characters are subscribed to by their exact channel name; LCM treats a
+// subscription as a regular expression, so others are covered by one pattern and filtered here.
+bool IsPlainChannelText(const std::string& text) {
+  for (unsigned char c : text) {
+    if (!std::isalnum(c) && c != '_' && c != '-') return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+const char* AnswerCodeName(AnswerCode code) {
+  switch (code) {
+    case AnswerCode::kOk:
+      return "ok";
+    case AnswerCode::kBadRequest:
+      return "bad request";
+    case AnswerCode::kBadImage:
+      return "bad image";
+    case AnswerCode::kUnknownRobot:
+      return "unknown robot";
+    case AnswerCode::kOverloaded:
+      return "overloaded";
+    case AnswerCode::kUnauthorised:
+      return "unauthorised";
+    case AnswerCode::kInternalError:
+      return "internal error";
+    case AnswerCode::kStorageError:
+      return "storage error";
+    case AnswerCode::kShuttingDown:
+      return "shutting down";
+    case AnswerCode::kUnknownStatus:
+      return "unknown status";
+    case AnswerCode::kTimeout:
+      return "timeout";
+    case AnswerCode::kNotSent:
+      return "not sent";
+  }
+  return "unknown status";
+}
+
+std::string DescribeResult(const FrameResult& r) {
+  std::ostringstream out;
+  out << AnswerCodeName(r.code);
+  if (!r.ok()) {
+    out << ": " << r.message;
+    return out.str();
+  }
+  out << ": " << r.keypoints << " keypoints, " << r.objects << " objects, " << r.landmarks
+      << " landmarks stored";
+  if (r.matches.empty()) {
+    out << "; no matching place";
+  } else {
+    const MatchedPlace& best = r.matches.front();
+    char score[32];
+    std::snprintf(score, sizeof(score), "%.0f", best.score);
+    out << "; best place: robot " << best.robot << " #" << best.sequence << " (score " << score
+        << ", " << best.matched_landmarks << " landmarks matched)"
+        << (r.loop_closure ? " -- loop closure" : "");
+  }
+  return out.str();
+}
+
+StatusOr<EncodedImage> EncodeImageFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status::NotFound("cannot read " + path);
+  EncodedImage image;
+  image.bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  const std::vector<uint8_t>& b = image.bytes;
+  if (b.size() >= 3 && b[0] == 0xFF && b[1] == 0xD8 && b[2] == 0xFF) {
+    image.encoding = FrameEncoding::kJpeg;
+    return image;
+  }
+  if (b.size() >= 8 && b[0] == 0x89 && b[1] == 'P' && b[2] == 'N' && b[3] == 'G') {
+    image.encoding = FrameEncoding::kPng;
+    return image;
+  }
+  const cv::Mat decoded = cv::imread(path, cv::IMREAD_COLOR);
+  if (decoded.empty()) return Status::BadImage(path + " is not an image OpenCV can read");
+  return EncodeRawImage(decoded);
+}
+
+StatusOr<EncodedImage> EncodeRawImage(const cv::Mat& image) {
+  if (image.empty() || image.depth() != CV_8U || (image.channels() != 3 && image.channels() != 1)) {
+    return Status::InvalidArgument("raw frames must be 8-bit BGR or grey images");
+  }
+  EncodedImage encoded;
+  encoded.encoding = image.channels() == 3 ? FrameEncoding::kRawBgr8 : FrameEncoding::kRawGray8;
+  encoded.width = image.cols;
+  encoded.height = image.rows;
+  const cv::Mat continuous = image.isContinuous() ? image : image.clone();
+  encoded.bytes.assign(continuous.data, continuous.data + continuous.total() * continuous.elemSize());
+  return encoded;
+}
+
+bool ClientOptions::Check(std::string* error) const {
+  if (!(timeout_s > 0)) {
+    *error = "--timeout must be positive (seconds)";
+    return false;
+  }
+  return true;
+}
+
+PlacerecClient::PlacerecClient(const ClientOptions& options)
+    : options_(options), lcm_(std::make_unique<lcm::LCM>(options.lcm_url)) {
+  // Request ids only need to differ between the clients that share a robot id at one time.
+  std::random_device device;
+  next_request_id_ = (static_cast<int64_t>(device()) << 31 ^ device()) & 0x3fffffffffffffff;
+}
+
+StatusOr<std::unique_ptr<PlacerecClient>> PlacerecClient::Connect(const ClientOptions& options) {
+  std::string error;
+  if (!options.Check(&error)) return Status::InvalidArgument(error);
+  std::unique_ptr<PlacerecClient> client(new PlacerecClient(options));
+  if (!client->lcm_->good()) {
+    return Status::IoError("cannot open LCM" +
+                           (options.lcm_url.empty() ? std::string(" with its default URL")
+                                                    : " with URL " + options.lcm_url) +
+                           "; check the URL and that the network has multicast");
+  }
+  if (client->lcm_->subscribe(kStatusChannel, &PlacerecClient::OnStatus, client.get()) ==
+          nullptr ||
+      client->lcm_->subscribe(kInvalidRobotResultChannel, &PlacerecClient::OnResult,
+                              client.get()) == nullptr) {
+    return Status::IoError("cannot subscribe to the placerec channels");
+  }
+  client->receiver_ = std::thread([c = client.get()] { c->ReceiveLoop(); });
+  return client;
+}
+
+PlacerecClient::~PlacerecClient() {
+  {
+    std::lock_guard lock(mutex_);
+    stop_ = true;
+  }
+  if (receiver_.joinable()) receiver_.join();
+}
+
+void PlacerecClient::ReceiveLoop() {
+  for (;;) {
+    {
+      std::lock_guard lock(mutex_);
+      if (stop_) return;
+    }
+    if (lcm_->handleTimeout(50) < 0) {
+      LOG(ERROR) << "LCM stopped delivering messages";
+      return;
+    }
+  }
+}
+
+Status PlacerecClient::SubscribeFor(const std::string& robot) {
+  std::string why;
+  if (!IsValidWireRobotId(robot, &why)) return Status::Ok();  // answered on the shared channel
+  std::lock_guard lock(mutex_);
+  if (IsPlainChannelText(robot)) {
+    if (subscribed_.count(robot) > 0) return Status::Ok();
+    if (lcm_->subscribe(ResultChannel(robot), &PlacerecClient::OnResult, this) == nullptr) {
+      return Status::IoError("cannot subscribe to " + ResultChannel(robot));
+    }
+    subscribed_.insert(robot);
+    return Status::Ok();
+  }
+  if (wildcard_subscribed_) return Status::Ok();
+  if (lcm_->subscribe(std::string(kResultChannelPrefix) + ".*", &PlacerecClient::OnResult, this) ==
+      nullptr) {
+    return Status::IoError(std::string("cannot subscribe to ") + kResultChannelPrefix + ".*");
+  }
+  wildcard_subscribed_ = true;
+  return Status::Ok();
+}
+
+StatusOr<PendingFrame> PlacerecClient::Publish(const OutgoingFrame& frame) {
+  PLACEREC_RETURN_IF_ERROR(SubscribeFor(frame.robot));
+  frame_t message;
+  message.utime = frame.utime;
+  message.sequence = frame.sequence;
+  message.insert = frame.insert;
+  message.encoding = static_cast<int8_t>(frame.image.encoding);
+  message.width = frame.image.width;
+  message.height = frame.image.height;
+  message.robot = frame.robot;
+  message.size = static_cast<int32_t>(frame.image.bytes.size());
+  message.data = frame.image.bytes;
+  PendingFrame pending;
+  pending.robot = frame.robot;
+  pending.sequence = frame.sequence;
+  {
+    std::lock_guard lock(mutex_);
+    pending.request_id = next_request_id_++;
+    pending.sent = std::chrono::steady_clock::now();
+    awaited_[pending.request_id] = pending;
+  }
+  message.request_id = pending.request_id;
+  int rc = 0;
+  {
+    std::lock_guard lock(publish_mutex_);
+    rc = lcm_->publish(kFrameChannel, &message);
+  }
+  if (rc != 0) {
+    std::lock_guard lock(mutex_);
+    awaited_.erase(pending.request_id);
+    return Status::IoError("LCM could not send the frame (" +
+                           std::to_string(frame.image.bytes.size()) + " image bytes)");
+  }
+  return pending;
+}
+
+FrameResult PlacerecClient::Wait(const PendingFrame& pending, double timeout_s) {
+  const auto deadline =
+      std::chrono::steady_clock::now() +
+      std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+          std::chrono::duration<double>(timeout_s));
+  std::unique_lock lock(mutex_);
+  answered_.wait_until(lock, deadline, [&] { return answers_.count(pending.request_id) > 0; });
+  auto it = answers_.find(pending.request_id);
+  if (it == answers_.end()) {
+    awaited_.erase(pending.request_id);  // a late answer is ignored
+    FrameResult timeout;
+    timeout.code = AnswerCode::kTimeout;
+    timeout.robot = pending.robot;
+    timeout.sequence = pending.sequence;
+    timeout.request_id = pending.request_id;
+    char text[160];
+    std::snprintf(text, sizeof(text),
+                  "no answer within %.1f s (is placerec-server running on this LCM network?)",
+                  timeout_s);
+    timeout.message = text;
+    return timeout;
+  }
+  FrameResult result = std::move(it->second);
+  answers_.erase(it);
+  return result;
+}
+
+FrameResult PlacerecClient::Send(const OutgoingFrame& frame) {
+  StatusOr<PendingFrame> pending = Publish(frame);
+  if (!pending.ok()) {
+    FrameResult result;
+    result.code = AnswerCode::kNotSent;
+    result.message = pending.status().message();
+    result.robot = frame.robot;
+    result.sequence = frame.sequence;
+    return result;
+  }
+  return Wait(*pending, options_.timeout_s);
+}
+
+void PlacerecClient::SetAnswerCallback(std::function<void(const FrameResult&)> callback) {
+  std::lock_guard lock(mutex_);
+  callback_ = std::move(callback);
+}
+
+void PlacerecClient::OnResult(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
+  const auto now = std::chrono::steady_clock::now();
+  result_t answer;
+  int decoded = -1;
+  try {
+    decoded = answer.decode(buffer->data, 0, static_cast<int>(buffer->data_size));
+  } catch (const std::exception&) {
+    decoded = -1;
+  }
+  if (decoded < 0) {
+    LOG(WARNING) << "dropped a " << buffer->data_size << "-byte message on " << channel
+                 << " that is not a placerec.result_t";
+    return;
+  }
+  if (channel != kInvalidRobotResultChannel && channel != ResultChannel(answer.robot)) return;
+  FrameResult result = FromWire(answer);
+  std::function<void(const FrameResult&)> callback;
+  {
+    std::lock_guard lock(mutex_);
+    auto it = awaited_.find(answer.request_id);
+    // Answers to other clients' frames (or to frames given up on) are not ours. The echoed robot
+    // id may be cut short (see result_t).
+    if (it == awaited_.end() || it->second.sequence != answer.sequence ||
+        it->second.robot.compare(0, answer.robot.size(), answer.robot) != 0) {
+      return;
+    }
+    result.latency_ms = std::chrono::duration<double, std::milli>(now - it->second.sent).count();
+    awaited_.erase(it);
+    callback = callback_;
+    if (!callback) {
+      answers_[answer.request_id] = std::move(result);
+      answered_.notify_all();
+      return;
+    }
+  }
+  callback(result);
+  std::lock_guard lock(mutex_);
+  answers_[answer.request_id] = std::move(result);
+  answered_.notify_all();
+}
+
+void PlacerecClient::OnStatus(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
+  status_t message;
+  int decoded = -1;
+  try {
+    decoded = message.decode(buffer->data, 0, static_cast<int>(buffer->data_size));
+  } catch (const std::exception&) {
+    decoded = -1;
+  }
+  if (decoded < 0) {
+    LOG(WARNING) << "dropped a " << buffer->data_size << "-byte message on " << channel
+                 << " that is not a placerec.status_t";
+    return;
+  }
+  ServerStatus s;
+  s.version = message.version;
+  s.map = message.map;
+  s.uptime_s = message.uptime_s;
+  s.map_open_ms = message.map_open_ms;
+  s.map_places = message.map_places;
+  s.map_landmarks = message.map_landmarks;
+  s.map_descriptors = message.map_descriptors;
+  s.queue_depth = message.queue_depth;
+  s.queue_capacity = message.queue_capacity;
+  s.in_progress = message.in_progress;
+  s.workers = message.workers;
+  s.robots = message.robots;
+  s.frames_answered = message.frames_answered;
+  s.frames_failed = message.frames_failed;
+  s.frames_overloaded = message.frames_overloaded;
+  s.messages_dropped = message.messages_dropped;
+  s.frames_per_second = message.frames_per_second;
+  std::lock_guard lock(mutex_);
+  last_status_ = s;
+  ++statuses_;
+  answered_.notify_all();
+}
+
+StatusOr<ServerStatus> PlacerecClient::WaitForStatus(double timeout_s) {
+  const auto deadline =
+      std::chrono::steady_clock::now() +
+      std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+          std::chrono::duration<double>(timeout_s));
+  std::unique_lock lock(mutex_);
+  const int64_t seen = statuses_;
+  if (!answered_.wait_until(lock, deadline, [&] { return statuses_ > seen; })) {
+    return Status::NotFound("no status from a placerec-server within " +
+                            std::to_string(timeout_s) + " s");
+  }
+  return last_status_;
+}
+
+}  // namespace placerec

@@ -1,0 +1,140 @@
+#include "client/client.h"
+
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "client/run_feeder.h"
+
+namespace placerec {
+namespace {
+
+std::string TempPath(const std::string& name) {
+  return ::testing::TempDir() + "/placerec_client_test_" + name;
+}
+
+cv::Mat TestImage() {
+  cv::Mat image(40, 60, CV_8UC3);
+  for (int y = 0; y < image.rows; ++y) {
+    for (int x = 0; x < image.cols; ++x) image.at<cv::Vec3b>(y, x) = cv::Vec3b(x * 4, y * 6, 90);
+  }
+  return image;
+}
+
+std::vector<uint8_t> FileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::vector<uint8_t>(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+TEST(ClientEncodeTest, JpegAndPngGoAsTheyAre) {
+  for (const char* ext : {".jpg", ".png"}) {
+    const std::string path = TempPath(std::string("image") + ext);
+    ASSERT_TRUE(cv::imwrite(path, TestImage()));
+    StatusOr<EncodedImage> encoded = EncodeImageFile(path);
+    ASSERT_TRUE(encoded.ok()) << encoded.status().ToString();
+    EXPECT_EQ(encoded->encoding,
+              std::string(ext) == ".jpg" ? FrameEncoding::kJpeg : FrameEncoding::kPng);
+    EXPECT_EQ(encoded->width, 0);
+    EXPECT_EQ(encoded->bytes, FileBytes(path));
+    std::remove(path.c_str());
+  }
+}
+
+TEST(ClientEncodeTest, OtherFormatsGoRaw) {
+  const std::string path = TempPath("image.bmp");
+  ASSERT_TRUE(cv::imwrite(path, TestImage()));
+  StatusOr<EncodedImage> encoded = EncodeImageFile(path);
+  ASSERT_TRUE(encoded.ok()) << encoded.status().ToString();
+  EXPECT_EQ(encoded->encoding, FrameEncoding::kRawBgr8);
+  EXPECT_EQ(encoded->width, 60);
+  EXPECT_EQ(encoded->height, 40);
+  ASSERT_EQ(encoded->bytes.size(), 60u * 40u * 3u);
+  const cv::Mat image = TestImage();
+  EXPECT_EQ(0, std::memcmp(encoded->bytes.data(), image.data, encoded->bytes.size()));
+  std::remove(path.c_str());
+
+  cv::Mat grey(20, 30, CV_8UC1, cv::Scalar(7));
+  StatusOr<EncodedImage> raw = EncodeRawImage(grey);
+  ASSERT_TRUE(raw.ok());
+  EXPECT_EQ(raw->encoding, FrameEncoding::kRawGray8);
+  EXPECT_EQ(raw->bytes.size(), 600u);
+  EXPECT_FALSE(EncodeRawImage(cv::Mat(4, 4, CV_32FC1)).ok());
+}
+
+TEST(ClientEncodeTest, MissingAndUnreadableFiles) {
+  EXPECT_EQ(EncodeImageFile(TempPath("missing.jpg")).status().code(), StatusCode::kNotFound);
+  const std::string path = TempPath("text.txt");
+  std::ofstream(path) << "not an image";
+  EXPECT_EQ(EncodeImageFile(path).status().code(), StatusCode::kBadImage);
+  std::remove(path.c_str());
+}
+
+TEST(ClientTest, DescribesAnswers) {
+  FrameResult r;
+  r.code = AnswerCode::kOk;
+  r.keypoints = 800;
+  r.objects = 12;
+  r.landmarks = 3;
+  EXPECT_EQ(DescribeResult(r), "ok: 800 keypoints, 12 objects, 3 landmarks stored; no matching place");
+  MatchedPlace m;
+  m.robot = "left";
+  m.sequence = 30;
+  m.score = 57;
+  m.matched_landmarks = 5;
+  r.matches.push_back(m);
+  r.loop_closure = true;
+  EXPECT_NE(DescribeResult(r).find("best place: robot left #30 (score 57, 5 landmarks matched) -- "
+                                   "loop closure"),
+            std::string::npos);
+  r.code = AnswerCode::kBadImage;
+  r.message = "bytes do not start with a JPEG signature";
+  EXPECT_EQ(DescribeResult(r), "bad image: bytes do not start with a JPEG signature");
+  EXPECT_STREQ(AnswerCodeName(AnswerCode::kOverloaded), "overloaded");
+}
+
+TEST(ClientTest, OptionsAreChecked) {
+  std::string error;
+  EXPECT_TRUE(ClientOptions().Check(&error));
+  EXPECT_TRUE(FeedOptions().Check(&error));
+  ClientOptions bad;
+  bad.timeout_s = 0;
+  EXPECT_FALSE(bad.Check(&error));
+  FeedOptions window;
+  window.window = 0;
+  EXPECT_FALSE(window.Check(&error));
+}
+
+TEST(ClientTest, BadUrlIsReported) {
+  ClientOptions options;
+  options.lcm_url = "nosuchprovider://";
+  StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(options);
+  ASSERT_FALSE(client.ok());
+  EXPECT_NE(client.status().message().find("nosuchprovider://"), std::string::npos);
+}
+
+// memq:// keeps messages inside this process, so no server answers: the wait times out with a
+// message instead of hanging.
+TEST(ClientTest, NoServerMeansTimeout) {
+  ClientOptions options;
+  options.lcm_url = "memq://";
+  StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(options);
+  ASSERT_TRUE(client.ok()) << client.status().ToString();
+  OutgoingFrame frame;
+  frame.robot = "left";
+  frame.sequence = 3;
+  frame.image.bytes = {1, 2, 3};
+  StatusOr<PendingFrame> pending = (*client)->Publish(frame);
+  ASSERT_TRUE(pending.ok()) << pending.status().ToString();
+  const FrameResult result = (*client)->Wait(*pending, 0.2);
+  EXPECT_EQ(result.code, AnswerCode::kTimeout);
+  EXPECT_EQ(result.sequence, 3);
+  EXPECT_NE(result.message.find("no answer within 0.2 s"), std::string::npos);
+  EXPECT_FALSE((*client)->WaitForStatus(0.1).ok());
+}
+
+}  // namespace
+}  // namespace placerec

@@ -1,0 +1,283 @@
+#include "client/commands.h"
+
+#include <chrono>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "client/client.h"
+#include "client/run_feeder.h"
+#include "common/eval/run.h"
+#include "common/util/options.h"
+#include "common/util/paths.h"
+
+namespace placerec {
+namespace {
+
+int64_t NowUtime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// Parses the flags of one command; returns -1 to go on, else the exit code (0 after --help).
+int ParseOrExit(FlagParser* parser, int argc, const char* const* argv, const char* command) {
+  bool help = false;
+  const Status parsed = parser->Parse(argc, argv, 2, &help);
+  if (help) {
+    std::printf("%s\n", parser->Help().c_str());
+    return 0;
+  }
+  if (!parsed.ok()) {
+    std::fprintf(stderr, "placerec-client %s: %s\n", command, parsed.message().c_str());
+    return kExitUsage;
+  }
+  return -1;
+}
+
+void AddConnectionFlags(FlagParser* parser, ClientOptions* options) {
+  parser->Add("lcm-url", &options->lcm_url,
+              "LCM URL (empty: LCM's default, i.e. $LCM_DEFAULT_URL or "
+              "udpm://239.255.76.67:7667?ttl=0)");
+  parser->Add("timeout", &options->timeout_s, "seconds to wait for each answer");
+}
+
+StatusOr<std::unique_ptr<PlacerecClient>> ConnectOrReport(const ClientOptions& options,
+                                                          const char* command) {
+  StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(options);
+  if (!client.ok()) {
+    std::fprintf(stderr, "placerec-client %s: %s\n", command,
+                 client.status().ToString().c_str());
+  }
+  return client;
+}
+
+// Sends each image as one frame of `robot`, one after the other; prints each answer.
+int SendImages(const std::vector<std::string>& images, const std::string& robot,
+               int64_t first_sequence, bool insert, const ClientOptions& options,
+               const char* command) {
+  if (images.empty()) {
+    std::fprintf(stderr, "placerec-client %s: give at least one image (see --help)\n", command);
+    return kExitUsage;
+  }
+  StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, command);
+  if (!client.ok()) return kExitFailed;
+  int failures = 0;
+  int64_t sequence = first_sequence;
+  for (const std::string& path : images) {
+    StatusOr<EncodedImage> image = EncodeImageFile(path);
+    if (!image.ok()) {
+      std::fprintf(stderr, "placerec-client %s: %s\n", command, image.status().ToString().c_str());
+      ++failures;
+      continue;
+    }
+    OutgoingFrame frame;
+    frame.robot = robot;
+    frame.sequence = sequence++;
+    frame.utime = NowUtime();
+    frame.insert = insert;
+    frame.image = std::move(*image);
+    const FrameResult result = (*client)->Send(frame);
+    std::printf("%s -> %s #%lld: %s (%.0f ms)\n", path.c_str(), robot.c_str(),
+                static_cast<long long>(frame.sequence), DescribeResult(result).c_str(),
+                result.latency_ms);
+    if (!insert && result.ok()) {
+      for (size_t i = 0; i < result.matches.size(); ++i) {
+        const MatchedPlace& m = result.matches[i];
+        std::printf("  %zu. robot %s #%lld  score %.0f  %d landmarks matched  place %lld\n", i + 1,
+                    m.robot.c_str(), static_cast<long long>(m.sequence), m.score,
+                    m.matched_landmarks, static_cast<long long>(m.place_id));
+      }
+    }
+    std::fflush(stdout);
+    if (!result.ok()) {
+      ++failures;
+      std::fprintf(stderr, "placerec-client %s: %s #%lld: %s: %s\n", command, robot.c_str(),
+                   static_cast<long long>(frame.sequence), AnswerCodeName(result.code),
+                   result.message.c_str());
+    }
+  }
+  return failures == 0 ? kExitOk : kExitFailed;
+}
+
+// A dataset given by name (e.g. gardens_point) is looked up under PLACEREC_DATA or
+// ../shared/data when it is not a directory itself.
+std::string ResolveDataset(const std::string& dataset, const std::string& data_default) {
+  if (PathExists(dataset)) return dataset;
+  const std::string under = DataDir("", data_default) + "/" + dataset;
+  return PathExists(under) ? under : dataset;
+}
+
+}  // namespace
+
+const char kClientUsage[] =
+    "placerec-client COMMAND [options]\n\n"
+    "Talks to a placerec-server over LCM.\n\n"
+    "Commands:\n"
+    "  send IMAGE...   insert frames of one robot, one after the other, and print each answer\n"
+    "  query IMAGE...  ask where each image was taken (query only: the map does not change)\n"
+    "  status          print the server's next heartbeat\n"
+    "  run             feed a run (../shared/data layout) and write OUT/answers.csv\n\n"
+    "'placerec-client COMMAND --help' lists the options of a command. Exit codes: 0 when every\n"
+    "request got an answer with status ok, 1 when one timed out or carried an error, 2 for bad\n"
+    "arguments.";
+
+int SendCommand(int argc, const char* const* argv) {
+  std::vector<std::string> images;
+  std::string robot = "client";
+  int64_t sequence = 0;
+  ClientOptions options;
+  FlagParser parser(
+      "placerec-client send IMAGE... [--robot ID] [--sequence N] [options]\n\n"
+      "Sends each image as a frame of robot ID (sequence N, N+1, ...; capture time now) to be\n"
+      "inserted into the map, waits for each answer and prints it. JPEG and PNG files go as they\n"
+      "are, other images as raw BGR.");
+  parser.AddPositional("image", &images, "image files");
+  parser.Add("robot", &robot, "robot id (1..47 bytes)");
+  parser.Add("sequence", &sequence,
+             "sequence number of the first image; must be after the robot's last one");
+  AddConnectionFlags(&parser, &options);
+  const int parsed = ParseOrExit(&parser, argc, argv, "send");
+  if (parsed >= 0) return parsed;
+  return SendImages(images, robot, sequence, true, options, "send");
+}
+
+int QueryCommand(int argc, const char* const* argv) {
+  std::vector<std::string> images;
+  std::string robot = "query";
+  int64_t sequence = 0;
+  ClientOptions options;
+  FlagParser parser(
+      "placerec-client query IMAGE... [options]\n\n"
+      "Asks where each image was taken: the server answers from its map with the best matching\n"
+      "places, and neither the map nor any robot's state changes.");
+  parser.AddPositional("image", &images, "image files");
+  parser.Add("robot", &robot, "robot id the query is sent as (its own places are skipped when "
+                              "fewer than loop-min-same-robot-gap frames back)");
+  parser.Add("sequence", &sequence, "sequence number sent with the first image");
+  AddConnectionFlags(&parser, &options);
+  const int parsed = ParseOrExit(&parser, argc, argv, "query");
+  if (parsed >= 0) return parsed;
+  return SendImages(images, robot, sequence, false, options, "query");
+}
+
+int StatusCommand(int argc, const char* const* argv) {
+  ClientOptions options;
+  options.timeout_s = 3.0;
+  FlagParser parser(
+      "placerec-client status [options]\n\n"
+      "Waits for the server's next heartbeat on PLACEREC_STATUS and prints it.");
+  AddConnectionFlags(&parser, &options);
+  const int parsed = ParseOrExit(&parser, argc, argv, "status");
+  if (parsed >= 0) return parsed;
+  StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "status");
+  if (!client.ok()) return kExitFailed;
+  StatusOr<ServerStatus> status = (*client)->WaitForStatus(options.timeout_s);
+  if (!status.ok()) {
+    std::fprintf(stderr, "placerec-client status: %s\n", status.status().message().c_str());
+    return kExitFailed;
+  }
+  const ServerStatus& s = *status;
+  std::printf(
+      "placerec-server %s, up %.0f s\n"
+      "  map: %s: %lld places, %lld landmarks, %lld descriptors (loaded in %.0f ms)\n"
+      "  queue: %d of %d waiting, %d in progress on %d workers\n"
+      "  frames: %lld answered (%lld errors, %lld overloaded), %.2f frames/s; %d robots; "
+      "%lld invalid messages dropped\n",
+      s.version.c_str(), s.uptime_s, s.map.c_str(), static_cast<long long>(s.map_places),
+      static_cast<long long>(s.map_landmarks), static_cast<long long>(s.map_descriptors),
+      s.map_open_ms, s.queue_depth, s.queue_capacity, s.in_progress, s.workers,
+      static_cast<long long>(s.frames_answered), static_cast<long long>(s.frames_failed),
+      static_cast<long long>(s.frames_overloaded), s.frames_per_second, s.robots,
+      static_cast<long long>(s.messages_dropped));
+  return kExitOk;
+}
+
+int RunCommand(int argc, const char* const* argv, const std::string& data_default) {
+  std::string dataset;
+  std::string run_name;
+  std::string out;
+  bool quiet = false;
+  bool no_loops = false;
+  FeedOptions feed;
+  ClientOptions options;
+  FlagParser parser(
+      "placerec-client run --dataset DIR --run NAME --out OUT [options]\n\n"
+      "Feeds every frame of a run (layout of shared/data/README.md) to the server as its robot,\n"
+      "sequence number = frame index, capture time from the run, prints each loop closure as it\n"
+      "arrives, and writes OUT/answers.csv (frame,reference,score; -1 for none, exactly as\n"
+      "placerec-eval run) and OUT/summary.json (scores, latency, throughput).");
+  parser.AddRequired("dataset", &dataset,
+                     "dataset directory, or its name under PLACEREC_DATA / ../shared/data");
+  parser.AddRequired("run", &run_name, "run name (DIR/runs/NAME.frames.csv)");
+  parser.AddRequired("out", &out, "output directory (created if missing)");
+  parser.Add("window", &feed.window,
+             "frames in flight at once (1: send the next frame after the answer, as placerec-eval "
+             "feeds them)");
+  parser.AddSwitch("concurrent-robots", &feed.robots_concurrently,
+                   "one sender per robot, all at once (answers then depend on timing)");
+  parser.Add("max-frames", &feed.max_frames, "stop after this many frames (0: all)");
+  parser.AddSwitch("quiet", &quiet, "no progress line");
+  parser.AddSwitch("no-loops", &no_loops, "do not print loop closures");
+  AddConnectionFlags(&parser, &options);
+  const int parsed = ParseOrExit(&parser, argc, argv, "run");
+  if (parsed >= 0) return parsed;
+  feed.timeout_s = options.timeout_s;
+  feed.progress = !quiet;
+  feed.print_loop_closures = !no_loops;
+  std::string error;
+  if (!feed.Check(&error)) {
+    std::fprintf(stderr, "placerec-client run: %s\n", error.c_str());
+    return kExitUsage;
+  }
+  StatusOr<Run> run = LoadRun(ResolveDataset(dataset, data_default), run_name);
+  if (!run.ok()) {
+    std::fprintf(stderr, "placerec-client run: %s\n", run.status().ToString().c_str());
+    return kExitFailed;
+  }
+  StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "run");
+  if (!client.ok()) return kExitFailed;
+  StatusOr<FeedReport> report = FeedRun(client->get(), *run, feed);
+  if (!report.ok()) {
+    std::fprintf(stderr, "placerec-client run: %s\n", report.status().ToString().c_str());
+    return kExitFailed;
+  }
+  const Status written = WriteFeedReport(out, *report);
+  if (!written.ok()) {
+    std::fprintf(stderr, "placerec-client run: %s\n", written.ToString().c_str());
+    return kExitFailed;
+  }
+  const nlohmann::json& s = report->summary;
+  std::printf(
+      "%s/%s through placerec-server: %d frames, %d answered ok, %d errors, %d timed out, %d "
+      "not sent\n"
+      "  %d revisits, %d answered; recall at 100%% precision %.3f, max F1 %.3f, average "
+      "precision %.3f\n"
+      "  loop closures: %d (precision %.3f, recall %.3f)\n"
+      "  latency (publish to answer) median %.0f ms, p90 %.0f ms; server time median %.0f ms\n"
+      "  %.2f frames/s over %.1f s\n"
+      "  wrote %s/answers.csv, summary.json\n",
+      s["dataset"].get<std::string>().c_str(), s["run"].get<std::string>().c_str(),
+      s["frames"].get<int>(), report->ok, report->failed, report->timed_out, report->not_sent,
+      s["revisit_frames"].get<int>(), s["answered_frames"].get<int>(),
+      s["recall_at_100_precision"].get<double>(), s["max_f1"].get<double>(),
+      s["average_precision"].get<double>(), s["loop_closures"].get<int>(),
+      s["decision"]["precision"].get<double>(), s["decision"]["recall"].get<double>(),
+      s["latency"]["median_ms"].get<double>(), s["latency"]["p90_ms"].get<double>(),
+      s["server_time"]["median_ms"].get<double>(), s["frames_per_second"].get<double>(),
+      s["wall_seconds"].get<double>(), out.c_str());
+  if (!report->all_ok()) {
+    for (const FrameResult& r : report->results) {
+      if (!r.ok() && r.message != "not sent") {
+        std::fprintf(stderr, "placerec-client run: first problem: %s #%lld: %s: %s\n",
+                     r.robot.c_str(), static_cast<long long>(r.sequence), AnswerCodeName(r.code),
+                     r.message.c_str());
+        break;
+      }
+    }
+    return kExitFailed;
+  }
+  return kExitOk;
+}
+
+}  // namespace placerec

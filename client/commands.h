@@ -1,0 +1,21 @@
+// The commands of placerec-client (send, query, status, run), each parsing its own flags from
+// argv[2..] and returning the process exit code.
+#pragma once
+
+#include <string>
+
+namespace placerec {
+
+constexpr int kExitOk = 0;      // every request got an answer with status ok
+constexpr int kExitFailed = 1;  // an answer timed out or carried an error, or I/O failed
+constexpr int kExitUsage = 2;   // bad arguments
+
+extern const char kClientUsage[];
+
+int SendCommand(int argc, const char* const* argv);
+int QueryCommand(int argc, const char* const* argv);
+int StatusCommand(int argc, const char* const* argv);
+// `data_default` is where datasets given by name are looked for without PLACEREC_DATA.
+int RunCommand(int argc, const char* const* argv, const std::string& data_default);
+
+}  // namespace placerec

@@ -1,0 +1,208 @@
+#include "common/organization/background.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+
+#include <glog/logging.h>
+#include <opencv2/core/persistence.hpp>
+
+#include "common/util/timer.h"
+
+namespace placerec {
+
+namespace {
+
+std::string ClassifierFile(const std::string& directory, int c) {
+  return directory + "/background_" + SegmentClassName(BackgroundClassOf(c)) + ".yml.gz";
+}
+
+}  // namespace
+
+SegmentClass BackgroundClassOf(int index) {
+  CHECK(index >= 0 && index < kBackgroundClasses) << "background class index " << index;
+  return static_cast<SegmentClass>(index);
+}
+
+bool BackgroundTrainingOptions::Check(std::string* error) const {
+  if (weak_count < 1) {
+    *error = "background weak_count must be at least 1, got " + std::to_string(weak_count);
+    return false;
+  }
+  if (max_depth < 1 || max_depth > 10) {
+    *error = "background max_depth must be in [1, 10], got " + std::to_string(max_depth);
+    return false;
+  }
+  if (!(weight_trim_rate >= 0.0 && weight_trim_rate <= 1.0)) {
+    *error = "background weight_trim_rate must be in [0, 1]";
+    return false;
+  }
+  if (!(max_negatives_per_positive >= 0.0) || !std::isfinite(max_negatives_per_positive)) {
+    *error = "background max_negatives_per_positive must be a finite value >= 0";
+    return false;
+  }
+  return true;
+}
+
+BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
+                                                 const std::vector<int>& labels,
+                                                 const BackgroundTrainingOptions& options,
+                                                 BackgroundTrainingSummary* summary) {
+  std::string error;
+  CHECK(options.Check(&error)) << error;
+  CHECK_EQ(features.type(), CV_32F);
+  CHECK_EQ(features.rows, static_cast<int>(labels.size()));
+  Timer timer;
+  BackgroundTrainingSummary stats;
+  BackgroundClassifier classifier;
+  for (int c = 0; c < kBackgroundClasses; ++c) {
+    std::vector<int> positives;
+    std::vector<int> negatives;
+    for (int i = 0; i < features.rows; ++i) {
+      if (labels[i] < 0) continue;
+      (labels[i] == c ? positives : negatives).push_back(i);
+    }
+    CHECK(!positives.empty()) << "no training region of class "
+                              << SegmentClassName(BackgroundClassOf(c));
+    CHECK(!negatives.empty()) << "no negative training region";
+    if (options.max_negatives_per_positive > 0) {
+      const size_t keep = static_cast<size_t>(
+          std::ceil(options.max_negatives_per_positive * static_cast<double>(positives.size())));
+      if (negatives.size() > keep) {
+        std::mt19937_64 rng(options.seed + static_cast<uint64_t>(c));
+        std::shuffle(negatives.begin(), negatives.end(), rng);
+        negatives.resize(keep);
+        std::sort(negatives.begin(), negatives.end());
+      }
+    }
+    cv::Mat samples(static_cast<int>(positives.size() + negatives.size()), features.cols, CV_32F);
+    cv::Mat responses(samples.rows, 1, CV_32S);
+    int row = 0;
+    for (const int i : positives) {
+      features.row(i).copyTo(samples.row(row));
+      responses.at<int>(row++) = 1;
+    }
+    for (const int i : negatives) {
+      features.row(i).copyTo(samples.row(row));
+      responses.at<int>(row++) = 0;
+    }
+    cv::Ptr<cv::ml::Boost> boost = cv::ml::Boost::create();
+    boost->setBoostType(cv::ml::Boost::GENTLE);
+    boost->setWeakCount(options.weak_count);
+    boost->setMaxDepth(options.max_depth);
+    boost->setWeightTrimRate(options.weight_trim_rate);
+    boost->setUseSurrogates(false);
+    boost->setCVFolds(0);
+    boost->train(cv::ml::TrainData::create(samples, cv::ml::ROW_SAMPLE, responses));
+    classifier.boosts_[c] = boost;
+
+    cv::Mat raw;
+    boost->predict(samples, raw, cv::ml::StatModel::RAW_OUTPUT);
+    int correct = 0;
+    for (int r = 0; r < samples.rows; ++r) {
+      correct += (raw.at<float>(r) > 0) == (responses.at<int>(r) == 1);
+    }
+    stats.positives[c] = static_cast<int>(positives.size());
+    stats.negatives[c] = static_cast<int>(negatives.size());
+    stats.training_accuracy[c] = static_cast<double>(correct) / samples.rows;
+  }
+  stats.seconds = timer.ElapsedMs() / 1000.0;
+  if (summary != nullptr) *summary = stats;
+  return classifier;
+}
+
+int BackgroundClassifier::feature_size() const {
+  return empty() ? 0 : boosts_[0]->getVarCount();
+}
+
+cv::Mat BackgroundClassifier::Scores(const cv::Mat& features) const {
+  CHECK(!empty()) << "background classifiers not loaded";
+  CHECK_EQ(features.type(), CV_32F);
+  CHECK_EQ(features.cols, feature_size());
+  cv::Mat scores(features.rows, kBackgroundClasses, CV_32F);
+  if (features.rows == 0) return scores;
+  for (int c = 0; c < kBackgroundClasses; ++c) {
+    cv::Mat raw;
+    boosts_[c]->predict(features, raw, cv::ml::StatModel::RAW_OUTPUT);
+    raw.reshape(1, features.rows).copyTo(scores.col(c));
+  }
+  return scores;
+}
+
+SegmentClass BackgroundClassifier::Decide(const float* scores, double threshold) {
+  int best = 0;
+  for (int c = 1; c < kBackgroundClasses; ++c) {
+    if (scores[c] > scores[best]) best = c;
+  }
+  return scores[best] > threshold ? BackgroundClassOf(best) : SegmentClass::kStructured;
+}
+
+std::vector<SegmentClass> BackgroundClassifier::Classify(const cv::Mat& features,
+                                                         double threshold) const {
+  const cv::Mat scores = Scores(features);
+  std::vector<SegmentClass> classes(static_cast<size_t>(features.rows));
+  for (int r = 0; r < features.rows; ++r) classes[r] = Decide(scores.ptr<float>(r), threshold);
+  return classes;
+}
+
+Status BackgroundClassifier::Save(const std::string& directory) const {
+  if (empty()) return Status::InvalidArgument("no background classifiers to save");
+  try {
+    cv::FileStorage fs(directory + "/background.yml", cv::FileStorage::WRITE);
+    if (!fs.isOpened()) return Status::IoError("cannot write " + directory + "/background.yml");
+    fs << "format_version" << kFormatVersion;
+    fs << "features" << feature_size();
+    fs << "classes" << "[";
+    for (int c = 0; c < kBackgroundClasses; ++c) fs << SegmentClassName(BackgroundClassOf(c));
+    fs << "]";
+    fs.release();
+    for (int c = 0; c < kBackgroundClasses; ++c) boosts_[c]->save(ClassifierFile(directory, c));
+  } catch (const cv::Exception& e) {
+    return Status::IoError("cannot write background classifiers to " + directory + ": " +
+                           e.what());
+  }
+  return Status::Ok();
+}
+
+StatusOr<BackgroundClassifier> BackgroundClassifier::Load(const std::string& directory) {
+  BackgroundClassifier classifier;
+  const std::string index = directory + "/background.yml";
+  try {
+    cv::FileStorage fs(index, cv::FileStorage::READ);
+    if (!fs.isOpened()) return Status::NotFound("cannot read " + index);
+    int version = 0;
+    int features = 0;
+    fs["format_version"] >> version;
+    fs["features"] >> features;
+    if (version != kFormatVersion) {
+      return Status::InvalidArgument(index + ": format version " + std::to_string(version) +
+                                     ", expected " + std::to_string(kFormatVersion));
+    }
+    std::vector<std::string> names;
+    fs["classes"] >> names;
+    if (static_cast<int>(names.size()) != kBackgroundClasses) {
+      return Status::InvalidArgument(index + ": expected five classes");
+    }
+    for (int c = 0; c < kBackgroundClasses; ++c) {
+      if (names[c] != SegmentClassName(BackgroundClassOf(c))) {
+        return Status::InvalidArgument(index + ": class " + std::to_string(c) + " is " +
+                                       names[c]);
+      }
+      const std::string file = ClassifierFile(directory, c);
+      cv::Ptr<cv::ml::Boost> boost = cv::Algorithm::load<cv::ml::Boost>(file);
+      if (!boost || !boost->isTrained()) return Status::NotFound("cannot read " + file);
+      if (boost->getVarCount() != features) {
+        return Status::InvalidArgument(file + ": " + std::to_string(boost->getVarCount()) +
+                                       " features, expected " + std::to_string(features));
+      }
+      classifier.boosts_[c] = boost;
+    }
+  } catch (const cv::Exception& e) {
+    return Status::InvalidArgument("cannot load background classifiers from " + directory +
+                                   ": " + e.what());
+  }
+  return classifier;
+}
+
+}  // namespace placerec

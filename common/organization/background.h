@@ -1,0 +1,78 @@
+// Background identification (DESIGN.md step 4; seed §3.4, §6.2.2 Table 6.4): five binary Gentle
+// AdaBoost classifiers [Friedman00] (OpenCV ml::Boost) on the 151-d region appearance
+// (textons.h) decide whether a region is sky, tree, road, grass or water. A region none of them
+// claims is "structured": a part of an object, which Perceptual Organization then groups.
+//
+// Files (one directory, normally models/): background.yml (format version, class order, the
+// decision threshold) and background_<class>.yml.gz (one ml::Boost each).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/ml.hpp>
+
+#include "common/segmentation/segmentation.h"
+#include "common/util/status.h"
+
+namespace placerec {
+
+constexpr int kBackgroundClasses = 5;
+// The classes in classifier order: sky, tree, road, grass, water (their SegmentClass values are
+// 0..4, so classifier c decides SegmentClass c).
+SegmentClass BackgroundClassOf(int index);
+
+struct BackgroundTrainingOptions {
+  int weak_count = 150;            // boosted trees per classifier
+  int max_depth = 2;               // depth of each tree
+  double weight_trim_rate = 0.95;  // OpenCV Boost: samples outside this weight mass skip a round
+  // Each classifier sees all its positive regions and at most this many negatives per positive
+  // (drawn at random with `seed`); 0 keeps every negative.
+  double max_negatives_per_positive = 4.0;
+  uint64_t seed = 2009;
+
+  bool Check(std::string* error) const;
+};
+
+// What training measured, per classifier on its own training samples.
+struct BackgroundTrainingSummary {
+  std::array<int, kBackgroundClasses> positives{};
+  std::array<int, kBackgroundClasses> negatives{};
+  std::array<double, kBackgroundClasses> training_accuracy{};  // binary, on the samples it saw
+  double seconds = 0.0;
+};
+
+class BackgroundClassifier {
+ public:
+  static constexpr int kFormatVersion = 1;
+
+  BackgroundClassifier() = default;
+
+  // Trains the five classifiers on `features` (n x d CV_32F, one region per row) with `labels`
+  // (n values: a SegmentClass value 0..4 for background, 7 (or any other non-negative value)
+  // for everything else, -1 to leave the row out). Deterministic for the same input.
+  static BackgroundClassifier Train(const cv::Mat& features, const std::vector<int>& labels,
+                                    const BackgroundTrainingOptions& options,
+                                    BackgroundTrainingSummary* summary);
+
+  static StatusOr<BackgroundClassifier> Load(const std::string& directory);
+  Status Save(const std::string& directory) const;
+
+  bool empty() const { return !boosts_[0]; }
+  int feature_size() const;
+
+  // Raw boosted scores (sum of the weak responses; > 0 means "this class"): n x 5 CV_32F.
+  cv::Mat Scores(const cv::Mat& features) const;
+  // Per row: the class with the highest score when that score exceeds `threshold`, otherwise
+  // kStructured.
+  std::vector<SegmentClass> Classify(const cv::Mat& features, double threshold = 0.0) const;
+  static SegmentClass Decide(const float* scores, double threshold);
+
+ private:
+  std::array<cv::Ptr<cv::ml::Boost>, kBackgroundClasses> boosts_;
+};
+
+}  // namespace placerec

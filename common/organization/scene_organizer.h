@@ -1,0 +1,94 @@
+// Pipeline steps 3-5 together (DESIGN.md; seed §3.7, Fig. 3.14): improved superpixels, their
+// textons and background classes, then Perceptual Organization of the structured parts. The
+// result is the SceneSegmentation objects are cut from: every pixel in exactly one segment,
+// each segment sky, tree, road, grass, water or structured (an object or an object's part).
+//
+// The trained models (textons.yml, background*.yml*) come from a models directory: by default
+// PLACEREC_MODELS when set, otherwise the source tree's models/ (DefaultModelsDir()).
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "common/organization/background.h"
+#include "common/organization/perceptual_organization.h"
+#include "common/organization/textons.h"
+#include "common/segmentation/segmentation.h"
+#include "common/segmentation/superpixels.h"
+#include "common/util/status.h"
+#include "common/util/timer.h"
+
+namespace placerec {
+
+// PLACEREC_MODELS when set, otherwise the models/ directory of the source tree this library was
+// built from.
+std::string DefaultModelsDir();
+
+// Textons and background classifiers, loaded once and shared (read-only) by every organizer.
+struct BackgroundModel {
+  TextonModel textons;
+  BackgroundClassifier classifier;
+};
+
+// Loads textons.yml and the background classifiers from `directory` (empty: DefaultModelsDir()).
+StatusOr<std::shared_ptr<const BackgroundModel>> LoadBackgroundModel(const std::string& directory);
+
+struct SceneOrganizerOptions {
+  // The initial partition (seed §3.6, §6.1.2: sigma 0.5, k 300, min 20 at 640x480, small and
+  // similar-colour merges). working_width is applied by whoever makes the WorkingImage.
+  SuperpixelOptions superpixels;
+  // Textons are assigned on every `texton_stride`-th pixel in x and y; region histograms count
+  // those samples (1: every pixel).
+  int texton_stride = 2;
+  // A region is background when its best classifier's score exceeds this (0: the boosted
+  // decision).
+  double background_threshold = 0.0;
+  OrganizationOptions organization;
+  // Directory with the trained models; empty: DefaultModelsDir().
+  std::string models_dir;
+
+  bool Check(std::string* error) const;
+};
+
+// What one Segment call did, with the wall-clock time of each stage in milliseconds.
+struct SceneOrganizerSummary {
+  int superpixels = 0;
+  int background_superpixels = 0;
+  OrganizationSummary organization;
+  StageTimings timings;  // superpixels, filter_bank, textons, classifiers, organization
+};
+
+class SceneOrganizer {
+ public:
+  // Loads the models named by options.models_dir.
+  static StatusOr<SceneOrganizer> Create(const SceneOrganizerOptions& options);
+  // Uses an already loaded model; `options` must pass Check.
+  SceneOrganizer(const SceneOrganizerOptions& options,
+                 std::shared_ptr<const BackgroundModel> model);
+
+  // Segments a working image. Thread-safe.
+  SceneSegmentation Segment(const WorkingImage& image,
+                            SceneOrganizerSummary* summary = nullptr) const;
+
+  // The stages on their own, for evaluation and training.
+  // 20-d filter-bank features of the working image (CV_32FC(20)).
+  cv::Mat Features(const WorkingImage& image) const;
+  // Region appearance (151-d rows) of `labels` (ids 0..num_regions-1, -1 ignored) from features.
+  cv::Mat Appearance(const cv::Mat& features, const cv::Mat& labels, int num_regions) const;
+  // Superpixels classified: the initial partition with background classes, before grouping.
+  SceneSegmentation ClassifiedSuperpixels(const WorkingImage& image, cv::Mat* features = nullptr,
+                                          StageTimings* timings = nullptr) const;
+
+  const SceneOrganizerOptions& options() const { return options_; }
+  const BackgroundModel& model() const { return *model_; }
+
+ private:
+  SceneOrganizerOptions options_;
+  std::shared_ptr<const BackgroundModel> model_;
+  std::shared_ptr<const TextonAssigner> assigner_;
+};
+
+}  // namespace placerec

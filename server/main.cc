@@ -1,0 +1,96 @@
+// placerec-server: parses flags into ServerOptions, opens the map and LCM, and serves until
+// SIGINT or SIGTERM. Exit codes: 0 after a clean stop, 1 when the map or LCM cannot be opened,
+// 2 for bad flags.
+#include <csignal>
+#include <cstdio>
+#include <string>
+
+#include "common/pipeline/flags.h"
+#include "common/util/logging.h"
+#include "common/util/options.h"
+#include "server/server.h"
+
+namespace placerec {
+namespace {
+
+Server* g_server = nullptr;
+
+void OnStopSignal(int) {
+  if (g_server != nullptr) g_server->Stop();
+}
+
+constexpr char kUsage[] =
+    "placerec-server [--db FILE] [--lcm-url URL] [options]\n\n"
+    "Serves place recognition over LCM: frames (placerec.frame_t) on PLACEREC_FRAME, one answer\n"
+    "(placerec.result_t) per frame on PLACEREC_RESULT_<robot>, a heartbeat (placerec.status_t) on\n"
+    "PLACEREC_STATUS every second. The landmark map lives in the SQLite file --db; it is reloaded\n"
+    "at start-up, and each frame's landmarks are committed before its answer is published.\n"
+    "Stops cleanly on SIGINT or SIGTERM.";
+
+int Main(int argc, char** argv) {
+  ServerOptions options;
+  bool sqlite_normal = false;
+  FlagParser parser(kUsage);
+  parser.Add("db", &options.db_path, "SQLite map file (created when missing)");
+  parser.Add("lcm-url", &options.lcm_url,
+             "LCM URL, e.g. udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304 (empty: LCM's "
+             "default, i.e. $LCM_DEFAULT_URL or udpm://239.255.76.67:7667?ttl=0)");
+  parser.Add("workers", &options.workers,
+             "worker threads running the pipeline (one robot's frames never run at once)");
+  parser.Add("queue", &options.queue_capacity,
+             "frames waiting for a worker before new ones are answered 'overloaded'");
+  parser.Add("status-period", &options.status_period_s,
+             "seconds between heartbeats on PLACEREC_STATUS");
+  parser.AddSwitch("sqlite-sync-normal", &sqlite_normal,
+                   "SQLite synchronous=NORMAL: commits survive a killed server but not a power "
+                   "loss (default FULL: both)");
+  parser.Add("sqlite-busy-timeout-ms", &options.store.busy_timeout_ms,
+             "how long a write waits for another connection's lock, milliseconds");
+  parser.Add("max-image-dimension", &options.decode.max_dimension,
+             "frames larger than this in either dimension are rejected (pixels)");
+  parser.Add("min-image-dimension", &options.decode.min_dimension,
+             "frames smaller than this in either dimension are rejected (pixels)");
+  AddRecognizerFlags(&parser, &options.recognizer);
+  bool help = false;
+  const Status parsed = parser.Parse(argc, argv, 1, &help);
+  if (help) {
+    std::printf("%s\n", parser.Help().c_str());
+    return 0;
+  }
+  if (!parsed.ok()) {
+    std::fprintf(stderr, "placerec-server: %s\n", parsed.message().c_str());
+    return 2;
+  }
+  options.store.synchronous_full = !sqlite_normal;
+  std::string error;
+  if (!options.Check(&error)) {
+    std::fprintf(stderr, "placerec-server: %s\n", error.c_str());
+    return 2;
+  }
+  StatusOr<std::unique_ptr<Server>> server = Server::Create(options);
+  if (!server.ok()) {
+    std::fprintf(stderr, "placerec-server: %s\n", server.status().ToString().c_str());
+    return 1;
+  }
+  g_server = server->get();
+  struct sigaction action = {};
+  action.sa_handler = OnStopSignal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+  const Status served = (*server)->Run();
+  g_server = nullptr;
+  if (!served.ok()) {
+    std::fprintf(stderr, "placerec-server: %s\n", served.ToString().c_str());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace placerec
+
+int main(int argc, char** argv) {
+  placerec::InitLogging(argv[0]);
+  return placerec::Main(argc, argv);
+}

@@ -1,0 +1,227 @@
+#include "server/protocol.h"
+
+#include <exception>
+
+#include "proto/channels.h"
+
+namespace placerec {
+namespace {
+
+// Reads a big-endian int32 (LCM's wire order) at `offset`; false when it does not fit.
+bool ReadInt32(const uint8_t* data, size_t size, size_t offset, int32_t* value) {
+  if (offset + 4 > size) return false;
+  const uint32_t v = (static_cast<uint32_t>(data[offset]) << 24) |
+                     (static_cast<uint32_t>(data[offset + 1]) << 16) |
+                     (static_cast<uint32_t>(data[offset + 2]) << 8) |
+                     static_cast<uint32_t>(data[offset + 3]);
+  *value = static_cast<int32_t>(v);
+  return true;
+}
+
+// The code lcm-gen writes resizes strings and arrays to the length a message claims before it
+// checks that the bytes are there, so a forged length would make it allocate gigabytes or throw.
+// This walks frame_t's layout (fingerprint, utime, sequence, request_id, insert, encoding, width,
+// height, robot, size, data; see proto/frame_t.lcm) and checks both lengths first.
+Status CheckFrameLengths(const uint8_t* data, size_t size) {
+  constexpr size_t kRobotLengthOffset = 8 + 8 + 8 + 8 + 1 + 1 + 4 + 4;
+  int32_t robot_length = 0;
+  if (!ReadInt32(data, size, kRobotLengthOffset, &robot_length)) {
+    return Status::InvalidArgument("message of " + std::to_string(size) +
+                                   " bytes is too short for a frame");
+  }
+  const size_t robot_begin = kRobotLengthOffset + 4;
+  if (robot_length < 1 || static_cast<size_t>(robot_length) > size - robot_begin) {
+    return Status::InvalidArgument("robot id length " + std::to_string(robot_length) +
+                                   " does not fit the message");
+  }
+  const size_t size_offset = robot_begin + static_cast<size_t>(robot_length);
+  int32_t data_size = 0;
+  if (!ReadInt32(data, size, size_offset, &data_size)) {
+    return Status::InvalidArgument("message ends before the image size");
+  }
+  if (data_size < 0 || static_cast<size_t>(data_size) > size - size_offset - 4) {
+    return Status::InvalidArgument("image size " + std::to_string(data_size) +
+                                   " does not fit the message");
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+StatusOr<frame_t> DecodeFrameMessage(const void* data, size_t size) {
+  if (data == nullptr || size < 8) {
+    return Status::InvalidArgument("message of " + std::to_string(size) +
+                                   " bytes is too short for a frame");
+  }
+  if (size > static_cast<size_t>(INT32_MAX)) {
+    return Status::InvalidArgument("message of " + std::to_string(size) + " bytes is too large");
+  }
+  const auto* bytes = static_cast<const uint8_t*>(data);
+  // The fingerprint first, so that other message types get a clear reason.
+  int64_t hash = 0;
+  if (__int64_t_decode_array(bytes, 0, static_cast<int>(size), &hash, 1) != 8 ||
+      hash != frame_t::getHash()) {
+    return Status::InvalidArgument("not a placerec.frame_t (fingerprint mismatch)");
+  }
+  PLACEREC_RETURN_IF_ERROR(CheckFrameLengths(bytes, size));
+  frame_t frame;
+  int decoded = -1;
+  try {
+    decoded = frame.decode(bytes, 0, static_cast<int>(size));
+  } catch (const std::exception& e) {
+    return Status::InvalidArgument(std::string("malformed frame_t: ") + e.what());
+  }
+  if (decoded < 0) return Status::InvalidArgument("malformed or truncated frame_t");
+  if (static_cast<size_t>(decoded) != size) {
+    return Status::InvalidArgument("frame_t followed by " + std::to_string(size - decoded) +
+                                   " unexpected bytes");
+  }
+  return frame;
+}
+
+StatusOr<ImageEncoding> ImageEncodingFromWire(int8_t encoding) {
+  switch (encoding) {
+    case frame_t::ENCODING_JPEG:
+      return ImageEncoding::kJpeg;
+    case frame_t::ENCODING_PNG:
+      return ImageEncoding::kPng;
+    case frame_t::ENCODING_RAW_BGR8:
+      return ImageEncoding::kRawBgr8;
+    case frame_t::ENCODING_RAW_GRAY8:
+      return ImageEncoding::kRawGray8;
+    default:
+      break;
+  }
+  return Status::BadImage("unsupported image encoding " + std::to_string(encoding) +
+                          " (supported: 0 jpeg, 1 png, 2 raw-bgr8, 3 raw-gray8)");
+}
+
+FrameRequest ToFrameRequest(const frame_t& frame) {
+  FrameRequest request;
+  request.robot = frame.robot;
+  request.sequence = frame.sequence;
+  request.utime = frame.utime;
+  request.insert = frame.insert;
+  return request;
+}
+
+int8_t WireStatus(StatusCode code) {
+  switch (code) {
+    case StatusCode::kOk:
+      return result_t::STATUS_OK;
+    case StatusCode::kInvalidArgument:
+    case StatusCode::kNotFound:
+      return result_t::STATUS_BAD_REQUEST;
+    case StatusCode::kBadImage:
+      return result_t::STATUS_BAD_IMAGE;
+    case StatusCode::kIoError:
+      return result_t::STATUS_STORAGE_ERROR;
+    case StatusCode::kOverloaded:
+      return result_t::STATUS_OVERLOADED;
+    case StatusCode::kInternal:
+      return result_t::STATUS_INTERNAL_ERROR;
+  }
+  return result_t::STATUS_INTERNAL_ERROR;
+}
+
+const char* WireStatusName(int8_t status) {
+  switch (status) {
+    case result_t::STATUS_OK:
+      return "ok";
+    case result_t::STATUS_BAD_REQUEST:
+      return "bad request";
+    case result_t::STATUS_BAD_IMAGE:
+      return "bad image";
+    case result_t::STATUS_UNKNOWN_ROBOT:
+      return "unknown robot";
+    case result_t::STATUS_OVERLOADED:
+      return "overloaded";
+    case result_t::STATUS_UNAUTHORISED:
+      return "unauthorised";
+    case result_t::STATUS_INTERNAL_ERROR:
+      return "internal error";
+    case result_t::STATUS_STORAGE_ERROR:
+      return "storage error";
+    case result_t::STATUS_SHUTTING_DOWN:
+      return "shutting down";
+    default:
+      return "unknown status";
+  }
+}
+
+result_t AnswerTemplate(const frame_t& frame) {
+  result_t answer;
+  answer.utime = 0;
+  answer.robot = frame.robot.substr(0, kMaxEchoedRobotIdLength);
+  answer.sequence = frame.sequence;
+  answer.request_id = frame.request_id;
+  answer.frame_utime = frame.utime;
+  answer.insert = frame.insert;
+  answer.status = result_t::STATUS_OK;
+  answer.loop_closure = false;
+  answer.num_matches = 0;
+  answer.keypoints = 0;
+  answer.objects = 0;
+  answer.landmarks = 0;
+  answer.stored_descriptors = 0;
+  answer.place_id = PlaceId::kInvalidValue;
+  answer.map_places = 0;
+  answer.map_landmarks = 0;
+  answer.map_descriptors = 0;
+  answer.queue_ms = 0;
+  answer.server_ms = 0;
+  answer.num_timings = 0;
+  return answer;
+}
+
+void FillAnswer(const RecognitionResult& result, result_t* answer) {
+  answer->map_places = result.map.places;
+  answer->map_landmarks = result.map.landmarks;
+  answer->map_descriptors = result.map.descriptors;
+  for (const auto& [stage, ms] : result.timings) {
+    stage_time_t timing;
+    timing.stage = stage;
+    timing.ms = ms;
+    answer->timings.push_back(std::move(timing));
+  }
+  answer->num_timings = static_cast<int32_t>(answer->timings.size());
+  answer->keypoints = result.keypoints;
+  answer->objects = result.objects;
+  if (!result.status.ok()) {
+    SetError(WireStatus(result.status.code()), result.status.message(), answer);
+    return;
+  }
+  answer->status = result_t::STATUS_OK;
+  answer->message.clear();
+  answer->loop_closure = result.loop_closure;
+  answer->matches.clear();
+  for (const PlaceMatch& match : result.matches) {
+    match_t m;
+    m.utime = match.place.utime;
+    m.robot = match.place.robot;
+    m.sequence = match.place.sequence;
+    m.place_id = match.place.id.value();
+    m.score = match.score;
+    m.matched_landmarks = match.matched_landmarks;
+    m.matched_descriptors = match.matched_descriptors;
+    m.inliers = match.inliers;
+    answer->matches.push_back(std::move(m));
+  }
+  answer->num_matches = static_cast<int32_t>(answer->matches.size());
+  answer->landmarks = result.landmarks;
+  answer->stored_descriptors = result.stored_descriptors;
+  answer->place_id = result.place.value();
+}
+
+void SetError(int8_t status, const std::string& message, result_t* answer) {
+  answer->status = status;
+  answer->message = message;
+  answer->loop_closure = false;
+  answer->matches.clear();
+  answer->num_matches = 0;
+  answer->landmarks = 0;
+  answer->stored_descriptors = 0;
+  answer->place_id = PlaceId::kInvalidValue;
+}
+
+}  // namespace placerec

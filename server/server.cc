@@ -1,0 +1,233 @@
+#include "server/server.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdlib>
+#include <utility>
+#include <vector>
+
+#include "common/util/logging.h"
+#include "proto/channels.h"
+#include "server/protocol.h"
+
+#ifndef PLACEREC_VERSION
+#define PLACEREC_VERSION "unknown"
+#endif
+
+namespace placerec {
+namespace {
+
+int64_t NowUtime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+std::string DescribeUrl(const std::string& url) {
+  if (!url.empty()) return url;
+  const char* env = std::getenv("LCM_DEFAULT_URL");
+  return env != nullptr && *env != '\0' ? std::string("LCM_DEFAULT_URL=") + env
+                                        : std::string("LCM's default URL");
+}
+
+}  // namespace
+
+bool ServerOptions::Check(std::string* error) const {
+  if (db_path.empty()) {
+    *error = "--db must name the map file";
+    return false;
+  }
+  if (workers < 1 || workers > 256) {
+    *error = "--workers must be between 1 and 256";
+    return false;
+  }
+  if (queue_capacity < 1) {
+    *error = "--queue must be at least 1";
+    return false;
+  }
+  if (!(status_period_s > 0)) {
+    *error = "--status-period must be positive";
+    return false;
+  }
+  return store.Check(error) && decode.Check(error) && recognizer.Check(error);
+}
+
+StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
+  std::string error;
+  if (!options.Check(&error)) return Status::InvalidArgument(error);
+  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(options.db_path, options.store);
+  if (!store.ok()) return store.status();
+  StatusOr<std::unique_ptr<PlaceMap>> map =
+      PlaceMap::Open(std::move(*store), options.recognizer.index);
+  if (!map.ok()) return map.status();
+  std::unique_ptr<Server> server(new Server(options, std::move(*map)));
+  if (!server->lcm_.good()) {
+    return Status::IoError("cannot open LCM (" + DescribeUrl(options.lcm_url) +
+                           "); check the URL and that the network has multicast");
+  }
+  return server;
+}
+
+Server::Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map)
+    : options_(options),
+      map_(std::move(map)),
+      processor_(options.recognizer, options.decode, map_.get()),
+      lcm_(options.lcm_url) {
+  queue_ = std::make_unique<LaneWorkQueue<Job>>(options_.workers, options_.queue_capacity,
+                                                [this](Job& job) { Work(job); });
+}
+
+Server::~Server() {
+  if (queue_) queue_->Shutdown();
+}
+
+Status Server::Run() {
+  lcm::Subscription* subscription =
+      lcm_.subscribe(kFrameChannel, &Server::OnFrameMessage, this);
+  if (subscription == nullptr) return Status::Internal("cannot subscribe to PLACEREC_FRAME");
+  const MapCounts counts = map_->Counts();
+  LOG(INFO) << "placerec-server " << PLACEREC_VERSION << " serving " << map_->Describe() << " ("
+            << counts.places << " places, " << counts.landmarks << " landmarks, loaded in "
+            << map_->open_ms() << " ms) over " << DescribeUrl(options_.lcm_url) << " with "
+            << options_.workers << " workers, queue of " << options_.queue_capacity;
+  const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(options_.status_period_s));
+  auto next_status = std::chrono::steady_clock::now();
+  Status result;
+  while (!stop_requested_.load()) {
+    const auto now = std::chrono::steady_clock::now();
+    if (now >= next_status) {
+      PublishStatus();
+      next_status += period;
+      if (next_status < now) next_status = now + period;
+    }
+    const int wait_ms = static_cast<int>(std::min<int64_t>(
+        100, std::chrono::duration_cast<std::chrono::milliseconds>(next_status - now).count() + 1));
+    if (lcm_.handleTimeout(wait_ms) < 0) {
+      result = Status::IoError("LCM stopped delivering messages");
+      break;
+    }
+  }
+  lcm_.unsubscribe(subscription);
+  std::vector<Job> pending = queue_->Shutdown();
+  for (Job& job : pending) {
+    result_t answer = AnswerTemplate(job.frame);
+    SetError(result_t::STATUS_SHUTTING_DOWN,
+             "the server is shutting down; the frame was not processed", &answer);
+    Publish(&answer, false);
+  }
+  PublishStatus();
+  LOG(INFO) << "placerec-server stopped; " << pending.size()
+            << " queued frames answered 'shutting down'; map " << map_->Describe() << " closed";
+  return result;
+}
+
+void Server::OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
+  Job job;
+  StatusOr<frame_t> frame = DecodeFrameMessage(buffer->data, buffer->data_size);
+  if (!frame.ok()) {
+    stats_.Dropped();
+    // Log the first few and then every hundredth, so that a flood cannot fill the disk.
+    if (dropped_logged_ < 10 || dropped_logged_ % 100 == 0) {
+      LOG(WARNING) << "dropped a " << buffer->data_size << "-byte message on " << channel
+                   << " that is not a valid frame: " << frame.status().message();
+    }
+    ++dropped_logged_;
+    return;
+  }
+  job.frame = std::move(*frame);
+  std::string why;
+  if (!IsValidWireRobotId(job.frame.robot, &why)) {
+    // No lane and no channel of its own: answer at once on the shared error channel.
+    result_t answer = AnswerTemplate(job.frame);
+    SetError(result_t::STATUS_BAD_REQUEST, why, &answer);
+    const MapCounts counts = map_->Counts();
+    answer.map_places = counts.places;
+    answer.map_landmarks = counts.landmarks;
+    answer.map_descriptors = counts.descriptors;
+    Publish(&answer, false);
+    return;
+  }
+  stats_.SawRobot(job.frame.robot);
+  const std::string robot = job.frame.robot;
+  if (!queue_->Push(robot, &job)) {
+    result_t answer = AnswerTemplate(job.frame);
+    SetError(result_t::STATUS_OVERLOADED,
+             "server overloaded: " + std::to_string(queue_->capacity()) +
+                 " frames are already waiting; the frame was not processed, send it again later",
+             &answer);
+    Publish(&answer, false);
+  }
+}
+
+void Server::Work(Job& job) {
+  const double queue_ms = job.received.ElapsedMs();
+  result_t answer = processor_.Process(job.frame);
+  answer.queue_ms = queue_ms;
+  answer.server_ms = job.received.ElapsedMs();
+  if (answer.status == result_t::STATUS_OK) {
+    VLOG(1) << job.frame.robot << " #" << job.frame.sequence << ": " << answer.objects
+            << " objects, " << answer.landmarks << " landmarks, " << answer.num_matches
+            << " matches, " << answer.server_ms << " ms";
+    if (answer.loop_closure) {
+      LOG(INFO) << "loop closure: " << job.frame.robot << " #" << job.frame.sequence
+                << " revisits " << answer.matches[0].robot << " #" << answer.matches[0].sequence
+                << " (score " << answer.matches[0].score << ")";
+    }
+  } else {
+    LOG(WARNING) << "frame " << job.frame.sequence << " of robot '" << job.frame.robot
+                 << "': " << WireStatusName(answer.status) << ": " << answer.message;
+  }
+  Publish(&answer, true);
+}
+
+void Server::Publish(result_t* answer, bool processed) {
+  answer->utime = NowUtime();
+  const std::string channel = ResultChannel(answer->robot);
+  int rc = 0;
+  {
+    std::lock_guard lock(publish_mutex_);
+    rc = lcm_.publish(channel, answer);
+  }
+  if (rc != 0) {
+    LOG(ERROR) << "could not publish the answer to frame " << answer->sequence << " of robot '"
+               << answer->robot << "' on " << channel;
+  }
+  stats_.Answered(processed, answer->status != result_t::STATUS_OK,
+                  answer->status == result_t::STATUS_OVERLOADED);
+}
+
+status_t Server::CurrentStatus() {
+  const ServerStats::Snapshot s = stats_.Take();
+  const MapCounts counts = map_->Counts();
+  status_t status;
+  status.utime = NowUtime();
+  status.version = PLACEREC_VERSION;
+  status.map = map_->Describe();
+  status.uptime_s = s.uptime_s;
+  status.map_open_ms = map_->open_ms();
+  status.map_places = counts.places;
+  status.map_landmarks = counts.landmarks;
+  status.map_descriptors = counts.descriptors;
+  status.queue_depth = queue_->depth();
+  status.queue_capacity = queue_->capacity();
+  status.in_progress = queue_->running();
+  status.workers = queue_->workers();
+  status.robots = s.robots;
+  status.frames_answered = s.answered;
+  status.frames_failed = s.failed;
+  status.frames_overloaded = s.overloaded;
+  status.messages_dropped = s.dropped;
+  status.frames_per_second = s.frames_per_second;
+  return status;
+}
+
+void Server::PublishStatus() {
+  const status_t status = CurrentStatus();
+  std::lock_guard lock(publish_mutex_);
+  if (lcm_.publish(kStatusChannel, &status) != 0) {
+    LOG(WARNING) << "could not publish the status on " << kStatusChannel;
+  }
+}
+
+}  // namespace placerec

@@ -1,0 +1,92 @@
+// placerec-server (DESIGN.md "Architecture"): holds one site's landmark map (SQLite) and answers
+// frames from many robots over LCM. The receive loop decodes each message on PLACEREC_FRAME and
+// queues it in its robot's lane (server/work_queue.h); workers run the pipeline
+// (server/frame_processor.h), the map commits the frame's landmarks, and only then is the answer
+// published on PLACEREC_RESULT_<robot>. A heartbeat goes to PLACEREC_STATUS every second.
+#pragma once
+
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include <lcm/lcm-cpp.hpp>
+
+#include "common/image/image.h"
+#include "common/pipeline/place_map.h"
+#include "common/pipeline/recognizer.h"
+#include "common/storage/sqlite_store.h"
+#include "common/util/status.h"
+#include "common/util/timer.h"
+#include "placerec/frame_t.hpp"
+#include "placerec/result_t.hpp"
+#include "placerec/status_t.hpp"
+#include "server/frame_processor.h"
+#include "server/server_stats.h"
+#include "server/work_queue.h"
+
+namespace placerec {
+
+struct ServerOptions {
+  // The SQLite map file; created when missing, reloaded when present.
+  std::string db_path = "placerec.db";
+  // LCM URL, e.g. "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304". Empty uses LCM's
+  // default: the LCM_DEFAULT_URL environment variable, else udpm://239.255.76.67:7667?ttl=0.
+  std::string lcm_url;
+  // Worker threads running the pipeline; frames of one robot never run at once.
+  int workers = 2;
+  // Frames waiting for a worker before new ones are answered "overloaded".
+  int queue_capacity = 16;
+  // Seconds between two heartbeats on PLACEREC_STATUS.
+  double status_period_s = 1.0;
+  SqliteStoreOptions store;
+  DecodeOptions decode;
+  RecognizerOptions recognizer;
+
+  bool Check(std::string* error) const;
+};
+
+class Server {
+ public:
+  // Opens the map (loading every stored landmark) and LCM. Errors name the file or URL.
+  static StatusOr<std::unique_ptr<Server>> Create(const ServerOptions& options);
+  ~Server();
+
+  // Serves until Stop() is called, then answers the frames still queued with "shutting down",
+  // lets the running ones finish (their answers go out) and returns. An error only when LCM
+  // fails.
+  Status Run();
+
+  // Asks Run() to return within about 0.1 s. Async-signal-safe: may be called from a signal
+  // handler or another thread.
+  void Stop() { stop_requested_.store(true); }
+
+  // What the next heartbeat would say.
+  status_t CurrentStatus();
+
+ private:
+  struct Job {
+    frame_t frame;
+    Timer received;  // since the message arrived
+  };
+
+  Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map);
+  void OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string& channel);
+  void Work(Job& job);
+  // Publishes `answer` on its robot's channel; `processed` says whether a worker ran the frame.
+  void Publish(result_t* answer, bool processed);
+  void PublishStatus();
+
+  ServerOptions options_;
+  std::unique_ptr<PlaceMap> map_;
+  FrameProcessor processor_;
+  lcm::LCM lcm_;
+  std::mutex publish_mutex_;
+  ServerStats stats_;
+  std::atomic<bool> stop_requested_{false};
+  int64_t dropped_logged_ = 0;
+  // Last: its workers use everything above, so it is destroyed (joined) first.
+  std::unique_ptr<LaneWorkQueue<Job>> queue_;
+};
+
+}  // namespace placerec

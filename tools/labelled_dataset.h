@@ -1,0 +1,50 @@
+// Reading the labelled scene-image layout of shared/data/README.md (stanford_background,
+// msrc_v2): images/<id>.jpg, classes/<id>.png, objects/<id>.png, classes.txt, <split>.txt.
+// Only the images and the split list are required; ground truth is used when present.
+#pragma once
+
+#include <map>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "common/segmentation/segmentation.h"
+#include "common/util/status.h"
+
+namespace placerec {
+
+// classes.txt: "id name" per line.
+struct ClassTable {
+  std::map<int, std::string> names;
+
+  bool empty() const { return names.empty(); }
+  std::string Name(int id) const;  // "class<id>" when unlisted
+  // Ids that mean "no label": those named unknown, void or unlabelled.
+  bool IsUnlabelled(int id) const;
+  // The background class a dataset class stands for, by name (sky, tree, road, grass, water);
+  // kStructured for every other class.
+  SegmentClass BackgroundClass(int id) const;
+};
+
+// Reads DIR/classes.txt; an empty table when the file is missing.
+StatusOr<ClassTable> ReadClassTable(const std::string& dir);
+
+// Ids listed in DIR/<split>.txt, in order.
+StatusOr<std::vector<std::string>> ReadSplit(const std::string& dir, const std::string& split);
+
+struct LabelledImage {
+  std::string id;
+  cv::Mat bgr;      // CV_8UC3
+  cv::Mat classes;  // CV_8U class id per pixel, or empty when DIR/classes/<id>.png is missing
+  cv::Mat objects;  // CV_8U or CV_16U object id per pixel (0 = none), or empty
+};
+
+// Reads DIR/images/<id>.jpg (or .png) and, when present, its ground-truth layers; a layer whose
+// size differs from the image's is an error.
+StatusOr<LabelledImage> ReadLabelledImage(const std::string& dir, const std::string& id);
+
+// A ground-truth layer brought to the working resolution (nearest neighbour), as CV_32S.
+cv::Mat LayerAtSize(const cv::Mat& layer, cv::Size size);
+
+}  // namespace placerec
