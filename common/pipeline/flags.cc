@@ -99,6 +99,8 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
          "look up at most this many descriptors per frame, strongest first (0: all)");
   p->Add("query-unassigned", &o->query_unassigned_keypoints,
          "also look up keypoints outside every object (place-level matching only)");
+  p->Add("min-descriptors-per-place", &o->min_descriptors_per_place,
+         "plain places top up their landmarks' tracked descriptors to this many (0: tracked only)");
   p->Add("store-tracked-only", &o->store_tracked_descriptors_only,
          "store only the landmark descriptors that matched into previous frames");
   p->Add("index-search", &o->index.search,
@@ -151,6 +153,9 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
          "the query's scale (0: the best place)");
   p->Add("localization-score-fraction", &o->loop.localization_score_fraction,
          "neighbours considered for localization score at least this fraction of the best");
+  p->Add("min-scale-slope", &o->loop.min_scale_slope,
+         "localize where the neighbours' log scale ratio crosses 0 when it changes this much "
+         "per frame");
   p->Add("noise-inliers", &o->loop.noise_inliers,
          "inliers a wrong place reaches by chance; weaker neighbours are not considered");
   p->Add("max-matches", &o->loop.max_matches, "places returned per frame");

@@ -1,7 +1,9 @@
 #include "common/pipeline/recognizer.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <functional>
+#include <tuple>
 
 #include "common/util/logging.h"
 
@@ -162,11 +164,13 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   if (VLOG_IS_ON(2)) {
     std::string list;
     for (const PlaceMatch& m : found.places) {
-      list += " " + std::to_string(m.place.sequence) + ":" +
-              std::to_string(static_cast<int>(m.score)) + "/" +
-              std::to_string(m.matched_descriptors) + "/" + std::to_string(m.matched_landmarks);
+      char text[96];
+      std::snprintf(text, sizeof(text), " %lld:%.0f/%d/%d/%+.2f",
+                    static_cast<long long>(m.place.sequence), m.score, m.matched_descriptors,
+                    m.matched_landmarks, m.log_scale);
+      list += text;
     }
-    VLOG(2) << "places (sequence:score/points/landmarks):" << list;
+    VLOG(2) << "places (sequence:score/points/landmarks/log scale):" << list;
   }
   for (PlaceMatch& match : found.places) {
     for (auto& pair : match.object_pairs) pair.first = searched_objects[pair.first];
@@ -184,6 +188,38 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
 
   // Store this frame's landmarks, committed before the answer goes out.
   timer.Restart();
+  // Rows stored per landmark: the tracked ones, topped up in plain scenes.
+  std::vector<std::vector<int>> stored_rows(selection.landmarks.size());
+  size_t stored_total = 0;
+  for (size_t i = 0; i < selection.landmarks.size(); ++i) {
+    const SceneObject& object = observation.objects[selection.landmarks[i]];
+    if (options_.store_tracked_descriptors_only) {
+      stored_rows[i] = selection.tracked_rows[i];
+    } else {
+      stored_rows[i].resize(object.keypoints.size());
+      for (size_t r = 0; r < stored_rows[i].size(); ++r) stored_rows[i][r] = static_cast<int>(r);
+    }
+    stored_total += stored_rows[i].size();
+  }
+  if (stored_total < static_cast<size_t>(options_.min_descriptors_per_place)) {
+    // Untracked rows of every landmark, strongest keypoint first.
+    std::vector<std::tuple<float, size_t, int>> extra;  // (-response, landmark, row)
+    for (size_t i = 0; i < selection.landmarks.size(); ++i) {
+      const SceneObject& object = observation.objects[selection.landmarks[i]];
+      std::vector<bool> taken(object.keypoints.size(), false);
+      for (int r : stored_rows[i]) taken[r] = true;
+      for (int r = 0; r < object.sift_count(); ++r) {
+        if (taken[r]) continue;
+        extra.emplace_back(-observation.features.keypoints[object.keypoints[r]].response, i, r);
+      }
+    }
+    std::sort(extra.begin(), extra.end());
+    for (const auto& [negative_response, i, r] : extra) {
+      if (stored_total >= static_cast<size_t>(options_.min_descriptors_per_place)) break;
+      stored_rows[i].push_back(r);
+      ++stored_total;
+    }
+  }
   std::vector<Landmark> landmarks;
   for (size_t i = 0; i < selection.landmarks.size(); ++i) {
     const SceneObject& object = observation.objects[selection.landmarks[i]];
@@ -192,13 +228,7 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
     landmark.colour = object.colour;
     landmark.box = object.box;
     landmark.segment_class = object.segment_class;
-    std::vector<int> rows;
-    if (options_.store_tracked_descriptors_only) {
-      rows = selection.tracked_rows[i];
-    } else {
-      rows.resize(object.keypoints.size());
-      for (size_t r = 0; r < rows.size(); ++r) rows[r] = static_cast<int>(r);
-    }
+    const std::vector<int>& rows = stored_rows[i];
     landmark.descriptors.create(static_cast<int>(rows.size()), kDescriptorSize, CV_8U);
     for (size_t r = 0; r < rows.size(); ++r) {
       object.descriptors.row(rows[r]).copyTo(landmark.descriptors.row(static_cast<int>(r)));

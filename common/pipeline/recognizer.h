@@ -45,6 +45,10 @@ struct RecognizerOptions {
   // Store only a landmark's descriptors that matched into the previous frames (its widely
   // visible features); off stores every descriptor of the landmark object.
   bool store_tracked_descriptors_only = true;
+  // A place of a plain scene tracks few features; when its landmarks' tracked descriptors are
+  // fewer than this, their other descriptors are stored too (strongest keypoints first) up to
+  // this many, so that the place can still be recognised. 0: tracked only.
+  int min_descriptors_per_place = 100;
 
   bool Check(std::string* error) const;
 };

@@ -129,6 +129,62 @@ double CappedScore(const PlaceMatch& match, const LoopDecisionOptions& options) 
   return score;
 }
 
+// Which of `ranked` (best first) answers. The best place's neighbours (same robot, within the
+// window) with a clear score tell how the scale of the query's features compares with theirs:
+// where a weighted line through (sequence, median log scale ratio) crosses 0 is where the query
+// was taken. Without a clear trend, the neighbour with the scale ratio closest to 0 answers.
+size_t Localize(const std::vector<PlaceMatch>& ranked, const LoopDecisionOptions& options) {
+  const PlaceMatch& best = ranked.front();
+  const auto neighbour = [&](const PlaceMatch& m) {
+    return m.place.robot == best.place.robot &&
+           std::abs(m.place.sequence - best.place.sequence) <= options.localization_window;
+  };
+  double sw = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
+  int fitted = 0;
+  for (const PlaceMatch& m : ranked) {
+    if (!neighbour(m) || m.inliers <= 0 || m.score < options.noise_inliers) continue;
+    const double x = static_cast<double>(m.place.sequence - best.place.sequence);
+    const double w = m.score;
+    sw += w;
+    sx += w * x;
+    sy += w * m.log_scale;
+    sxx += w * x * x;
+    sxy += w * x * m.log_scale;
+    ++fitted;
+  }
+  const double denominator = sw * sxx - sx * sx;
+  if (fitted >= 3 && denominator > 1e-9) {
+    const double slope = (sw * sxy - sx * sy) / denominator;
+    const double intercept = (sy - slope * sx) / sw;
+    if (std::abs(slope) >= options.min_scale_slope) {
+      const double crossing = std::clamp(-intercept / slope,
+                                         -static_cast<double>(options.localization_window),
+                                         static_cast<double>(options.localization_window));
+      size_t chosen = 0;
+      double nearest = std::abs(crossing);
+      for (size_t i = 1; i < ranked.size(); ++i) {
+        if (!neighbour(ranked[i])) continue;
+        const double d = std::abs(static_cast<double>(ranked[i].place.sequence -
+                                                      best.place.sequence) - crossing);
+        if (d < nearest - 1e-9) {
+          nearest = d;
+          chosen = i;
+        }
+      }
+      return chosen;
+    }
+  }
+  const double floor =
+      std::max(options.noise_inliers, options.localization_score_fraction * best.score);
+  size_t chosen = 0;
+  for (size_t i = 1; i < ranked.size(); ++i) {
+    const PlaceMatch& m = ranked[i];
+    if (!neighbour(m) || m.score < floor) continue;
+    if (std::abs(m.log_scale) < std::abs(ranked[chosen].log_scale)) chosen = i;
+  }
+  return chosen;
+}
+
 }  // namespace
 
 std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
@@ -185,77 +241,85 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
   std::sort(ranked.begin(), ranked.end(), by_score);
 
   if (options.geometric_verification) {
+    const size_t min_points = static_cast<size_t>(std::max(8, options.min_verification_points));
+    // Fits the fundamental matrix to a place's matches; keeps the inliers and scores them.
+    auto verify = [&](PlaceMatch& match) {
+      match.inliers = 0;
+      std::vector<cv::Point2f> a;
+      std::vector<cv::Point2f> b;
+      for (const auto& [p, q] : match.point_pairs) {
+        a.push_back(p);
+        b.push_back(q);
+      }
+      std::vector<uint8_t> mask;
+      const cv::Mat f =
+          cv::findFundamentalMat(a, b, cv::USAC_ACCURATE, options.ransac_threshold,
+                                 options.ransac_confidence, options.ransac_iterations, mask);
+      std::vector<std::pair<cv::Point2f, cv::Point2f>> inliers;
+      std::vector<LandmarkId> inlier_landmarks;
+      std::vector<double> inlier_scales;
+      if (!f.empty() && mask.size() == a.size()) {
+        const std::vector<double>& scales = log_scales[match.place.id];
+        for (size_t k = 0; k < mask.size(); ++k) {
+          if (!mask[k]) continue;
+          inliers.push_back(match.point_pairs[k]);
+          inlier_landmarks.push_back(match.point_landmarks[k]);
+          inlier_scales.push_back(scales[k]);
+        }
+      }
+      if (!inlier_scales.empty()) {
+        std::nth_element(inlier_scales.begin(), inlier_scales.begin() + inlier_scales.size() / 2,
+                         inlier_scales.end());
+        match.log_scale = inlier_scales[inlier_scales.size() / 2];
+      }
+      match.inliers = static_cast<int>(inliers.size());
+      match.point_pairs = std::move(inliers);
+      match.point_landmarks = std::move(inlier_landmarks);
+      match.score = CappedScore(match, options);
+    };
+    auto discard = [](PlaceMatch& match) {
+      match.inliers = 0;
+      match.point_pairs.clear();
+      match.point_landmarks.clear();
+      match.score = 0;
+    };
+    // Places by decreasing match count; a place with fewer matches than half the best score so
+    // far cannot beat it and is skipped (unless it neighbours the best, see below).
     const size_t verified = std::min<size_t>(ranked.size(), options.max_verified_places);
     double best_score = 0;
-    for (size_t i = 0; i < verified; ++i) {
+    for (size_t i = 0; i < ranked.size(); ++i) {
       PlaceMatch& match = ranked[i];
-      match.inliers = 0;
-      // A place with fewer matches than the best score so far cannot beat it, and barely weighs
-      // in localization.
-      const bool promising = static_cast<int>(match.point_pairs.size()) >=
-                                 std::max(8, options.min_verification_points) &&
-                             static_cast<double>(match.point_pairs.size()) >= 0.5 * best_score;
-      if (promising) {
-        std::vector<cv::Point2f> a;
-        std::vector<cv::Point2f> b;
-        for (const auto& [p, q] : match.point_pairs) {
-          a.push_back(p);
-          b.push_back(q);
-        }
-        std::vector<uint8_t> mask;
-        const cv::Mat f =
-            cv::findFundamentalMat(a, b, cv::USAC_ACCURATE, options.ransac_threshold,
-                                   options.ransac_confidence, options.ransac_iterations, mask);
-        if (!f.empty() && mask.size() == a.size()) {
-          std::vector<std::pair<cv::Point2f, cv::Point2f>> inliers;
-          std::vector<LandmarkId> inlier_landmarks;
-          std::vector<double> inlier_scales;
-          const std::vector<double>& scales = log_scales[match.place.id];
-          for (size_t k = 0; k < mask.size(); ++k) {
-            if (!mask[k]) continue;
-            inliers.push_back(match.point_pairs[k]);
-            inlier_landmarks.push_back(match.point_landmarks[k]);
-            inlier_scales.push_back(scales[k]);
-          }
-          if (!inlier_scales.empty()) {
-            std::nth_element(inlier_scales.begin(),
-                             inlier_scales.begin() + inlier_scales.size() / 2, inlier_scales.end());
-            match.log_scale = inlier_scales[inlier_scales.size() / 2];
-          }
-          match.inliers = static_cast<int>(inliers.size());
-          match.point_pairs = std::move(inliers);
-          match.point_landmarks = std::move(inlier_landmarks);
-        }
+      const double points = static_cast<double>(match.point_pairs.size());
+      if (i < verified && points >= min_points && points >= 0.5 * best_score) {
+        verify(match);
+        best_score = std::max(best_score, match.score);
+      } else {
+        match.inliers = -1;  // not verified yet
       }
-      if (match.inliers == 0) {
-        match.point_pairs.clear();
-        match.point_landmarks.clear();
-      }
-      match.score = CappedScore(match, options);
-      best_score = std::max(best_score, match.score);
     }
-    // Unverified places rank below every verified one.
-    for (size_t i = verified; i < ranked.size(); ++i) ranked[i].score = 0;
+    // Localization needs the best place's neighbours verified too.
+    const auto best = std::max_element(ranked.begin(), ranked.end(), by_score);
+    for (PlaceMatch& match : ranked) {
+      if (match.inliers >= 0) continue;
+      const bool neighbour =
+          best != ranked.end() && best->score > 0 && match.place.robot == best->place.robot &&
+          std::abs(match.place.sequence - best->place.sequence) <= options.localization_window &&
+          match.point_pairs.size() >= min_points;
+      if (neighbour) {
+        verify(match);
+      } else {
+        discard(match);
+      }
+    }
     std::sort(ranked.begin(), ranked.end(), by_score);
   }
   if (options.geometric_verification && options.localization_window > 0 && ranked.size() > 1) {
-    const PlaceMatch& best = ranked.front();
-    const double floor =
-        std::max(options.noise_inliers, options.localization_score_fraction * best.score);
-    size_t chosen = 0;
-    for (size_t i = 1; i < ranked.size(); ++i) {
-      const PlaceMatch& m = ranked[i];
-      if (m.place.robot != best.place.robot || m.score < floor ||
-          std::abs(m.place.sequence - best.place.sequence) > options.localization_window) {
-        continue;
-      }
-      if (std::abs(m.log_scale) < std::abs(ranked[chosen].log_scale)) chosen = i;
-    }
+    const size_t chosen = Localize(ranked, options);
     if (chosen != 0) {
       // The chosen place answers with the evidence of its neighbourhood: the best score.
-      const double score = best.score;
+      const double score = ranked.front().score;
       std::rotate(ranked.begin(), ranked.begin() + chosen, ranked.begin() + chosen + 1);
-      ranked.front().score = score;
+      ranked.front().score = std::max(ranked.front().score, score);
     }
   }
   if (static_cast<int>(ranked.size()) > options.max_matches) ranked.resize(options.max_matches);

@@ -59,6 +59,9 @@ struct LoopDecisionOptions {
   // 0 answers with the best place.
   int localization_window = 3;
   double localization_score_fraction = 0.5;
+  // With at least three such neighbours whose log scale ratio changes by at least this much per
+  // frame, the answer is the neighbour nearest the frame where the fitted ratio crosses 0.
+  double min_scale_slope = 0.01;
   // Inliers a wrong place typically reaches by chance; only the excess weighs in localization.
   double noise_inliers = 8.0;
   // Places returned in the answer, best first.
