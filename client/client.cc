@@ -20,6 +20,10 @@
 namespace placerec {
 namespace {
 
+// Answers LCM may hold for the receive thread; its default of 30 would drop answers to a long
+// burst of frames before they are dispatched.
+constexpr int kLcmAnswerQueue = 4096;
+
 AnswerCode CodeFromWire(int8_t status) {
   switch (status) {
     case result_t::STATUS_OK:
@@ -174,7 +178,8 @@ StatusOr<EncodedImage> EncodeRawImage(const cv::Mat& image) {
   encoded.width = image.cols;
   encoded.height = image.rows;
   const cv::Mat continuous = image.isContinuous() ? image : image.clone();
-  encoded.bytes.assign(continuous.data, continuous.data + continuous.total() * continuous.elemSize());
+  encoded.bytes.assign(continuous.data,
+                       continuous.data + continuous.total() * continuous.elemSize());
   return encoded;
 }
 
@@ -203,12 +208,13 @@ StatusOr<std::unique_ptr<PlacerecClient>> PlacerecClient::Connect(const ClientOp
                                                     : " with URL " + options.lcm_url) +
                            "; check the URL and that the network has multicast");
   }
-  if (client->lcm_->subscribe(kStatusChannel, &PlacerecClient::OnStatus, client.get()) ==
-          nullptr ||
-      client->lcm_->subscribe(kInvalidRobotResultChannel, &PlacerecClient::OnResult,
-                              client.get()) == nullptr) {
+  if (client->lcm_->subscribe(kStatusChannel, &PlacerecClient::OnStatus, client.get()) == nullptr) {
     return Status::IoError("cannot subscribe to the placerec channels");
   }
+  lcm::Subscription* invalid =
+      client->lcm_->subscribe(kInvalidRobotResultChannel, &PlacerecClient::OnResult, client.get());
+  if (invalid == nullptr) return Status::IoError("cannot subscribe to the placerec channels");
+  invalid->setQueueCapacity(kLcmAnswerQueue);
   client->receiver_ = std::thread([c = client.get()] { c->ReceiveLoop(); });
   return client;
 }
@@ -240,17 +246,22 @@ Status PlacerecClient::SubscribeFor(const std::string& robot) {
   std::lock_guard lock(mutex_);
   if (IsPlainChannelText(robot)) {
     if (subscribed_.count(robot) > 0) return Status::Ok();
-    if (lcm_->subscribe(ResultChannel(robot), &PlacerecClient::OnResult, this) == nullptr) {
+    lcm::Subscription* subscription =
+        lcm_->subscribe(ResultChannel(robot), &PlacerecClient::OnResult, this);
+    if (subscription == nullptr) {
       return Status::IoError("cannot subscribe to " + ResultChannel(robot));
     }
+    subscription->setQueueCapacity(kLcmAnswerQueue);
     subscribed_.insert(robot);
     return Status::Ok();
   }
   if (wildcard_subscribed_) return Status::Ok();
-  if (lcm_->subscribe(std::string(kResultChannelPrefix) + ".*", &PlacerecClient::OnResult, this) ==
-      nullptr) {
+  lcm::Subscription* subscription =
+      lcm_->subscribe(std::string(kResultChannelPrefix) + ".*", &PlacerecClient::OnResult, this);
+  if (subscription == nullptr) {
     return Status::IoError(std::string("cannot subscribe to ") + kResultChannelPrefix + ".*");
   }
+  subscription->setQueueCapacity(kLcmAnswerQueue);
   wildcard_subscribed_ = true;
   return Status::Ok();
 }
@@ -292,10 +303,9 @@ StatusOr<PendingFrame> PlacerecClient::Publish(const OutgoingFrame& frame) {
 }
 
 FrameResult PlacerecClient::Wait(const PendingFrame& pending, double timeout_s) {
-  const auto deadline =
-      std::chrono::steady_clock::now() +
-      std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-          std::chrono::duration<double>(timeout_s));
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                            std::chrono::duration<double>(timeout_s));
   std::unique_lock lock(mutex_);
   answered_.wait_until(lock, deadline, [&] { return answers_.count(pending.request_id) > 0; });
   auto it = answers_.find(pending.request_id);
@@ -415,15 +425,14 @@ void PlacerecClient::OnStatus(const lcm::ReceiveBuffer* buffer, const std::strin
 }
 
 StatusOr<ServerStatus> PlacerecClient::WaitForStatus(double timeout_s) {
-  const auto deadline =
-      std::chrono::steady_clock::now() +
-      std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-          std::chrono::duration<double>(timeout_s));
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                            std::chrono::duration<double>(timeout_s));
   std::unique_lock lock(mutex_);
   const int64_t seen = statuses_;
   if (!answered_.wait_until(lock, deadline, [&] { return statuses_ > seen; })) {
-    return Status::NotFound("no status from a placerec-server within " +
-                            std::to_string(timeout_s) + " s");
+    return Status::NotFound("no status from a placerec-server within " + std::to_string(timeout_s) +
+                            " s");
   }
   return last_status_;
 }

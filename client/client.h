@@ -102,10 +102,10 @@ struct FrameResult {
   int64_t map_places = 0;
   int64_t map_landmarks = 0;
   int64_t map_descriptors = 0;
-  double queue_ms = 0;   // waiting in the server's queue
-  double server_ms = 0;  // receipt to answer in the server
+  double queue_ms = 0;                                  // waiting in the server's queue
+  double server_ms = 0;                                 // receipt to answer in the server
   std::vector<std::pair<std::string, double>> timings;  // per stage, milliseconds
-  double latency_ms = 0;  // publish to answer, measured by the client
+  double latency_ms = 0;                                // publish to answer, measured by the client
 };
 
 // One line for people: "ok: 812 keypoints, 14 objects, 3 landmarks; best left #30 score 57 ...".

@@ -79,7 +79,8 @@ TEST(ClientTest, DescribesAnswers) {
   r.keypoints = 800;
   r.objects = 12;
   r.landmarks = 3;
-  EXPECT_EQ(DescribeResult(r), "ok: 800 keypoints, 12 objects, 3 landmarks stored; no matching place");
+  EXPECT_EQ(DescribeResult(r),
+            "ok: 800 keypoints, 12 objects, 3 landmarks stored; no matching place");
   MatchedPlace m;
   m.robot = "left";
   m.sequence = 30;

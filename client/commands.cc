@@ -46,8 +46,7 @@ StatusOr<std::unique_ptr<PlacerecClient>> ConnectOrReport(const ClientOptions& o
                                                           const char* command) {
   StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(options);
   if (!client.ok()) {
-    std::fprintf(stderr, "placerec-client %s: %s\n", command,
-                 client.status().ToString().c_str());
+    std::fprintf(stderr, "placerec-client %s: %s\n", command, client.status().ToString().c_str());
   }
   return client;
 }
@@ -152,8 +151,9 @@ int QueryCommand(int argc, const char* const* argv) {
       "Asks where each image was taken: the server answers from its map with the best matching\n"
       "places, and neither the map nor any robot's state changes.");
   parser.AddPositional("image", &images, "image files");
-  parser.Add("robot", &robot, "robot id the query is sent as (its own places are skipped when "
-                              "fewer than loop-min-same-robot-gap frames back)");
+  parser.Add("robot", &robot,
+             "robot id the query is sent as (its own places are skipped when "
+             "fewer than loop-min-same-robot-gap frames back)");
   parser.Add("sequence", &sequence, "sequence number sent with the first image");
   AddConnectionFlags(&parser, &options);
   const int parsed = ParseOrExit(&parser, argc, argv, "query");
@@ -206,7 +206,7 @@ int RunCommand(int argc, const char* const* argv, const std::string& data_defaul
       "Feeds every frame of a run (layout of shared/data/README.md) to the server as its robot,\n"
       "sequence number = frame index, capture time from the run, prints each loop closure as it\n"
       "arrives, and writes OUT/answers.csv (frame,reference,score; -1 for none, exactly as\n"
-      "placerec-eval run) and OUT/summary.json (scores, latency, throughput).");
+      "placerec-eval run), OUT/summary.json (scores, latency, throughput) and OUT/pr_curve.png.");
   parser.AddRequired("dataset", &dataset,
                      "dataset directory, or its name under PLACEREC_DATA / ../shared/data");
   parser.AddRequired("run", &run_name, "run name (DIR/runs/NAME.frames.csv)");
@@ -256,7 +256,7 @@ int RunCommand(int argc, const char* const* argv, const std::string& data_defaul
       "  loop closures: %d (precision %.3f, recall %.3f)\n"
       "  latency (publish to answer) median %.0f ms, p90 %.0f ms; server time median %.0f ms\n"
       "  %.2f frames/s over %.1f s\n"
-      "  wrote %s/answers.csv, summary.json\n",
+      "  wrote %s/answers.csv, summary.json, pr_curve.png\n",
       s["dataset"].get<std::string>().c_str(), s["run"].get<std::string>().c_str(),
       s["frames"].get<int>(), report->ok, report->failed, report->timed_out, report->not_sent,
       s["revisit_frames"].get<int>(), s["answered_frames"].get<int>(),

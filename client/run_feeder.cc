@@ -12,6 +12,7 @@
 #include <thread>
 #include <utility>
 
+#include "common/eval/plots.h"
 #include "common/eval/stats.h"
 #include "common/util/paths.h"
 #include "common/util/timer.h"
@@ -277,10 +278,19 @@ StatusOr<FeedReport> FeedRun(PlacerecClient* client, const Run& run, const FeedO
 Status WriteFeedReport(const std::string& out_dir, const FeedReport& report) {
   if (!MakeDirectories(out_dir)) return Status::IoError("cannot create " + out_dir);
   PLACEREC_RETURN_IF_ERROR(WriteAnswers(out_dir + "/answers.csv", report.answers));
-  std::ofstream out(out_dir + "/summary.json");
-  out << report.summary.dump(2) << "\n";
-  if (!out) return Status::IoError("cannot write " + out_dir + "/summary.json");
-  return Status::Ok();
+  {
+    std::ofstream out(out_dir + "/summary.json");
+    out << report.summary.dump(2) << "\n";
+    if (!out) return Status::IoError("cannot write " + out_dir + "/summary.json");
+  }
+  PrCurve curve;
+  char label[96];
+  std::snprintf(label, sizeof(label), "placerec-server (R@100P %.2f, max F1 %.2f)",
+                report.score.recall_at_100_precision, report.score.max_f1);
+  curve.label = label;
+  curve.score = report.score;
+  const std::string title = report.summary.value("run", std::string("run"));
+  return WritePrCurvePng(out_dir + "/pr_curve.png", title + ": precision-recall", {curve});
 }
 
 }  // namespace placerec

@@ -25,8 +25,8 @@ struct FeedOptions {
   // One sender per robot, all at once (throughput tests). Robots then see each other's places
   // as soon as the server stores them, so the answers depend on timing.
   bool robots_concurrently = false;
-  int max_frames = 0;     // stop after this many frames (0: all)
-  double timeout_s = 60;  // per frame, from its publication
+  int max_frames = 0;               // stop after this many frames (0: all)
+  double timeout_s = 60;            // per frame, from its publication
   bool print_loop_closures = true;  // one stdout line per loop closure as it arrives
   bool progress = true;             // a progress line on stderr
 
@@ -49,7 +49,7 @@ struct FeedReport {
 // frame without an answer stops that sender (the server is likely gone) and is counted.
 StatusOr<FeedReport> FeedRun(PlacerecClient* client, const Run& run, const FeedOptions& options);
 
-// Writes OUT/answers.csv and OUT/summary.json (creating OUT).
+// Writes OUT/answers.csv, OUT/summary.json and OUT/pr_curve.png (creating OUT).
 Status WriteFeedReport(const std::string& out_dir, const FeedReport& report);
 
 }  // namespace placerec

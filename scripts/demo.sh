@@ -1,17 +1,77 @@
 #!/usr/bin/env bash
-# The main job: installs what is missing, builds, and feeds the Gardens Point
-# day_left_then_day_right run through the recognition pipeline, printing each loop closure as it
-# is found and a summary. Output (answers.csv, summary.json, pr_curve.png, match pictures) goes
-# to out/demo/. Set PLACEREC_DATA when the data is not at ../shared/data.
+# The main job: installs what is missing, builds, starts placerec-server on an SQLite map
+# (out/demo/map.db, fresh each time), and feeds the Gardens Point day_left_then_day_right run
+# through placerec-client over LCM as robots `left` and `right`. Each loop closure is printed as
+# its answer arrives, then a summary; the server is stopped at the end (and on Ctrl-C).
+# As root, server and client run in a private network namespace (loopback only), so no LCM
+# traffic leaves the machine; otherwise they use the host's loopback with TTL 0.
+# Output: out/demo/answers.csv, summary.json, pr_curve.png, map.db, server.log.
+# Extra arguments go to `placerec-client run` (e.g. --max-frames 40). Set PLACEREC_DATA when the
+# data is not at ../shared/data.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build_dir=${BUILD_DIR:-$root/build}
-
-bash "$root/scripts/build.sh"
 data=${PLACEREC_DATA:-$root/../shared/data}
-if [ ! -f "$data/gardens_point/runs/day_left_then_day_right.frames.csv" ]; then
-  echo "demo: $data/gardens_point is missing; set PLACEREC_DATA to the folder holding gardens_point/" >&2
+
+if [ -z "${PLACEREC_DEMO_STAGE:-}" ]; then
+  bash "$root/scripts/build.sh"
+  if [ ! -f "$data/gardens_point/runs/day_left_then_day_right.frames.csv" ]; then
+    echo "demo: $data/gardens_point is missing; set PLACEREC_DATA to the folder holding gardens_point/" >&2
+    exit 1
+  fi
+  if [ "$(id -u)" -eq 0 ] && unshare -n true 2>/dev/null; then
+    echo "demo: running server and client in a private network namespace"
+    exec unshare -n -- env PLACEREC_DEMO_STAGE=netns bash "$0" "$@"
+  fi
+  echo "demo: not root (or unshare is not allowed): using the host's loopback, LCM TTL 0"
+  PLACEREC_DEMO_STAGE=host exec bash "$0" "$@"
+fi
+
+if [ "$PLACEREC_DEMO_STAGE" = netns ]; then
+  export PATH="$PATH:/usr/sbin:/sbin"
+  ip link set lo up
+  ip link set lo multicast on
+  ip route add 224.0.0.0/4 dev lo
+fi
+
+out=$root/out/demo
+mkdir -p "$out"
+rm -f "$out/map.db" "$out/map.db-wal" "$out/map.db-shm"
+# TTL 0 keeps packets on this machine; the receive buffer holds bursts of large frames.
+url="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
+server="$build_dir/bin/placerec-server"
+client="$build_dir/bin/placerec-client"
+
+"$server" --db "$out/map.db" --lcm-url "$url" 2> "$out/server.log" &
+server_pid=$!
+stop_server() {
+  if kill -0 "$server_pid" 2>/dev/null; then
+    kill -TERM "$server_pid"
+    wait "$server_pid" || true
+  fi
+}
+trap stop_server EXIT
+trap 'exit 130' INT TERM
+
+ready=0
+for _ in $(seq 1 30); do
+  if "$client" status --lcm-url "$url" --timeout 2 > /dev/null 2>&1; then
+    ready=1
+    break
+  fi
+  kill -0 "$server_pid" 2>/dev/null || break
+done
+if [ "$ready" -ne 1 ]; then
+  echo "demo: placerec-server did not come up; see $out/server.log" >&2
+  tail -n 20 "$out/server.log" >&2
   exit 1
 fi
-exec "$build_dir/bin/placerec-eval" run --dataset "$data/gardens_point" \
-  --run day_left_then_day_right --out "$root/out/demo" --print-loops "$@"
+echo "demo: placerec-server is up (map $out/map.db); feeding day_left_then_day_right as robots left and right"
+
+rc=0
+"$client" run --dataset "$data/gardens_point" --run day_left_then_day_right --out "$out" \
+  --lcm-url "$url" "$@" || rc=$?
+"$client" status --lcm-url "$url" --timeout 3 || true
+stop_server
+echo "demo: server stopped; log in $out/server.log"
+exit "$rc"

@@ -44,7 +44,8 @@ result_t FrameProcessor::ProcessOrThrow(const frame_t& frame) {
   const Status valid = recognizer_.Validate(request);
   if (!valid.ok()) return fail(WireStatus(valid.code()), valid.message());
   const StatusOr<ImageEncoding> encoding = ImageEncodingFromWire(frame.encoding);
-  if (!encoding.ok()) return fail(WireStatus(encoding.status().code()), encoding.status().message());
+  if (!encoding.ok())
+    return fail(WireStatus(encoding.status().code()), encoding.status().message());
   if (frame.size != static_cast<int32_t>(frame.data.size())) {
     return fail(result_t::STATUS_BAD_REQUEST, "size field does not match the data");
   }

@@ -33,7 +33,9 @@ std::vector<uint8_t> Encode(const frame_t& frame) {
 }
 
 // Offset of frame_t's `size` field for a robot id of `robot_length` bytes.
-size_t SizeOffset(size_t robot_length) { return 8 + 8 + 8 + 8 + 1 + 1 + 4 + 4 + 4 + robot_length + 1; }
+size_t SizeOffset(size_t robot_length) {
+  return 8 + 8 + 8 + 8 + 1 + 1 + 4 + 4 + 4 + robot_length + 1;
+}
 
 void PutInt32(std::vector<uint8_t>* bytes, size_t offset, int32_t value) {
   const uint32_t v = static_cast<uint32_t>(value);

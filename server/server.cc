@@ -1,6 +1,7 @@
 #include "server/server.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstdlib>
 #include <utility>
@@ -16,6 +17,9 @@
 
 namespace placerec {
 namespace {
+
+// Frames LCM may hold for the receive loop (see Run); bounds memory at this many messages.
+constexpr int kLcmFrameQueue = 1024;
 
 int64_t NowUtime() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
@@ -82,9 +86,12 @@ Server::~Server() {
 }
 
 Status Server::Run() {
-  lcm::Subscription* subscription =
-      lcm_.subscribe(kFrameChannel, &Server::OnFrameMessage, this);
+  lcm::Subscription* subscription = lcm_.subscribe(kFrameChannel, &Server::OnFrameMessage, this);
   if (subscription == nullptr) return Status::Internal("cannot subscribe to PLACEREC_FRAME");
+  // LCM keeps at most 30 undispatched messages per subscription by default and silently drops
+  // the rest; a burst from a fleet can exceed that before this loop dispatches them (each
+  // dispatch only decodes and queues). Our own queue decides what is "overloaded".
+  subscription->setQueueCapacity(kLcmFrameQueue);
   const MapCounts counts = map_->Counts();
   LOG(INFO) << "placerec-server " << PLACEREC_VERSION << " serving " << map_->Describe() << " ("
             << counts.places << " places, " << counts.landmarks << " landmarks, loaded in "
@@ -103,7 +110,8 @@ Status Server::Run() {
     }
     const int wait_ms = static_cast<int>(std::min<int64_t>(
         100, std::chrono::duration_cast<std::chrono::milliseconds>(next_status - now).count() + 1));
-    if (lcm_.handleTimeout(wait_ms) < 0) {
+    errno = 0;
+    if (lcm_.handleTimeout(wait_ms) < 0 && errno != EINTR && !stop_requested_.load()) {
       result = Status::IoError("LCM stopped delivering messages");
       break;
     }
@@ -170,9 +178,9 @@ void Server::Work(Job& job) {
             << " objects, " << answer.landmarks << " landmarks, " << answer.num_matches
             << " matches, " << answer.server_ms << " ms";
     if (answer.loop_closure) {
-      LOG(INFO) << "loop closure: " << job.frame.robot << " #" << job.frame.sequence
-                << " revisits " << answer.matches[0].robot << " #" << answer.matches[0].sequence
-                << " (score " << answer.matches[0].score << ")";
+      LOG(INFO) << "loop closure: " << job.frame.robot << " #" << job.frame.sequence << " revisits "
+                << answer.matches[0].robot << " #" << answer.matches[0].sequence << " (score "
+                << answer.matches[0].score << ")";
     }
   } else {
     LOG(WARNING) << "frame " << job.frame.sequence << " of robot '" << job.frame.robot

@@ -1,0 +1,778 @@
+// placerec-server and placerec-client over LCM, each test in its own private network namespace
+// (tests/service_harness.h): the client's answers.csv equals placerec-eval's, acknowledged
+// landmarks survive SIGKILL, bad input gets error answers, two robots share the map, query-only
+// frames change nothing, and a full queue or a shutdown still answers every frame. Tests skip
+// with a message when not root (no namespace) or when ../shared/data is missing.
+#include <signal.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <random>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <lcm/lcm-cpp.hpp>
+#include <nlohmann/json.hpp>
+
+#include "client/client.h"
+#include "common/eval/answers.h"
+#include "common/eval/run.h"
+#include "common/pipeline/place_map.h"
+#include "common/storage/sqlite_store.h"
+#include "common/util/paths.h"
+#include "placerec/frame_t.hpp"
+#include "placerec/result_t.hpp"
+#include "tests/service_harness.h"
+#include "tools/eval_runner.h"
+
+namespace placerec {
+namespace {
+
+using testing_service::BinaryPath;
+using testing_service::ChildProcess;
+using testing_service::MakeTempDir;
+using testing_service::StartServer;
+using testing_service::StopServer;
+using testing_service::Tail;
+using testing_service::TestLcmUrl;
+
+std::string DataRoot() { return DataDir("", PLACEREC_DEFAULT_DATA_DIR); }
+
+// Every test enters its own network namespace first; without one it skips.
+class ServiceTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const Status network = testing_service::EnterPrivateNetwork();
+    if (!network.ok()) GTEST_SKIP() << "server/client tests skipped: " << network.message();
+    dir_ = MakeTempDir("placerec_service_");
+    ASSERT_FALSE(dir_.empty());
+    db_ = dir_ + "/map.db";
+    ClientOptions options;
+    options.lcm_url = TestLcmUrl();
+    options.timeout_s = 120;
+    StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(options);
+    ASSERT_TRUE(client.ok()) << client.status().ToString();
+    client_ = std::move(*client);
+  }
+
+  // Loads a run of ../shared/data, or returns false after GTEST_SKIP-worthy message in *why.
+  bool LoadData(const std::string& dataset, const std::string& run_name, placerec::Run* run,
+                std::string* why) {
+    const std::string dir = DataRoot() + "/" + dataset;
+    if (!PathExists(dir + "/runs/" + run_name + ".frames.csv")) {
+      *why = "needs " + dir + "/runs/" + run_name +
+             ".frames.csv (the shared evaluation data); set PLACEREC_DATA";
+      return false;
+    }
+    StatusOr<placerec::Run> loaded = LoadRun(dir, run_name);
+    if (!loaded.ok()) {
+      *why = loaded.status().ToString();
+      return false;
+    }
+    *run = std::move(*loaded);
+    return true;
+  }
+
+  void StartTheServer(const std::vector<std::string>& extra = {}) {
+    StatusOr<std::unique_ptr<ChildProcess>> server =
+        StartServer(db_, extra, dir_ + "/server.log", client_.get());
+    ASSERT_TRUE(server.ok()) << server.status().ToString();
+    server_ = std::move(*server);
+  }
+
+  void StopTheServer() {
+    ASSERT_NE(server_, nullptr);
+    StatusOr<int> code = StopServer(server_.get());
+    ASSERT_TRUE(code.ok()) << code.status().ToString();
+    EXPECT_EQ(*code, 0) << Tail(server_->log_path());
+    server_.reset();
+  }
+
+  std::string ServerLog() const {
+    return server_ ? Tail(server_->log_path()) : Tail(dir_ + "/server.log");
+  }
+
+  static OutgoingFrame FrameOf(const placerec::Run& run, int f, const std::string& robot,
+                               int64_t sequence, bool insert = true) {
+    OutgoingFrame frame;
+    frame.robot = robot;
+    frame.sequence = sequence;
+    frame.utime = run.frames[f].utime;
+    frame.insert = insert;
+    StatusOr<EncodedImage> image = EncodeImageFile(run.frames[f].image);
+    EXPECT_TRUE(image.ok()) << image.status().ToString();
+    if (image.ok()) frame.image = std::move(*image);
+    return frame;
+  }
+  // Frame f of the run as the run feeds it (its robot, sequence = frame index).
+  static OutgoingFrame FrameOfRun(const placerec::Run& run, int f) {
+    return FrameOf(run, f, run.frames[f].robot, f);
+  }
+
+  // The offline reference: placerec-eval's answers for the first `frames` frames.
+  static std::vector<Answer> OfflineAnswers(const placerec::Run& run, int frames) {
+    EvalOptions eval;
+    eval.progress = false;
+    eval.pictures = 0;
+    eval.max_frames = frames;
+    StatusOr<EvalReport> report = EvaluateRun(run, RecognizerOptions(), eval);
+    EXPECT_TRUE(report.ok()) << report.status().ToString();
+    return report.ok() ? report->answers : std::vector<Answer>();
+  }
+
+  static Answer AnswerOf(int frame, const FrameResult& r) {
+    Answer a;
+    a.frame = frame;
+    if (r.ok() && !r.matches.empty()) {
+      a.reference = static_cast<int>(r.matches.front().sequence);
+      a.score = r.matches.front().score;
+    }
+    return a;
+  }
+
+  std::string dir_;
+  std::string db_;
+  std::unique_ptr<PlacerecClient> client_;
+  std::unique_ptr<ChildProcess> server_;
+};
+
+// What a map file holds, read with the server stopped.
+struct MapContents {
+  std::vector<Place> places;
+  StoreCounts counts;
+  uint64_t checksum = 0;
+};
+
+MapContents ReadMap(const std::string& db) {
+  MapContents contents;
+  SqliteStoreOptions options;
+  options.must_exist = true;
+  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(db, options);
+  EXPECT_TRUE(store.ok()) << store.status().ToString();
+  if (!store.ok()) return contents;
+  EXPECT_TRUE(
+      (*store)->LoadPlaces([&](const Place& place) { contents.places.push_back(place); }).ok());
+  StatusOr<StoreCounts> counts = (*store)->Counts();
+  EXPECT_TRUE(counts.ok());
+  if (counts.ok()) contents.counts = *counts;
+  StatusOr<uint64_t> checksum = (*store)->Checksum();
+  EXPECT_TRUE(checksum.ok());
+  if (checksum.ok()) contents.checksum = *checksum;
+  return contents;
+}
+
+// Listens to every answer channel, to check who got what.
+class AnswerSpy {
+ public:
+  AnswerSpy() : lcm_(TestLcmUrl()) {
+    lcm::Subscription* all = lcm_.subscribe("PLACEREC_RESULT.*", &AnswerSpy::OnAnswer, this);
+    if (all != nullptr) all->setQueueCapacity(0);  // keep everything
+    thread_ = std::thread([this] {
+      while (!stop_) lcm_.handleTimeout(50);
+    });
+  }
+  ~AnswerSpy() {
+    stop_ = true;
+    thread_.join();
+  }
+  bool good() { return lcm_.good(); }
+  int Publish(const std::string& channel, const void* data, size_t size) {
+    std::lock_guard lock(mutex_);
+    return lcm_.publish(channel, data, static_cast<unsigned>(size));
+  }
+  int Publish(const frame_t& frame) {
+    std::lock_guard lock(mutex_);
+    return lcm_.publish("PLACEREC_FRAME", &frame);
+  }
+  std::vector<std::pair<std::string, result_t>> answers() {
+    std::lock_guard lock(mutex_);
+    return answers_;
+  }
+  // Waits until `count` answers arrived (or the timeout); true when they did.
+  bool WaitFor(size_t count, double timeout_s) {
+    const auto deadline = std::chrono::steady_clock::now() +
+                          std::chrono::milliseconds(static_cast<int64_t>(timeout_s * 1000));
+    while (std::chrono::steady_clock::now() < deadline) {
+      {
+        std::lock_guard lock(mutex_);
+        if (answers_.size() >= count) return true;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return false;
+  }
+
+ private:
+  void OnAnswer(const lcm::ReceiveBuffer* buffer, const std::string& channel,
+                const result_t* answer) {
+    std::lock_guard lock(mutex_);
+    answers_.emplace_back(channel, *answer);
+  }
+
+  lcm::LCM lcm_;
+  std::mutex mutex_;
+  std::vector<std::pair<std::string, result_t>> answers_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+// The first check: a run through server and client gives placerec-eval's answers.csv.
+TEST_F(ServiceTest, CorridorRunGivesTheSameAnswersAsPlacerecEval) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
+  EvalOptions eval;
+  eval.progress = false;
+  eval.pictures = 0;
+  eval.out_dir = dir_ + "/eval";
+  StatusOr<EvalReport> offline = EvaluateRun(run, RecognizerOptions(), eval);
+  ASSERT_TRUE(offline.ok()) << offline.status().ToString();
+
+  StartTheServer();
+  const std::string out = dir_ + "/client";
+  StatusOr<std::unique_ptr<ChildProcess>> client = ChildProcess::Start(
+      {BinaryPath("placerec-client"), "run", "--dataset", DataRoot() + "/rtabmap_indoor", "--run",
+       "corridor_loop", "--out", out, "--lcm-url", TestLcmUrl(), "--timeout", "120"},
+      dir_ + "/client.log");
+  ASSERT_TRUE(client.ok());
+  StatusOr<int> code = (*client)->Wait(600);
+  ASSERT_TRUE(code.ok()) << code.status().ToString();
+  const std::string client_log = testing_service::ReadTextFile(dir_ + "/client.log");
+  ASSERT_EQ(*code, 0) << client_log << ServerLog();
+  EXPECT_NE(client_log.find("loop closure: frame"), std::string::npos) << client_log;
+  EXPECT_NE(client_log.find("84 frames, 84 answered ok, 0 errors"), std::string::npos)
+      << client_log;
+
+  const std::string expected = testing_service::ReadTextFile(dir_ + "/eval/answers.csv");
+  const std::string got = testing_service::ReadTextFile(out + "/answers.csv");
+  ASSERT_FALSE(expected.empty());
+  EXPECT_EQ(got, expected);
+  std::ifstream summary_file(out + "/summary.json");
+  const nlohmann::json summary = nlohmann::json::parse(summary_file);
+  EXPECT_EQ(summary["recall_at_100_precision"].get<double>(),
+            offline->score.recall_at_100_precision);
+  RecordProperty("recall_at_100_precision",
+                 std::to_string(summary["recall_at_100_precision"].get<double>()));
+  RecordProperty("latency_median_ms",
+                 std::to_string(summary["latency"]["median_ms"].get<double>()));
+  StopTheServer();
+}
+
+// Robots left and right of Gardens Point, a slice of each (30 frames of left, then the 30 frames of
+// right that revisit them): cross-robot answers also equal placerec-eval's.
+TEST_F(ServiceTest, GardensPointSliceGivesTheSameAnswersAsPlacerecEval) {
+  placerec::Run full;
+  std::string why;
+  if (!LoadData("gardens_point", "day_left_then_day_right", &full, &why)) GTEST_SKIP() << why;
+  // A run of its own: frames 0..29 (left) and 200..229 (right), renumbered 0..59.
+  const std::string dataset = dir_ + "/slice";
+  ASSERT_TRUE(MakeDirectories(dataset + "/runs"));
+  {
+    std::ofstream frames(dataset + "/runs/slice.frames.csv");
+    frames << "frame,robot,image,utime_us\n";
+    int n = 0;
+    for (int f : {0, 200}) {
+      for (int i = 0; i < 30; ++i, ++n) {
+        const placerec::RunFrame& src = full.frames[f + i];
+        frames << n << "," << src.robot << "," << src.image << "," << src.utime << "\n";
+      }
+    }
+    std::ofstream positives(dataset + "/runs/slice.positives.csv");
+    positives << "query,reference\n";
+    for (const auto& [q, r] : full.positives) {
+      if (q >= 200 && q < 230 && r < 30) positives << q - 200 + 30 << "," << r << "\n";
+    }
+  }
+  StatusOr<placerec::Run> slice = LoadRun(dataset, "slice");
+  ASSERT_TRUE(slice.ok()) << slice.status().ToString();
+  EvalOptions eval;
+  eval.progress = false;
+  eval.pictures = 0;
+  eval.out_dir = dir_ + "/eval";
+  StatusOr<EvalReport> offline = EvaluateRun(*slice, RecognizerOptions(), eval);
+  ASSERT_TRUE(offline.ok()) << offline.status().ToString();
+
+  StartTheServer();
+  StatusOr<std::unique_ptr<ChildProcess>> client = ChildProcess::Start(
+      {BinaryPath("placerec-client"), "run", "--dataset", dataset, "--run", "slice", "--out",
+       dir_ + "/client", "--lcm-url", TestLcmUrl(), "--quiet"},
+      dir_ + "/client.log");
+  ASSERT_TRUE(client.ok());
+  StatusOr<int> code = (*client)->Wait(600);
+  ASSERT_TRUE(code.ok()) << code.status().ToString();
+  ASSERT_EQ(*code, 0) << testing_service::ReadTextFile(dir_ + "/client.log") << ServerLog();
+  EXPECT_EQ(testing_service::ReadTextFile(dir_ + "/client/answers.csv"),
+            testing_service::ReadTextFile(dir_ + "/eval/answers.csv"));
+  StopTheServer();
+}
+
+// SIGKILL after N acknowledged frames: every acknowledged frame's place and landmarks are in the
+// file, the restarted server reloads them all, and recognition continues against them.
+TEST_F(ServiceTest, AcknowledgedLandmarksSurviveSigkill) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
+  constexpr int kAcknowledged = 26;  // frames 0..25; revisits of them start at frame 40
+  constexpr int kWindow = 6;         // frames in flight when the server dies
+  StartTheServer();
+
+  std::vector<PendingFrame> pending;
+  std::vector<FrameResult> acked;
+  int next = 0;
+  while (static_cast<int>(acked.size()) < kAcknowledged) {
+    while (static_cast<int>(pending.size()) - static_cast<int>(acked.size()) < kWindow) {
+      StatusOr<PendingFrame> p = client_->Publish(FrameOfRun(run, next++));
+      ASSERT_TRUE(p.ok()) << p.status().ToString();
+      pending.push_back(*p);
+    }
+    FrameResult r = client_->Wait(pending[acked.size()], 60);
+    ASSERT_TRUE(r.ok()) << DescribeResult(r) << ServerLog();
+    acked.push_back(std::move(r));
+  }
+  server_->Signal(SIGKILL);
+  StatusOr<int> killed = server_->Wait(30);
+  ASSERT_TRUE(killed.ok());
+  EXPECT_EQ(*killed, 128 + SIGKILL);
+  server_.reset();
+
+  // Every acknowledged frame that stored landmarks is there with exactly those landmarks.
+  const MapContents after_kill = ReadMap(db_);
+  std::map<int64_t, Place> stored;  // by sequence
+  for (const Place& p : after_kill.places) stored[p.sequence] = p;
+  int64_t acked_landmarks = 0;
+  for (const FrameResult& r : acked) {
+    acked_landmarks += r.landmarks;
+    if (r.landmarks == 0) {
+      EXPECT_EQ(stored.count(r.sequence), 0u) << r.sequence;
+      continue;
+    }
+    ASSERT_EQ(stored.count(r.sequence), 1u) << "acknowledged frame " << r.sequence << " lost";
+    EXPECT_EQ(stored[r.sequence].id.value(), r.place_id);
+    EXPECT_EQ(stored[r.sequence].num_landmarks, r.landmarks) << r.sequence;
+  }
+  EXPECT_GT(acked_landmarks, 0);
+  EXPECT_EQ(acked.back().map_landmarks, acked_landmarks);
+  int64_t landmarks_in_file = 0;
+  int64_t last_stored = -1;
+  for (const Place& p : after_kill.places) {
+    landmarks_in_file += p.num_landmarks;
+    last_stored = std::max(last_stored, p.sequence);
+  }
+  EXPECT_EQ(landmarks_in_file, after_kill.counts.landmarks);
+  // Frames in flight may or may not have been committed; nothing else is there.
+  EXPECT_GE(after_kill.counts.landmarks, acked_landmarks);
+  EXPECT_LT(last_stored, next);
+  RecordProperty("acknowledged_landmarks", std::to_string(acked_landmarks));
+  RecordProperty("landmarks_in_file", std::to_string(after_kill.counts.landmarks));
+
+  // Restart on the same file: the heartbeat reports the whole map, and the next frames are
+  // recognised against the places stored before the kill.
+  StartTheServer();
+  StatusOr<ServerStatus> status = client_->WaitForStatus(10);
+  ASSERT_TRUE(status.ok());
+  EXPECT_EQ(status->map_landmarks, after_kill.counts.landmarks);
+  EXPECT_EQ(status->map_places, static_cast<int64_t>(after_kill.places.size()));
+  int revisits_of_old_places = 0;
+  int64_t map_landmarks = after_kill.counts.landmarks;
+  for (int f = static_cast<int>(last_stored) + 1; f < static_cast<int>(run.frames.size()); ++f) {
+    const FrameResult r = client_->Send(FrameOfRun(run, f));
+    ASSERT_TRUE(r.ok()) << f << ": " << DescribeResult(r) << ServerLog();
+    EXPECT_EQ(r.map_landmarks, map_landmarks + r.landmarks);
+    map_landmarks = r.map_landmarks;
+    if (!r.matches.empty() && r.matches.front().sequence <= last_stored &&
+        run.IsPositive(f, static_cast<int>(r.matches.front().sequence))) {
+      ++revisits_of_old_places;
+    }
+  }
+  EXPECT_GT(revisits_of_old_places, 0);
+  EXPECT_GT(map_landmarks, after_kill.counts.landmarks);
+  StopTheServer();
+}
+
+// Every malformed frame gets an error answer that says what was wrong, random bytes are dropped,
+// the map does not change, and the next good frames are answered as placerec-eval answers them.
+TEST_F(ServiceTest, BadInputGetsErrorAnswersAndTheServerGoesOn) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
+  const std::vector<Answer> offline = OfflineAnswers(run, 6);
+  StartTheServer();
+  AnswerSpy spy;
+  ASSERT_TRUE(spy.good());
+
+  // Good frames 0..2 of robot "robot", as the run sends them.
+  std::vector<FrameResult> good;
+  for (int f = 0; f < 3; ++f) {
+    good.push_back(client_->Send(FrameOfRun(run, f)));
+    ASSERT_TRUE(good.back().ok()) << DescribeResult(good.back()) << ServerLog();
+  }
+  const int64_t landmarks_before = good.back().map_landmarks;
+  const int64_t places_before = good.back().map_places;
+
+  const OutgoingFrame jpeg = FrameOfRun(run, 3);
+  const std::vector<uint8_t>& jpeg_bytes = jpeg.image.bytes;
+  struct Case {
+    std::string name;
+    frame_t frame;
+    int8_t status;
+    std::string message;  // part of the expected message
+    std::string channel;
+  };
+  std::vector<Case> cases;
+  int64_t request_id = 1000;
+  auto make = [&](const std::string& robot, int8_t encoding, int width, int height,
+                  std::vector<uint8_t> data) {
+    frame_t f;
+    f.utime = 1;
+    f.sequence = request_id;  // increasing, so that each case fails for its own reason
+    f.request_id = request_id++;
+    f.insert = true;
+    f.encoding = encoding;
+    f.width = width;
+    f.height = height;
+    f.robot = robot;
+    f.size = static_cast<int32_t>(data.size());
+    f.data = std::move(data);
+    return f;
+  };
+  const std::vector<uint8_t> noise(5000, 0x42);
+  const std::string robot_channel = "PLACEREC_RESULT_bad";
+  cases.push_back({"garbage as JPEG", make("bad", frame_t::ENCODING_JPEG, 0, 0, noise),
+                   result_t::STATUS_BAD_IMAGE, "JPEG signature", robot_channel});
+  std::vector<uint8_t> corrupt = noise;
+  corrupt[0] = 0xFF;  // a JPEG signature and nothing JPEG after it
+  corrupt[1] = 0xD8;
+  corrupt[2] = 0xFF;
+  cases.push_back({"corrupt JPEG", make("bad", frame_t::ENCODING_JPEG, 0, 0, corrupt),
+                   result_t::STATUS_BAD_IMAGE, "cannot decode", robot_channel});
+  cases.push_back({"JPEG sent as PNG", make("bad", frame_t::ENCODING_PNG, 0, 0, jpeg_bytes),
+                   result_t::STATUS_BAD_IMAGE, "PNG signature", robot_channel});
+  cases.push_back({"JPEG of another size",
+                   make("bad", frame_t::ENCODING_JPEG, 640, 480, jpeg_bytes),
+                   result_t::STATUS_BAD_IMAGE, "does not match decoded size", robot_channel});
+  cases.push_back({"zero width", make("bad", frame_t::ENCODING_RAW_BGR8, 0, 48, noise),
+                   result_t::STATUS_BAD_IMAGE, "below the minimum", robot_channel});
+  cases.push_back({"negative size", make("bad", frame_t::ENCODING_RAW_GRAY8, -5, 48, noise),
+                   result_t::STATUS_BAD_IMAGE, "negative image size", robot_channel});
+  cases.push_back({"absurd size", make("bad", frame_t::ENCODING_RAW_BGR8, 100000, 100000, noise),
+                   result_t::STATUS_BAD_IMAGE, "exceeds the maximum", robot_channel});
+  cases.push_back({"size does not match the bytes",
+                   make("bad", frame_t::ENCODING_RAW_BGR8, 64, 48, noise),
+                   result_t::STATUS_BAD_IMAGE, "needs 9216 bytes, got 5000", robot_channel});
+  cases.push_back({"no bytes", make("bad", frame_t::ENCODING_JPEG, 0, 0, {}),
+                   result_t::STATUS_BAD_IMAGE, "no image bytes", robot_channel});
+  cases.push_back({"unsupported encoding", make("bad", 9, 0, 0, jpeg_bytes),
+                   result_t::STATUS_BAD_IMAGE, "unsupported image encoding 9", robot_channel});
+  cases.push_back(
+      {"over-long robot id", make(std::string(100, 'r'), frame_t::ENCODING_JPEG, 0, 0, jpeg_bytes),
+       result_t::STATUS_BAD_REQUEST, "robot id is 100 bytes; the limit is 47", "PLACEREC_RESULT"});
+  cases.push_back({"empty robot id", make("", frame_t::ENCODING_JPEG, 0, 0, jpeg_bytes),
+                   result_t::STATUS_BAD_REQUEST, "robot id is empty", "PLACEREC_RESULT"});
+  cases.push_back({"control character", make("ro\tbot", frame_t::ENCODING_JPEG, 0, 0, jpeg_bytes),
+                   result_t::STATUS_BAD_REQUEST, "control character", "PLACEREC_RESULT"});
+  frame_t old = make("robot", frame_t::ENCODING_JPEG, 0, 0, jpeg_bytes);
+  old.sequence = 1;  // robot has sent 0..2
+  cases.push_back({"sequence going back", old, result_t::STATUS_BAD_REQUEST,
+                   "sequence 1 of robot 'robot' is not after 2", "PLACEREC_RESULT_robot"});
+
+  for (const Case& c : cases) ASSERT_EQ(spy.Publish(c.frame), 0) << c.name;
+
+  // Not frames at all: random bytes of many lengths, a truncated frame, a forged length.
+  std::mt19937 random(42);
+  int dropped = 0;
+  for (int i = 0; i < 40; ++i) {
+    std::vector<uint8_t> bytes(1 + random() % (i < 30 ? 2000 : 200000));
+    for (uint8_t& b : bytes) b = static_cast<uint8_t>(random());
+    ASSERT_EQ(spy.Publish("PLACEREC_FRAME", bytes.data(), bytes.size()), 0);
+    ++dropped;
+  }
+  frame_t valid = make("bad", frame_t::ENCODING_JPEG, 0, 0, jpeg_bytes);
+  std::vector<uint8_t> encoded(valid.getEncodedSize());
+  valid.encode(encoded.data(), 0, static_cast<int>(encoded.size()));
+  ASSERT_EQ(spy.Publish("PLACEREC_FRAME", encoded.data(), encoded.size() / 2), 0);
+  ++dropped;
+  std::vector<uint8_t> forged = encoded;
+  const size_t size_offset = 8 + 8 + 8 + 8 + 1 + 1 + 4 + 4 + 4 + valid.robot.size() + 1;
+  forged[size_offset] = 0x7f;  // claims ~2 GB of image
+  ASSERT_EQ(spy.Publish("PLACEREC_FRAME", forged.data(), forged.size()), 0);
+  ++dropped;
+
+  // The spy also heard the answers to the three good frames.
+  ASSERT_TRUE(spy.WaitFor(3 + cases.size(), 60)) << ServerLog();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // any extra answer would be here
+  const auto answers = spy.answers();
+  ASSERT_EQ(answers.size(), 3 + cases.size()) << "exactly one answer per request";
+  for (const Case& c : cases) {
+    int found = 0;
+    for (const auto& [channel, a] : answers) {
+      if (a.request_id != c.frame.request_id) continue;
+      ++found;
+      EXPECT_EQ(channel, c.channel) << c.name;
+      EXPECT_EQ(int{a.status}, int{c.status}) << c.name << ": " << a.message;
+      EXPECT_NE(a.message.find(c.message), std::string::npos)
+          << c.name << ": got '" << a.message << "'";
+      EXPECT_EQ(a.sequence, c.frame.sequence) << c.name;
+      EXPECT_EQ(a.num_matches, 0) << c.name;
+      EXPECT_EQ(a.landmarks, 0) << c.name;
+      EXPECT_EQ(a.map_landmarks, landmarks_before) << c.name;
+    }
+    EXPECT_EQ(found, 1) << c.name;
+  }
+
+  // The server survived, dropped exactly the non-frames, and the map did not change.
+  StatusOr<ServerStatus> status = client_->WaitForStatus(10);
+  ASSERT_TRUE(status.ok()) << ServerLog();
+  EXPECT_EQ(status->messages_dropped, dropped);
+  EXPECT_EQ(status->map_landmarks, landmarks_before);
+  EXPECT_EQ(status->map_places, places_before);
+  EXPECT_TRUE(server_->running());
+
+  // The next good frames are answered as if nothing had happened.
+  for (int f = 3; f < 6; ++f) good.push_back(client_->Send(FrameOfRun(run, f)));
+  for (int f = 0; f < 6; ++f) {
+    ASSERT_TRUE(good[f].ok()) << f << ": " << DescribeResult(good[f]);
+    const Answer a = AnswerOf(f, good[f]);
+    EXPECT_EQ(a.reference, offline[f].reference) << f;
+    EXPECT_EQ(a.score, offline[f].score) << f;
+  }
+  StopTheServer();
+}
+
+// Two robots publishing at once each get only their own answers, and robot right is told when it
+// revisits a place robot left mapped (Gardens Point: right's frames 201..207 revisit left's 3..5).
+TEST_F(ServiceTest, TwoRobotsAtOnceShareTheMap) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("gardens_point", "day_left_then_day_right", &run, &why)) GTEST_SKIP() << why;
+  constexpr int kLeftFrames = 24;   // left: frames 0..23
+  constexpr int kHeadStart = 12;    // right starts once left has mapped frames 0..11
+  constexpr int kRightFrames = 12;  // right: frames 200..211, while left sends 12..23
+  StartTheServer({"--workers", "2"});
+  AnswerSpy spy;
+  ClientOptions options;
+  options.lcm_url = TestLcmUrl();
+  StatusOr<std::unique_ptr<PlacerecClient>> right_client = PlacerecClient::Connect(options);
+  ASSERT_TRUE(right_client.ok());
+
+  std::vector<FrameResult> left(kLeftFrames);
+  std::vector<FrameResult> right(kRightFrames);
+  std::atomic<int> left_done{0};
+  std::thread left_sender([&] {
+    for (int i = 0; i < kLeftFrames; ++i) {
+      left[i] = client_->Send(FrameOf(run, i, "left", i));
+      ++left_done;
+    }
+  });
+  while (left_done.load() < kHeadStart) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  std::atomic<int> overlapped{0};
+  for (int i = 0; i < kRightFrames; ++i) {
+    if (left_done.load() < kLeftFrames) ++overlapped;
+    right[i] = (*right_client)->Send(FrameOf(run, 200 + i, "right", 200 + i));
+  }
+  left_sender.join();
+  EXPECT_GT(overlapped.load(), 0) << "the robots did not send at the same time";
+
+  int right_revisits_left = 0;
+  for (int i = 0; i < kLeftFrames; ++i) {
+    ASSERT_TRUE(left[i].ok()) << DescribeResult(left[i]) << ServerLog();
+    EXPECT_EQ(left[i].robot, "left");
+    EXPECT_EQ(left[i].sequence, i);
+  }
+  for (int i = 0; i < kRightFrames; ++i) {
+    const FrameResult& r = right[i];
+    ASSERT_TRUE(r.ok()) << DescribeResult(r) << ServerLog();
+    EXPECT_EQ(r.robot, "right");
+    EXPECT_EQ(r.sequence, 200 + i);
+    if (r.loop_closure && r.matches.front().robot == "left" &&
+        run.IsPositive(200 + i, static_cast<int>(r.matches.front().sequence))) {
+      ++right_revisits_left;
+    }
+  }
+  EXPECT_GT(right_revisits_left, 0) << "robot right was never told it revisits left's places";
+  RecordProperty("right_loop_closures_on_left", std::to_string(right_revisits_left));
+
+  // On the wire: each robot's channel carried exactly its own answers, one per frame.
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  std::map<std::string, std::multiset<int64_t>> by_channel;
+  for (const auto& [channel, a] : spy.answers()) {
+    EXPECT_EQ(channel, "PLACEREC_RESULT_" + a.robot);
+    by_channel[channel].insert(a.sequence);
+  }
+  ASSERT_EQ(by_channel.size(), 2u);
+  EXPECT_EQ(by_channel["PLACEREC_RESULT_left"].size(), static_cast<size_t>(kLeftFrames));
+  EXPECT_EQ(by_channel["PLACEREC_RESULT_right"].size(), static_cast<size_t>(kRightFrames));
+  for (int i = 0; i < kLeftFrames; ++i) EXPECT_EQ(by_channel["PLACEREC_RESULT_left"].count(i), 1u);
+  for (int i = 0; i < kRightFrames; ++i) {
+    EXPECT_EQ(by_channel["PLACEREC_RESULT_right"].count(200 + i), 1u);
+  }
+  StopTheServer();
+}
+
+// Query-only frames answer from the map and change nothing: the inserted frames around them are
+// answered exactly as without them (map and robot state untouched), and a server that answers
+// only queries leaves the map file with the same counts and checksum.
+TEST_F(ServiceTest, QueryOnlyFramesLeaveTheMapUnchanged) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
+  constexpr int kInserted = 30;
+  const std::vector<Answer> offline = OfflineAnswers(run, kInserted);
+  StartTheServer();
+  int query_matches = 0;
+  auto query = [&](int f, const std::string& robot, int64_t sequence) {
+    const FrameResult r = client_->Send(FrameOf(run, f, robot, sequence, /*insert=*/false));
+    EXPECT_TRUE(r.ok()) << DescribeResult(r);
+    EXPECT_FALSE(r.insert);
+    EXPECT_EQ(r.landmarks, 0);
+    EXPECT_EQ(r.stored_descriptors, 0);
+    EXPECT_EQ(r.place_id, -1);
+    if (!r.matches.empty()) ++query_matches;
+    return r;
+  };
+  int64_t map_landmarks = 0;
+  for (int f = 0; f < kInserted; ++f) {
+    if (f == 10 || f == 20) {
+      // A handheld asks where it is; the robot itself sends a query with the next sequence
+      // number, which must still be free for its next insert.
+      const FrameResult q1 = query(80, "handheld", 0);
+      const FrameResult q2 = query(45, "robot", f);
+      EXPECT_EQ(q1.map_landmarks, map_landmarks);
+      EXPECT_EQ(q2.map_landmarks, map_landmarks);
+    }
+    const FrameResult r = client_->Send(FrameOfRun(run, f));
+    ASSERT_TRUE(r.ok()) << f << ": " << DescribeResult(r) << ServerLog();
+    const Answer a = AnswerOf(f, r);
+    EXPECT_EQ(a.reference, offline[f].reference) << f;
+    EXPECT_EQ(a.score, offline[f].score) << f;
+    map_landmarks = r.map_landmarks;
+  }
+  StopTheServer();
+  const MapContents before = ReadMap(db_);
+  ASSERT_GT(before.counts.landmarks, 0);
+
+  StartTheServer();
+  for (int f = 40; f < 84; f += 4) query(f, "handheld", f);
+  for (int f = 40; f < 84; f += 4) query(f, "robot", 1000 + f);
+  EXPECT_GT(query_matches, 0) << "queries found no place at all";
+  StatusOr<ServerStatus> status = client_->WaitForStatus(10);
+  ASSERT_TRUE(status.ok());
+  EXPECT_EQ(status->map_landmarks, before.counts.landmarks);
+  StopTheServer();
+  const MapContents after = ReadMap(db_);
+  EXPECT_EQ(after.counts.places, before.counts.places);
+  EXPECT_EQ(after.counts.landmarks, before.counts.landmarks);
+  EXPECT_EQ(after.counts.descriptors, before.counts.descriptors);
+  EXPECT_EQ(after.checksum, before.checksum);
+}
+
+// A full queue answers "overloaded" and a shutdown answers what is still queued: every frame gets
+// exactly one answer either way, and SIGTERM ends the server cleanly.
+TEST_F(ServiceTest, FullQueueAndShutdownStillAnswerEveryFrame) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
+  StartTheServer({"--workers", "1", "--queue", "3"});
+  std::vector<OutgoingFrame> frames;
+  for (int f = 0; f < 12; ++f) frames.push_back(FrameOfRun(run, f));
+
+  std::vector<PendingFrame> burst;
+  for (const OutgoingFrame& frame : frames) {
+    StatusOr<PendingFrame> p = client_->Publish(frame);
+    ASSERT_TRUE(p.ok());
+    burst.push_back(*p);
+  }
+  int ok = 0;
+  int overloaded = 0;
+  for (const PendingFrame& p : burst) {
+    const FrameResult r = client_->Wait(p, 60);
+    if (r.ok()) ++ok;
+    if (r.code == AnswerCode::kOverloaded) {
+      ++overloaded;
+      EXPECT_NE(r.message.find("overloaded"), std::string::npos) << r.message;
+    }
+    EXPECT_TRUE(r.ok() || r.code == AnswerCode::kOverloaded) << DescribeResult(r);
+  }
+  EXPECT_EQ(ok + overloaded, 12);
+  EXPECT_GE(ok, 3);  // at least what the queue holds
+  EXPECT_GT(overloaded, 0);
+
+  // Again, and stop the server while frames wait: they are answered "shutting down".
+  std::vector<PendingFrame> second;
+  for (int i = 0; i < 3; ++i) {
+    OutgoingFrame frame = frames[i];
+    frame.robot = "other";
+    StatusOr<PendingFrame> p = client_->Publish(frame);
+    ASSERT_TRUE(p.ok());
+    second.push_back(*p);
+  }
+  const FrameResult first = client_->Wait(second[0], 60);
+  EXPECT_TRUE(first.ok()) << DescribeResult(first);
+  server_->Signal(SIGTERM);
+  int shutting_down = 0;
+  for (size_t i = 1; i < second.size(); ++i) {
+    const FrameResult r = client_->Wait(second[i], 60);
+    EXPECT_TRUE(r.ok() || r.code == AnswerCode::kShuttingDown) << DescribeResult(r);
+    if (r.code == AnswerCode::kShuttingDown) ++shutting_down;
+  }
+  EXPECT_GT(shutting_down, 0);
+  StatusOr<int> code = server_->Wait(60);
+  ASSERT_TRUE(code.ok());
+  EXPECT_EQ(*code, 0) << ServerLog();
+  server_.reset();
+}
+
+// --help documents every flag; bad flags and an unusable LCM URL (also from LCM_DEFAULT_URL) are
+// reported with a message and a non-zero exit code. No network needed.
+TEST(ServiceCommandLineTest, HelpAndErrors) {
+  const std::string dir = MakeTempDir("placerec_cli_");
+  auto run = [&](const std::vector<std::string>& argv, const std::string& env = "") {
+    std::string command = env;
+    for (const std::string& a : argv) command += " '" + a + "'";
+    command += " > " + dir + "/out.txt 2>&1";
+    const int rc = std::system(command.c_str());
+    return std::make_pair(WIFEXITED(rc) ? WEXITSTATUS(rc) : -1,
+                          testing_service::ReadTextFile(dir + "/out.txt"));
+  };
+  const std::string server = BinaryPath("placerec-server");
+  const std::string client = BinaryPath("placerec-client");
+  auto [help_rc, help] = run({server, "--help"});
+  EXPECT_EQ(help_rc, 0);
+  for (const char* flag : {"--db", "--lcm-url", "--workers", "--queue", "--status-period",
+                           "--loop-min-score", "--max-image-width", "--landmark-history"}) {
+    EXPECT_NE(help.find(flag), std::string::npos) << flag;
+  }
+  auto [bad_rc, bad] = run({server, "--no-such-flag"});
+  EXPECT_EQ(bad_rc, 2);
+  EXPECT_NE(bad.find("no-such-flag"), std::string::npos) << bad;
+  auto [workers_rc, workers] = run({server, "--workers", "0"});
+  EXPECT_EQ(workers_rc, 2);
+  EXPECT_NE(workers.find("--workers"), std::string::npos) << workers;
+  auto [url_rc, url] = run({server, "--db", dir + "/map.db"}, "LCM_DEFAULT_URL=nosuchprovider://x");
+  EXPECT_EQ(url_rc, 1);
+  EXPECT_NE(url.find("LCM_DEFAULT_URL=nosuchprovider://x"), std::string::npos) << url;
+
+  for (const char* command : {"send", "query", "status", "run"}) {
+    auto [rc, text] = run({client, command, "--help"});
+    EXPECT_EQ(rc, 0) << command;
+    EXPECT_NE(text.find("--lcm-url"), std::string::npos) << command;
+  }
+  auto [usage_rc, usage] = run({client});
+  EXPECT_EQ(usage_rc, 2);
+  auto [missing_rc, missing] = run({client, "run", "--dataset", "x"});
+  EXPECT_EQ(missing_rc, 2);
+  auto [status_rc, status] = run({client, "status", "--lcm-url", "memq://", "--timeout", "0.3"});
+  EXPECT_EQ(status_rc, 1);
+  EXPECT_NE(status.find("no status"), std::string::npos) << status;
+}
+
+}  // namespace
+}  // namespace placerec
