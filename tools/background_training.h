@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,9 @@ namespace placerec {
 // dataset class ids): the background class (0..4) or 7 of the majority class among its labelled
 // pixels, or -1 when fewer than `min_labelled_fraction` of its pixels are labelled. The majority
 // class ids themselves go to `majority` when not null (-1 when unlabelled).
+// Pixels of every region 0..n-1 of `regions` (other ids ignored).
+std::vector<int> RegionAreas(const cv::Mat& regions, int n);
+
 std::vector<int> RegionLabels(const cv::Mat& regions, int n, const cv::Mat& gt_classes,
                               const ClassTable& table, double min_labelled_fraction,
                               std::vector<int>* majority = nullptr);
@@ -35,12 +39,21 @@ struct BackgroundAccuracy {
   std::array<int, kBackgroundClasses> correct{};          // ... decided as the class
   std::array<int, kBackgroundClasses> called{};           // regions decided as the class
   std::array<int, kBackgroundClasses> binary_correct{};   // classifier right (yes/no)
+  std::array<int64_t, kBackgroundClasses> pixels{};          // pixels of regions of the class
+  std::array<int64_t, kBackgroundClasses> correct_pixels{};  // ... in regions decided right
+  std::array<int64_t, kBackgroundClasses> called_pixels{};   // pixels of regions decided so
   int structured_regions = 0;     // regions of other classes
   int structured_correct = 0;     // ... decided structured
   int total = 0;
+  // Dataset class name -> regions decided sky, tree, road, grass, water, structured.
+  std::map<std::string, std::array<int, kBackgroundClasses + 1>> confusion;
 
-  // `scores`: BackgroundClassifier::Scores rows; labels from RegionLabels (-1 rows skipped).
-  void Add(const cv::Mat& scores, const std::vector<int>& labels, double threshold);
+  // `scores`: BackgroundClassifier::Scores rows; labels and majority class ids from
+  // RegionLabels (-1 rows skipped); names from `table`.
+  // `areas` (pixels per region) weighs the pixel counts.
+  void Add(const cv::Mat& scores, const std::vector<int>& labels,
+           const std::vector<int>& majority, const std::vector<int>& areas,
+           const ClassTable& table, double threshold);
   nlohmann::json ToJson() const;
 };
 
@@ -56,13 +69,17 @@ struct BackgroundTrainingConfig {
   BackgroundTrainingOptions boost;
   // Working resolution, initial partition and texton stride: the ones segmentation uses.
   SceneOrganizerOptions organizer;
-  // Training regions are the superpixels of each image, plus its ground-truth object regions
-  // when set (the seed trains on ground-truth segments, §6.2.2).
+  // Training regions: the superpixels of each image and/or its ground-truth object regions (the
+  // seed trains on ground-truth segments, §6.2.2).
+  bool superpixel_regions = true;
   bool ground_truth_regions = true;
   // Superpixels whose labelled share is below this are left out; so are regions smaller than
   // min_region_pixels (working pixels).
   double min_labelled_fraction = 0.5;
   int min_region_pixels = 30;
+  // A training region's initial boosting weight is its area (working pixels) to this power:
+  // 0 weighs every region alike, 1 weighs by pixels.
+  double area_weight_power = 0.0;
   uint64_t seed = 2009;
   // Regions of the first images of eval_split (ground-truth objects) are stored as the fixed
   // check sample (check_sample.yml.gz) with the accuracy they had at training time.

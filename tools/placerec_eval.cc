@@ -16,6 +16,7 @@
 #include "common/util/options.h"
 #include "common/util/paths.h"
 #include "tools/eval_runner.h"
+#include "tools/segment_command.h"
 
 namespace placerec {
 namespace {
@@ -24,7 +25,8 @@ constexpr char kUsage[] =
     "placerec-eval COMMAND [options]\n\n"
     "Commands:\n"
     "  run       feed a place-recognition run through the pipeline and score it\n"
-    "  analyze   draw one frame's segmentation, keypoints and objects\n\n"
+    "  analyze   draw one frame's segmentation, keypoints and objects\n"
+    "  segment   segment a labelled dataset's split and score it (seed eq. 6.2)\n\n"
     "'placerec-eval COMMAND --help' lists the options of a command.";
 
 // A dataset given by name (e.g. gardens_point) is looked up under PLACEREC_DATA or
@@ -176,6 +178,10 @@ int main(int argc, char** argv) {
   }
   if (std::strcmp(argv[1], "run") == 0) return placerec::RunCommand(argc, argv);
   if (std::strcmp(argv[1], "analyze") == 0) return placerec::AnalyzeCommand(argc, argv);
+  if (std::strcmp(argv[1], "segment") == 0) {
+    return placerec::SegmentCommand(argc, argv,
+                                    placerec::DataDir("", PLACEREC_DEFAULT_DATA_DIR));
+  }
   std::fprintf(stderr, "placerec-eval: unknown command '%s'\n%s\n", argv[1], placerec::kUsage);
   return 2;
 }

@@ -47,12 +47,14 @@ bool BackgroundTrainingOptions::Check(std::string* error) const {
 
 BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
                                                  const std::vector<int>& labels,
+                                                 const std::vector<float>& weights,
                                                  const BackgroundTrainingOptions& options,
                                                  BackgroundTrainingSummary* summary) {
   std::string error;
   CHECK(options.Check(&error)) << error;
   CHECK_EQ(features.type(), CV_32F);
   CHECK_EQ(features.rows, static_cast<int>(labels.size()));
+  CHECK(weights.empty() || weights.size() == labels.size());
   Timer timer;
   BackgroundTrainingSummary stats;
   BackgroundClassifier classifier;
@@ -78,14 +80,15 @@ BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
     }
     cv::Mat samples(static_cast<int>(positives.size() + negatives.size()), features.cols, CV_32F);
     cv::Mat responses(samples.rows, 1, CV_32S);
+    cv::Mat sample_weights(samples.rows, 1, CV_32F, cv::Scalar(1.0f));
     int row = 0;
-    for (const int i : positives) {
-      features.row(i).copyTo(samples.row(row));
-      responses.at<int>(row++) = 1;
-    }
-    for (const int i : negatives) {
-      features.row(i).copyTo(samples.row(row));
-      responses.at<int>(row++) = 0;
+    for (const std::vector<int>* rows : {&positives, &negatives}) {
+      for (const int i : *rows) {
+        features.row(i).copyTo(samples.row(row));
+        responses.at<int>(row) = rows == &positives ? 1 : 0;
+        if (!weights.empty()) sample_weights.at<float>(row) = weights[i];
+        ++row;
+      }
     }
     cv::Ptr<cv::ml::Boost> boost = cv::ml::Boost::create();
     boost->setBoostType(cv::ml::Boost::GENTLE);
@@ -94,7 +97,8 @@ BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
     boost->setWeightTrimRate(options.weight_trim_rate);
     boost->setUseSurrogates(false);
     boost->setCVFolds(0);
-    boost->train(cv::ml::TrainData::create(samples, cv::ml::ROW_SAMPLE, responses));
+    boost->train(cv::ml::TrainData::create(samples, cv::ml::ROW_SAMPLE, responses, cv::noArray(),
+                                           cv::noArray(), sample_weights));
     classifier.boosts_[c] = boost;
 
     cv::Mat raw;

@@ -53,8 +53,10 @@ class BackgroundClassifier {
 
   // Trains the five classifiers on `features` (n x d CV_32F, one region per row) with `labels`
   // (n values: a SegmentClass value 0..4 for background, 7 (or any other non-negative value)
-  // for everything else, -1 to leave the row out). Deterministic for the same input.
+  // for everything else, -1 to leave the row out) and optional per-row `weights` (the boosting's
+  // initial sample weights; empty: all equal). Deterministic for the same input.
   static BackgroundClassifier Train(const cv::Mat& features, const std::vector<int>& labels,
+                                    const std::vector<float>& weights,
                                     const BackgroundTrainingOptions& options,
                                     BackgroundTrainingSummary* summary);
 

@@ -46,8 +46,9 @@ TextonModel TrainTextons(const cv::Mat& samples, const TextonTrainingOptions& op
     cv::Scalar m;
     cv::Scalar s;
     cv::meanStdDev(samples.col(d), m, s);
-    model.mean.at<float>(d) = static_cast<float>(m[0]);
-    model.inv_std.at<float>(d) = static_cast<float>(s[0] > 1e-6 ? 1.0 / s[0] : 1.0);
+    model.mean.at<float>(d) = options.standardise ? static_cast<float>(m[0]) : 0.0f;
+    model.inv_std.at<float>(d) =
+        options.standardise && s[0] > 1e-6 ? static_cast<float>(1.0 / s[0]) : 1.0f;
   }
   cv::Mat standardised(samples.size(), CV_32F);
   for (int r = 0; r < samples.rows; ++r) {

@@ -1,0 +1,445 @@
+#include "tools/background_training.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include <opencv2/core/persistence.hpp>
+
+#include "common/organization/filter_bank.h"
+#include "common/util/paths.h"
+#include "common/util/timer.h"
+
+namespace placerec {
+
+std::vector<int> RegionLabels(const cv::Mat& regions, int n, const cv::Mat& gt_classes,
+                              const ClassTable& table, double min_labelled_fraction,
+                              std::vector<int>* majority_out) {
+  CHECK_EQ(regions.type(), CV_32S);
+  CHECK_EQ(gt_classes.type(), CV_32S);
+  CHECK(regions.size() == gt_classes.size());
+  std::vector<std::map<int, int>> counts(static_cast<size_t>(n));
+  std::vector<int> area(static_cast<size_t>(n), 0);
+  for (int y = 0; y < regions.rows; ++y) {
+    const int* r = regions.ptr<int>(y);
+    const int* g = gt_classes.ptr<int>(y);
+    for (int x = 0; x < regions.cols; ++x) {
+      if (r[x] < 0 || r[x] >= n) continue;
+      ++area[r[x]];
+      if (!table.IsUnlabelled(g[x])) ++counts[r[x]][g[x]];
+    }
+  }
+  std::vector<int> labels(static_cast<size_t>(n), -1);
+  if (majority_out != nullptr) majority_out->assign(static_cast<size_t>(n), -1);
+  for (int i = 0; i < n; ++i) {
+    int labelled = 0;
+    int best = -1;
+    int best_count = 0;
+    for (const auto& [id, count] : counts[i]) {
+      labelled += count;
+      if (count > best_count) {
+        best = id;
+        best_count = count;
+      }
+    }
+    if (area[i] == 0 || best < 0 || labelled < min_labelled_fraction * area[i]) continue;
+    labels[i] = static_cast<int>(table.BackgroundClass(best));
+    if (majority_out != nullptr) (*majority_out)[i] = best;
+  }
+  return labels;
+}
+
+void BackgroundAccuracy::Add(const cv::Mat& scores, const std::vector<int>& labels,
+                             const std::vector<int>& majority, const std::vector<int>& areas,
+                             const ClassTable& table, double threshold) {
+  CHECK_EQ(scores.rows, static_cast<int>(labels.size()));
+  for (int r = 0; r < scores.rows; ++r) {
+    const int label = labels[r];
+    if (label < 0) continue;
+    const float* s = scores.ptr<float>(r);
+    const SegmentClass decided = BackgroundClassifier::Decide(s, threshold);
+    ++total;
+    for (int c = 0; c < kBackgroundClasses; ++c) {
+      binary_correct[c] += (s[c] > threshold) == (label == c);
+    }
+    if (IsBackground(decided)) {
+      ++called[static_cast<int>(decided)];
+      called_pixels[static_cast<int>(decided)] += areas[r];
+    }
+    ++confusion[table.Name(majority[r])][IsBackground(decided) ? static_cast<int>(decided)
+                                                               : kBackgroundClasses];
+    if (label < kBackgroundClasses) {
+      ++regions[label];
+      correct[label] += static_cast<int>(decided) == label;
+      pixels[label] += areas[r];
+      if (static_cast<int>(decided) == label) correct_pixels[label] += areas[r];
+    } else {
+      ++structured_regions;
+      structured_correct += decided == SegmentClass::kStructured;
+    }
+  }
+}
+
+nlohmann::json BackgroundAccuracy::ToJson() const {
+  nlohmann::json out;
+  out["regions"] = total;
+  auto percent = [](int a, int b) { return b > 0 ? 100.0 * a / b : 0.0; };
+  for (int c = 0; c < kBackgroundClasses; ++c) {
+    nlohmann::json& j = out["classes"][SegmentClassName(BackgroundClassOf(c))];
+    j["regions"] = regions[c];
+    j["accuracy"] = percent(correct[c], regions[c]);  // recall of the five-way decision
+    j["precision"] = percent(correct[c], called[c]);
+    j["binary_accuracy"] = percent(binary_correct[c], total);
+    j["pixel_accuracy"] = pixels[c] > 0 ? 100.0 * correct_pixels[c] / pixels[c] : 0.0;
+    j["pixel_precision"] =
+        called_pixels[c] > 0 ? 100.0 * correct_pixels[c] / called_pixels[c] : 0.0;
+  }
+  out["structured"]["regions"] = structured_regions;
+  out["structured"]["accuracy"] = percent(structured_correct, structured_regions);
+  for (const auto& [name, counts] : confusion) {
+    nlohmann::json& row = out["decisions_by_true_class"][name];
+    for (int c = 0; c <= kBackgroundClasses; ++c) {
+      row[c < kBackgroundClasses ? SegmentClassName(BackgroundClassOf(c)) : "structured"] =
+          counts[c];
+    }
+  }
+  return out;
+}
+
+namespace {
+
+std::string Today() {
+  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  char text[32];
+  std::strftime(text, sizeof(text), "%Y-%m-%d", std::gmtime(&now));
+  return text;
+}
+
+void Progress(bool on, const char* stage, size_t done, size_t total) {
+  if (on && (done % 20 == 0 || done == total)) {
+    std::fprintf(stderr, "\r%s %zu/%zu", stage, done, total);
+    if (done == total) std::fprintf(stderr, "\n");
+  }
+}
+
+// Appends the rows of `features` whose label is >= 0 (and region large enough) to the sample.
+void AppendRegions(const cv::Mat& features, const std::vector<int>& labels,
+                   const std::vector<int>& areas, int min_pixels, double weight_power,
+                   cv::Mat* samples, std::vector<int>* sample_labels,
+                   std::vector<float>* weights) {
+  for (int i = 0; i < features.rows; ++i) {
+    if (labels[i] < 0 || areas[i] < min_pixels) continue;
+    samples->push_back(features.row(i));
+    sample_labels->push_back(labels[i]);
+    weights->push_back(static_cast<float>(std::pow(static_cast<double>(areas[i]), weight_power)));
+  }
+}
+
+}  // namespace
+
+std::vector<int> RegionAreas(const cv::Mat& regions, int n) {
+  std::vector<int> area(static_cast<size_t>(n), 0);
+  for (int y = 0; y < regions.rows; ++y) {
+    const int* r = regions.ptr<int>(y);
+    for (int x = 0; x < regions.cols; ++x) {
+      if (r[x] >= 0 && r[x] < n) ++area[r[x]];
+    }
+  }
+  return area;
+}
+
+namespace {
+
+// Ground-truth object ids as compact region ids 0..n-1 (pixels without an object: -1).
+cv::Mat ObjectRegions(const cv::Mat& objects, int* n) {
+  cv::Mat regions(objects.size(), CV_32S);
+  std::map<int, int> ids;
+  for (int y = 0; y < objects.rows; ++y) {
+    const int* o = objects.ptr<int>(y);
+    int* r = regions.ptr<int>(y);
+    for (int x = 0; x < objects.cols; ++x) {
+      if (o[x] <= 0) {
+        r[x] = -1;
+        continue;
+      }
+      const auto inserted = ids.emplace(o[x], static_cast<int>(ids.size()));
+      r[x] = inserted.first->second;
+    }
+  }
+  *n = static_cast<int>(ids.size());
+  return regions;
+}
+
+int64_t FileSize(const std::string& path) {
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(path, ec);
+  return ec ? -1 : static_cast<int64_t>(size);
+}
+
+}  // namespace
+
+StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& config) {
+  std::string error;
+  if (!config.textons.Check(&error) || !config.boost.Check(&error) ||
+      !config.organizer.Check(&error)) {
+    return Status::InvalidArgument(error);
+  }
+  if (config.pixels_per_image < 1) {
+    return Status::InvalidArgument("pixels_per_image must be at least 1");
+  }
+  StatusOr<ClassTable> table = ReadClassTable(config.dataset);
+  if (!table.ok()) return table.status();
+  if (table->empty()) {
+    return Status::InvalidArgument(config.dataset + " has no classes.txt: cannot label regions");
+  }
+  StatusOr<std::vector<std::string>> ids = ReadSplit(config.dataset, config.split);
+  if (!ids.ok()) return ids.status();
+  if (!MakeDirectories(config.out)) return Status::IoError("cannot create " + config.out);
+  const int working_width = config.organizer.superpixels.working_width;
+  Timer total_timer;
+
+  // 1. Textons: k-means on pixels sampled from every training image.
+  Timer timer;
+  cv::Mat pixel_samples;
+  for (size_t i = 0; i < ids->size(); ++i) {
+    StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*ids)[i]);
+    if (!image.ok()) return image.status();
+    const WorkingImage working = MakeWorkingImage(image->bgr, working_width);
+    const cv::Mat features = ComputeFilterBank(working.lab);
+    std::mt19937_64 rng(config.seed + i);
+    std::uniform_int_distribution<int> row(0, features.rows - 1);
+    std::uniform_int_distribution<int> col(0, features.cols - 1);
+    cv::Mat samples(config.pixels_per_image, kTextonFeatureSize, CV_32F);
+    for (int s = 0; s < config.pixels_per_image; ++s) {
+      const float* f = features.ptr<float>(row(rng)) + static_cast<size_t>(col(rng)) *
+                                                           kTextonFeatureSize;
+      std::copy(f, f + kTextonFeatureSize, samples.ptr<float>(s));
+    }
+    pixel_samples.push_back(samples);
+    Progress(config.progress, "filter bank", i + 1, ids->size());
+  }
+  const double sampling_seconds = timer.ElapsedMs() / 1000.0;
+  timer.Restart();
+  if (config.progress) {
+    std::fprintf(stderr, "k-means: %d pixels, k = %d\n", pixel_samples.rows, config.textons.k);
+  }
+  const TextonModel textons = TrainTextons(pixel_samples, config.textons);
+  const double kmeans_seconds = timer.ElapsedMs() / 1000.0;
+  PLACEREC_RETURN_IF_ERROR(SaveTextons(textons, config.out + "/textons.yml"));
+
+  // 2. Training regions: superpixels (and ground-truth objects) with their majority class.
+  timer.Restart();
+  const TextonAssigner assigner(textons);
+  const int stride = config.organizer.texton_stride;
+  cv::Mat region_samples;
+  std::vector<int> region_labels;
+  std::vector<float> region_weights;
+  int superpixel_regions = 0;
+  for (size_t i = 0; i < ids->size(); ++i) {
+    StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*ids)[i]);
+    if (!image.ok()) return image.status();
+    if (image->classes.empty()) continue;
+    const WorkingImage working = MakeWorkingImage(image->bgr, working_width);
+    const cv::Mat gt = LayerAtSize(image->classes, working.bgr.size());
+    const cv::Mat features = ComputeFilterBank(working.lab);
+    const TextonMap map = ComputeTextonMap(features, assigner, stride);
+    const SceneSegmentation superpixels = ComputeSuperpixels(working, config.organizer.superpixels);
+    const cv::Mat appearance =
+        RegionAppearance(superpixels.labels, superpixels.size(), map, features, assigner);
+    const std::vector<int> labels = RegionLabels(superpixels.labels, superpixels.size(), gt,
+                                                 *table, config.min_labelled_fraction);
+    const int before = region_samples.rows;
+    if (config.superpixel_regions) {
+      AppendRegions(appearance, labels, RegionAreas(superpixels.labels, superpixels.size()),
+                    config.min_region_pixels, config.area_weight_power, &region_samples,
+                    &region_labels, &region_weights);
+    }
+    superpixel_regions += region_samples.rows - before;
+    if (config.ground_truth_regions && !image->objects.empty()) {
+      int n = 0;
+      const cv::Mat objects = ObjectRegions(LayerAtSize(image->objects, working.bgr.size()), &n);
+      const cv::Mat object_appearance = RegionAppearance(objects, n, map, features, assigner);
+      AppendRegions(object_appearance, RegionLabels(objects, n, gt, *table, 0.5),
+                    RegionAreas(objects, n), config.min_region_pixels, config.area_weight_power,
+                    &region_samples, &region_labels, &region_weights);
+    }
+    Progress(config.progress, "regions", i + 1, ids->size());
+  }
+  const double regions_seconds = timer.ElapsedMs() / 1000.0;
+  if (config.progress) {
+    std::fprintf(stderr, "boosting on %d regions (%d superpixels)\n", region_samples.rows,
+                 superpixel_regions);
+  }
+
+  // 3. Five binary Gentle AdaBoost classifiers.
+  BackgroundTrainingSummary boost_summary;
+  const BackgroundClassifier classifier =
+      BackgroundClassifier::Train(region_samples, region_labels, region_weights, config.boost,
+                                  &boost_summary);
+  PLACEREC_RETURN_IF_ERROR(classifier.Save(config.out));
+
+  // 4. Accuracy on the evaluation split's ground-truth objects (seed Table 6.4 protocol) and
+  // its superpixels, and the fixed check sample from its first images.
+  nlohmann::json evaluation;
+  cv::Mat check_features;
+  std::vector<int> check_labels;
+  std::vector<std::string> check_ids;
+  timer.Restart();
+  if (!config.eval_split.empty() && PathExists(config.dataset + "/" + config.eval_split + ".txt")) {
+    StatusOr<std::vector<std::string>> eval_ids = ReadSplit(config.dataset, config.eval_split);
+    if (!eval_ids.ok()) return eval_ids.status();
+    BackgroundAccuracy objects_accuracy;
+    BackgroundAccuracy superpixel_accuracy;
+    for (size_t i = 0; i < eval_ids->size(); ++i) {
+      StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*eval_ids)[i]);
+      if (!image.ok()) return image.status();
+      if (image->classes.empty() || image->objects.empty()) continue;
+      const WorkingImage working = MakeWorkingImage(image->bgr, working_width);
+      const cv::Mat gt = LayerAtSize(image->classes, working.bgr.size());
+      const cv::Mat features = ComputeFilterBank(working.lab);
+      const TextonMap map = ComputeTextonMap(features, assigner, stride);
+      int n = 0;
+      const cv::Mat objects = ObjectRegions(LayerAtSize(image->objects, working.bgr.size()), &n);
+      const cv::Mat appearance = RegionAppearance(objects, n, map, features, assigner);
+      std::vector<int> majority;
+      const std::vector<int> labels = RegionLabels(objects, n, gt, *table, 0.5, &majority);
+      objects_accuracy.Add(classifier.Scores(appearance), labels, majority,
+                           RegionAreas(objects, n), *table, config.organizer.background_threshold);
+      const SceneSegmentation superpixels =
+          ComputeSuperpixels(working, config.organizer.superpixels);
+      std::vector<int> superpixel_majority;
+      const std::vector<int> superpixel_labels =
+          RegionLabels(superpixels.labels, superpixels.size(), gt, *table,
+                       config.min_labelled_fraction, &superpixel_majority);
+      superpixel_accuracy.Add(
+          classifier.Scores(
+              RegionAppearance(superpixels.labels, superpixels.size(), map, features, assigner)),
+          superpixel_labels, superpixel_majority,
+          RegionAreas(superpixels.labels, superpixels.size()), *table,
+          config.organizer.background_threshold);
+      if (static_cast<int>(i) < config.check_images) {
+        check_ids.push_back((*eval_ids)[i]);
+        for (int r = 0; r < n; ++r) {
+          if (labels[r] < 0) continue;
+          check_features.push_back(appearance.row(r));
+          check_labels.push_back(labels[r]);
+        }
+      }
+      Progress(config.progress, "evaluation", i + 1, eval_ids->size());
+    }
+    evaluation["split"] = config.eval_split;
+    evaluation["ground_truth_objects"] = objects_accuracy.ToJson();
+    evaluation["superpixels"] = superpixel_accuracy.ToJson();
+  }
+  const double evaluation_seconds = timer.ElapsedMs() / 1000.0;
+
+  // The check sample: regions, their labels and the decisions made now.
+  nlohmann::json check;
+  if (!check_features.empty()) {
+    const std::vector<SegmentClass> decided =
+        classifier.Classify(check_features, config.organizer.background_threshold);
+    std::vector<int> decided_ids;
+    int correct = 0;
+    for (size_t r = 0; r < decided.size(); ++r) {
+      decided_ids.push_back(static_cast<int>(decided[r]));
+      correct += static_cast<int>(decided[r]) == check_labels[r];
+    }
+    const double accuracy = static_cast<double>(correct) / static_cast<double>(decided.size());
+    const std::string path = config.out + "/check_sample.yml.gz";
+    try {
+      cv::FileStorage fs(path, cv::FileStorage::WRITE);
+      if (!fs.isOpened()) return Status::IoError("cannot write " + path);
+      fs << "format_version" << 1;
+      fs << "split" << config.eval_split;
+      fs << "images" << check_ids;
+      fs << "features" << check_features;
+      fs << "labels" << check_labels;
+      fs << "decisions" << decided_ids;
+      fs << "accuracy" << accuracy;
+    } catch (const cv::Exception& e) {
+      return Status::IoError("cannot write " + path + ": " + e.what());
+    }
+    check["file"] = "check_sample.yml.gz";
+    check["split"] = config.eval_split;
+    check["images"] = check_ids;
+    check["regions"] = static_cast<int>(decided.size());
+    check["accuracy"] = 100.0 * accuracy;
+  }
+
+  // 5. The manifest.
+  nlohmann::json manifest;
+  manifest["format_version"] = 1;
+  manifest["created"] = Today();
+  manifest["command"] = "placerec-train background --dataset " +
+                        std::filesystem::path(config.dataset).filename().string() + " --split " +
+                        config.split + " --out models";
+  manifest["data"] = {{"dataset", std::filesystem::path(config.dataset).filename().string()},
+                      {"split", config.split},
+                      {"images", static_cast<int>(ids->size())}};
+  manifest["textons"] = {{"file", "textons.yml"},
+                         {"k", config.textons.k},
+                         {"features", kTextonFeatureSize},
+                         {"pixels_per_image", config.pixels_per_image},
+                         {"pixels", pixel_samples.rows},
+                         {"max_iterations", config.textons.max_iterations},
+                         {"epsilon", config.textons.epsilon},
+                         {"standardise", config.textons.standardise},
+                         {"seed", config.textons.seed}};
+  nlohmann::json classifiers;
+  classifiers["files"] = {"background.yml"};
+  classifiers["weak_count"] = config.boost.weak_count;
+  classifiers["max_depth"] = config.boost.max_depth;
+  classifiers["boost_type"] = "gentle";
+  classifiers["weight_trim_rate"] = config.boost.weight_trim_rate;
+  classifiers["max_negatives_per_positive"] = config.boost.max_negatives_per_positive;
+  classifiers["regions"] = region_samples.rows;
+  classifiers["superpixel_region_count"] = superpixel_regions;
+  classifiers["superpixel_regions"] = config.superpixel_regions;
+  classifiers["ground_truth_regions"] = config.ground_truth_regions;
+  classifiers["min_labelled_fraction"] = config.min_labelled_fraction;
+  classifiers["min_region_pixels"] = config.min_region_pixels;
+  classifiers["area_weight_power"] = config.area_weight_power;
+  for (int c = 0; c < kBackgroundClasses; ++c) {
+    const std::string name = SegmentClassName(BackgroundClassOf(c));
+    classifiers["files"].push_back("background_" + name + ".yml.gz");
+    classifiers["per_class"][name] = {
+        {"positives", boost_summary.positives[c]},
+        {"negatives", boost_summary.negatives[c]},
+        {"training_accuracy", 100.0 * boost_summary.training_accuracy[c]}};
+  }
+  manifest["classifiers"] = classifiers;
+  const SuperpixelOptions& sp = config.organizer.superpixels;
+  manifest["regions"] = {{"working_width", sp.working_width},
+                         {"fh_sigma", sp.sigma},
+                         {"fh_k_640x480", sp.k},
+                         {"fh_min_size_640x480", sp.min_size},
+                         {"min_region_fraction", sp.min_region_fraction},
+                         {"colour_merge_distance", sp.colour_merge_distance},
+                         {"texton_stride", config.organizer.texton_stride}};
+  manifest["accuracy"] = evaluation;
+  manifest["check_sample"] = check;
+  manifest["seconds"] = {{"filter_bank_sampling", sampling_seconds},
+                         {"kmeans", kmeans_seconds},
+                         {"regions", regions_seconds},
+                         {"boosting", boost_summary.seconds},
+                         {"evaluation", evaluation_seconds},
+                         {"total", total_timer.ElapsedMs() / 1000.0}};
+  nlohmann::json files;
+  for (const auto& entry : std::filesystem::directory_iterator(config.out)) {
+    const std::string name = entry.path().filename().string();
+    if (name == "manifest.json" || name == "README.md") continue;
+    files[name] = FileSize(entry.path().string());
+  }
+  manifest["file_bytes"] = files;
+  std::ofstream out(config.out + "/manifest.json");
+  if (!out) return Status::IoError("cannot write " + config.out + "/manifest.json");
+  out << manifest.dump(2) << "\n";
+  return manifest;
+}
+
+}  // namespace placerec

@@ -1,0 +1,96 @@
+// placerec-train: learns the models that ship in models/.
+//   placerec-train background --dataset DIR --out models/
+// learns the textons and the five background classifiers (seed §3.4) from DIR's train split and
+// writes them with manifest.json (data, split, options, accuracy, date).
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+#include <opencv2/core/utility.hpp>
+
+#include "common/util/logging.h"
+#include "common/util/options.h"
+#include "common/util/paths.h"
+#include "tools/background_training.h"
+
+namespace placerec {
+namespace {
+
+constexpr char kUsage[] =
+    "placerec-train COMMAND [options]\n\n"
+    "Commands:\n"
+    "  background   textons and background classifiers (seed §3.4) from a labelled dataset\n\n"
+    "'placerec-train COMMAND --help' lists the options of a command.";
+
+int BackgroundCommand(int argc, char** argv) {
+  BackgroundTrainingConfig config;
+  bool quiet = false;
+  FlagParser parser(
+      "placerec-train background --dataset DIR --out DIR [options]\n\n"
+      "Learns k-means textons on filter-bank responses of pixels sampled from DIR's training\n"
+      "images, then five binary Gentle AdaBoost classifiers (sky, tree, road, grass, water) on\n"
+      "the texton histograms of their superpixels and ground-truth regions, and writes\n"
+      "textons.yml, background*.yml*, check_sample.yml.gz and manifest.json into --out.");
+  parser.AddRequired("dataset", &config.dataset,
+                     "labelled dataset (layout of shared/data/README.md), e.g. "
+                     "../shared/data/stanford_background");
+  parser.AddRequired("out", &config.out, "models directory to write (created if missing)");
+  parser.Add("split", &config.split, "split to train on");
+  parser.Add("eval-split", &config.eval_split, "split whose accuracy goes into the manifest");
+  parser.Add("pixels-per-image", &config.pixels_per_image, "pixels sampled per image for k-means");
+  parser.Add("textons", &config.textons.k, "number of textons (seed §4.1.1: 150)");
+  parser.Add("standardise", &config.textons.standardise,
+             "standardise filter responses before k-means");
+  parser.Add("kmeans-iterations", &config.textons.max_iterations, "k-means iterations");
+  parser.Add("weak-count", &config.boost.weak_count, "boosted trees per classifier");
+  parser.Add("max-depth", &config.boost.max_depth, "depth of each boosted tree");
+  parser.Add("negatives-per-positive", &config.boost.max_negatives_per_positive,
+             "negatives drawn per positive region (0: all)");
+  parser.Add("superpixel-regions", &config.superpixel_regions, "train on superpixels");
+  parser.Add("ground-truth-regions", &config.ground_truth_regions,
+             "also train on ground-truth object regions");
+  parser.Add("min-region-pixels", &config.min_region_pixels,
+             "training regions have at least this many working pixels");
+  parser.Add("area-weight-power", &config.area_weight_power,
+             "initial boosting weight of a region: its area to this power (0: all alike)");
+  parser.Add("check-images", &config.check_images,
+             "images of --eval-split whose regions form the stored check sample");
+  parser.Add("seed", &config.seed, "random seed (pixel sampling, negatives)");
+  parser.AddSwitch("quiet", &quiet, "no progress lines");
+  bool help = false;
+  const Status parsed = parser.Parse(argc, argv, 2, &help);
+  if (help) {
+    std::printf("%s\n", parser.Help().c_str());
+    return 0;
+  }
+  if (!parsed.ok()) {
+    std::fprintf(stderr, "placerec-train background: %s\n", parsed.message().c_str());
+    return 2;
+  }
+  config.textons.seed = config.seed;
+  config.boost.seed = config.seed;
+  config.progress = !quiet;
+  cv::setNumThreads(1);  // deterministic k-means, and a fair share of a shared machine
+  StatusOr<nlohmann::json> manifest = TrainBackgroundModels(config);
+  if (!manifest.ok()) {
+    std::fprintf(stderr, "placerec-train background: %s\n",
+                 manifest.status().ToString().c_str());
+    return 1;
+  }
+  std::printf("%s\n", manifest->dump(2).c_str());
+  return 0;
+}
+
+}  // namespace
+}  // namespace placerec
+
+int main(int argc, char** argv) {
+  placerec::InitLogging(argv[0]);
+  if (argc < 2 || std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0) {
+    std::printf("%s\n", placerec::kUsage);
+    return argc < 2 ? 2 : 0;
+  }
+  if (std::strcmp(argv[1], "background") == 0) return placerec::BackgroundCommand(argc, argv);
+  std::fprintf(stderr, "placerec-train: unknown command '%s'\n%s\n", argv[1], placerec::kUsage);
+  return 2;
+}

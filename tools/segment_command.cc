@@ -1,0 +1,571 @@
+#include "tools/segment_command.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <unordered_map>
+
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "common/organization/scene_organizer.h"
+#include "common/util/options.h"
+#include "common/util/paths.h"
+#include "common/util/timer.h"
+#include "tools/background_training.h"
+
+namespace placerec {
+
+std::vector<ObjectScore> ScoreObjects(const cv::Mat& segments, const cv::Mat& objects,
+                                      const cv::Mat& classes, const ClassTable& table,
+                                      double min_object_fraction) {
+  CHECK_EQ(segments.type(), CV_32S);
+  CHECK_EQ(objects.type(), CV_32S);
+  CHECK(segments.size() == objects.size());
+  const bool has_classes = !classes.empty();
+  if (has_classes) {
+    CHECK_EQ(classes.type(), CV_32S);
+    CHECK(classes.size() == objects.size());
+  }
+  std::unordered_map<int, int> segment_area;
+  std::map<int, int> object_area;
+  std::map<int, std::unordered_map<int, int>> overlap;     // object -> segment -> pixels
+  std::map<int, std::map<int, int>> object_class_pixels;  // object -> class -> pixels
+  for (int y = 0; y < segments.rows; ++y) {
+    const int* s = segments.ptr<int>(y);
+    const int* o = objects.ptr<int>(y);
+    const int* c = has_classes ? classes.ptr<int>(y) : nullptr;
+    for (int x = 0; x < segments.cols; ++x) {
+      ++segment_area[s[x]];
+      if (o[x] <= 0) continue;
+      ++object_area[o[x]];
+      ++overlap[o[x]][s[x]];
+      if (c != nullptr && !table.IsUnlabelled(c[x])) ++object_class_pixels[o[x]][c[x]];
+    }
+  }
+  const double min_pixels = min_object_fraction * static_cast<double>(segments.total());
+  std::vector<ObjectScore> scores;
+  for (const auto& [object, area] : object_area) {
+    if (area < min_pixels) continue;
+    ObjectScore score;
+    score.object = object;
+    score.pixels = area;
+    for (const auto& [segment, inter] : overlap[object]) {
+      const double iou =
+          static_cast<double>(inter) / static_cast<double>(area + segment_area[segment] - inter);
+      score.iou = std::max(score.iou, iou);
+    }
+    int best_class = -1;
+    int best_pixels = 0;
+    for (const auto& [id, pixels] : object_class_pixels[object]) {
+      if (pixels > best_pixels) {
+        best_class = id;
+        best_pixels = pixels;
+      }
+    }
+    score.class_name = best_class >= 0 ? table.Name(best_class) : "unknown";
+    scores.push_back(score);
+  }
+  return scores;
+}
+
+void ObjectScoreSummary::Add(const std::vector<ObjectScore>& scores, const ClassTable& table) {
+  std::map<std::string, bool> background_names;
+  for (const auto& [id, name] : table.names) {
+    background_names[name] = IsBackground(table.BackgroundClass(id));
+  }
+  for (const ObjectScore& s : scores) {
+    all_.iou += s.iou;
+    ++all_.objects;
+    Sum& c = classes_[s.class_name];
+    c.iou += s.iou;
+    ++c.objects;
+    if (s.class_name == "unknown") continue;
+    Sum& g = groups_[background_names[s.class_name] ? "background" : "structured"];
+    g.iou += s.iou;
+    ++g.objects;
+  }
+}
+
+double ObjectScoreSummary::Mean() const {
+  return all_.objects > 0 ? 100.0 * all_.iou / all_.objects : 0.0;
+}
+
+nlohmann::json ObjectScoreSummary::ToJson() const {
+  auto entry = [](const Sum& s) {
+    return nlohmann::json{{"objects", s.objects},
+                          {"mean_iou", s.objects > 0 ? 100.0 * s.iou / s.objects : 0.0}};
+  };
+  nlohmann::json out = entry(all_);
+  for (const auto& [name, sum] : classes_) out["classes"][name] = entry(sum);
+  for (const auto& [name, sum] : groups_) out["groups"][name] = entry(sum);
+  return out;
+}
+
+namespace {
+
+// Colours (BGR) of the background classes in the overlays and of class ids in classes/*.png.
+cv::Scalar ClassColour(SegmentClass c) {
+  switch (c) {
+    case SegmentClass::kSky:
+      return {235, 190, 120};
+    case SegmentClass::kTree:
+      return {40, 120, 30};
+    case SegmentClass::kRoad:
+      return {128, 64, 128};
+    case SegmentClass::kGrass:
+      return {80, 220, 130};
+    case SegmentClass::kWater:
+      return {200, 90, 0};
+    case SegmentClass::kStructured:
+      return {0, 0, 0};
+  }
+  return {0, 0, 0};
+}
+
+cv::Vec3b RandomColour(int id) {
+  std::mt19937 rng(static_cast<unsigned>(id) * 2654435761u + 7u);
+  return cv::Vec3b(static_cast<uint8_t>(60 + rng() % 196), static_cast<uint8_t>(60 + rng() % 196),
+                   static_cast<uint8_t>(60 + rng() % 196));
+}
+
+// Left: the image with background classes tinted and structured segments outlined in their own
+// colours. Right: the ground-truth objects in random colours (or the segments when there is no
+// ground truth).
+cv::Mat DrawOverlay(const cv::Mat& bgr, const cv::Mat& segments,
+                    const std::vector<SegmentClass>& classes, const cv::Mat& objects) {
+  cv::Mat left = bgr.clone();
+  for (int y = 0; y < bgr.rows; ++y) {
+    const int* s = segments.ptr<int>(y);
+    cv::Vec3b* out = left.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < bgr.cols; ++x) {
+      const SegmentClass c = classes[s[x]];
+      if (IsBackground(c)) {
+        const cv::Scalar tint = ClassColour(c);
+        for (int k = 0; k < 3; ++k) {
+          out[x][k] = static_cast<uint8_t>(0.45 * out[x][k] + 0.55 * tint[k]);
+        }
+      }
+      const bool edge = (x + 1 < bgr.cols && s[x + 1] != s[x]) ||
+                        (y + 1 < bgr.rows && segments.at<int>(y + 1, x) != s[x]);
+      if (edge) out[x] = IsBackground(c) ? cv::Vec3b(255, 255, 255) : RandomColour(s[x]);
+    }
+  }
+  cv::Mat right(bgr.size(), CV_8UC3);
+  const cv::Mat& truth = objects.empty() ? segments : objects;
+  for (int y = 0; y < bgr.rows; ++y) {
+    const int* t = truth.ptr<int>(y);
+    cv::Vec3b* out = right.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < bgr.cols; ++x) {
+      out[x] = t[x] <= 0 && !objects.empty() ? cv::Vec3b(0, 0, 0) : RandomColour(t[x] + 1000);
+    }
+  }
+  cv::Mat picture;
+  cv::hconcat(left, right, picture);
+  return picture;
+}
+
+std::vector<double> ParseList(const std::string& text, bool* ok) {
+  std::vector<double> values;
+  std::stringstream stream(text);
+  std::string item;
+  *ok = true;
+  while (std::getline(stream, item, ',')) {
+    try {
+      values.push_back(std::stod(item));
+    } catch (...) {
+      *ok = false;
+    }
+  }
+  *ok = *ok && !values.empty();
+  return values;
+}
+
+// Per-pixel comparison of output classes with ground-truth classes mapped to background
+// classes: recall (accuracy) and precision per background class and for "structured".
+struct PixelClassAccuracy {
+  std::array<int64_t, kBackgroundClasses + 1> truth{};
+  std::array<int64_t, kBackgroundClasses + 1> output{};
+  std::array<int64_t, kBackgroundClasses + 1> both{};
+
+  static int Index(SegmentClass c) {
+    return IsBackground(c) ? static_cast<int>(c) : kBackgroundClasses;
+  }
+
+  void Add(const cv::Mat& segments, const std::vector<SegmentClass>& classes,
+           const cv::Mat& gt_classes, const ClassTable& table) {
+    for (int y = 0; y < segments.rows; ++y) {
+      const int* s = segments.ptr<int>(y);
+      const int* g = gt_classes.ptr<int>(y);
+      for (int x = 0; x < segments.cols; ++x) {
+        if (table.IsUnlabelled(g[x])) continue;
+        const int t = Index(table.BackgroundClass(g[x]));
+        const int o = Index(classes[s[x]]);
+        ++truth[t];
+        ++output[o];
+        both[t] += t == o;
+      }
+    }
+  }
+
+  nlohmann::json ToJson() const {
+    nlohmann::json out;
+    int64_t correct = 0;
+    int64_t total = 0;
+    for (int i = 0; i <= kBackgroundClasses; ++i) {
+      const std::string name =
+          i < kBackgroundClasses ? SegmentClassName(BackgroundClassOf(i)) : "structured";
+      out["classes"][name] = {
+          {"pixels", truth[i]},
+          {"accuracy", truth[i] > 0 ? 100.0 * both[i] / truth[i] : 0.0},
+          {"precision", output[i] > 0 ? 100.0 * both[i] / output[i] : 0.0}};
+      correct += both[i];
+      total += truth[i];
+    }
+    out["overall"] = total > 0 ? 100.0 * correct / total : 0.0;
+    return out;
+  }
+};
+
+struct GridSetting {
+  double k;  // FH k at 320x240
+  int min_size;
+  ObjectScoreSummary score;
+};
+
+cv::Mat ToOriginal(const cv::Mat& labels, cv::Size size) {
+  if (labels.size() == size) return labels;
+  cv::Mat out;
+  cv::resize(labels, out, size, 0, 0, cv::INTER_NEAREST);
+  return out;
+}
+
+}  // namespace
+
+int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
+  std::string dataset;
+  std::string split = "test";
+  std::string out;
+  SceneOrganizerOptions options;
+  int overlays = 12;
+  int max_images = 0;
+  double min_object_fraction = 0.005;
+  std::string grid_k = "125,250,500,1000";
+  std::string grid_min = "50,150,300";
+  bool baseline = true;
+  bool quiet = false;
+  bool verbose = false;
+  OrganizationOptions& po = options.organization;
+  SuperpixelOptions& sp = options.superpixels;
+  FlagParser parser(
+      "placerec-eval segment --dataset DIR --split test --out OUT [options]\n\n"
+      "Segments every image of DIR/<split>.txt with Perceptual Organization (seed Ch. 3) and\n"
+      "writes OUT/segments/<id>.png (16-bit segment ids 1..n, every pixel in one segment),\n"
+      "OUT/classes/<id>.png (8-bit: 0 sky, 1 tree, 2 road, 3 grass, 4 water, 7 structured) and\n"
+      "OUT/overlays/<id>.png; with ground truth in DIR (classes/, objects/, classes.txt) it also\n"
+      "writes OUT/segmentation.json: object-level accuracy (seed eq. 6.2) for Perceptual\n"
+      "Organization and for superpixels alone over a grid of FH settings, and background\n"
+      "classification accuracy (seed Table 6.4).");
+  parser.AddRequired("dataset", &dataset,
+                     "dataset directory, or its name under PLACEREC_DATA / ../shared/data");
+  parser.AddRequired("out", &out, "output directory (created if missing)");
+  parser.Add("split", &split, "split list DIR/<split>.txt");
+  parser.Add("models-dir", &options.models_dir,
+             "trained textons and classifiers (default: PLACEREC_MODELS or models/)");
+  parser.Add("overlays", &overlays, "overlay pictures to draw (evenly spread over the split)");
+  parser.Add("max-images", &max_images, "segment only the first N images (0: all)");
+  parser.Add("min-object-fraction", &min_object_fraction,
+             "ground-truth objects smaller than this fraction of the image are not scored "
+             "(seed §6.1.3: 0.5 %)");
+  parser.Add("baseline", &baseline, "also score superpixels alone over the FH grid");
+  parser.Add("grid-k", &grid_k, "superpixel baseline: FH k values at 320x240, comma-separated");
+  parser.Add("grid-min", &grid_min,
+             "superpixel baseline: FH minimum sizes at 320x240 (pixels), comma-separated");
+  parser.Add("segment-width", &sp.working_width,
+             "working width in pixels (seed §6.1: about 320x240; 0: image size)");
+  parser.Add("fh-sigma", &sp.sigma, "initial partition: FH smoothing sigma (§6.1.2)");
+  parser.Add("fh-k", &sp.k, "initial partition: FH k at 640x480, scaled by area (§6.1.2: 300)");
+  parser.Add("fh-min-size", &sp.min_size,
+             "initial partition: FH minimum component at 640x480 (§6.1.2: 20)");
+  parser.Add("min-region-fraction", &sp.min_region_fraction,
+             "initial partition: regions below this fraction merge into a neighbour (§3.6)");
+  parser.Add("colour-merge-distance", &sp.colour_merge_distance,
+             "initial partition: similar-colour merge distance (Delta E, §3.6)");
+  parser.Add("texton-stride", &options.texton_stride, "textons on every N-th pixel in x and y");
+  parser.Add("background-threshold", &options.background_threshold,
+             "a region is background when its best classifier score exceeds this");
+  parser.Add("po-theta-complexity", &po.theta_complexity, "theta_B of eq. 3.6 (seed: 18)");
+  parser.Add("po-theta-cohesion", &po.theta_cohesion, "theta_C of eq. 3.6 (seed: 3.5)");
+  parser.Add("po-alpha", &po.alpha, "alpha of eq. 3.13 (seed: 20)");
+  parser.Add("po-beta", &po.beta, "beta of eq. 3.13 (seed: 3)");
+  parser.Add("po-complexity-step", &po.complexity_step, "s of eq. 3.8 (contour pixels)");
+  parser.Add("po-complexity-window", &po.complexity_window, "k of eq. 3.8 (steps)");
+  parser.Add("po-symmetry-tolerance", &po.symmetry_tolerance,
+             "eq. 3.11: centroid heights equal within this fraction of the shorter part");
+  parser.Add("po-alignment-extension", &po.alignment_extension,
+             "eq. 3.12: extension beyond each end, fraction of the common boundary's chord");
+  parser.Add("po-alignment-tolerance", &po.alignment_tolerance,
+             "eq. 3.12: aligned when at most this share of the extension touches either part");
+  parser.Add("po-enclosed-fraction", &po.enclosed_fraction,
+             "a part sharing this much of its boundary with a neighbour is enclosed by it");
+  parser.Add("po-max-subset", &po.max_subset, "Algorithm 1: neighbours tested together (1, 2)");
+  parser.Add("po-max-rounds", &po.max_rounds, "Algorithm 2: rounds");
+  parser.Add("po-round-colour-merge", &po.round_colour_merge_distance,
+             "Algorithm 2: similar-colour merge between rounds (Delta E; 0: none)");
+  parser.Add("po-merge-background", &po.merge_background,
+             "merge adjacent background regions of one class at the end");
+  parser.AddSwitch("quiet", &quiet, "no progress line");
+  parser.AddSwitch("verbose", &verbose, "one line per image: parts per round, segments, IoU");
+  bool help = false;
+  const Status parsed = parser.Parse(argc, argv, 2, &help);
+  if (help) {
+    std::printf("%s\n", parser.Help().c_str());
+    return 0;
+  }
+  std::string error;
+  if (!parsed.ok() || !options.Check(&error)) {
+    std::fprintf(stderr, "placerec-eval segment: %s\n",
+                 parsed.ok() ? error.c_str() : parsed.message().c_str());
+    return 2;
+  }
+  bool ok_k = false;
+  bool ok_min = false;
+  const std::vector<double> ks = ParseList(grid_k, &ok_k);
+  const std::vector<double> mins = ParseList(grid_min, &ok_min);
+  if (baseline && (!ok_k || !ok_min)) {
+    std::fprintf(stderr, "placerec-eval segment: --grid-k and --grid-min take numbers a,b,c\n");
+    return 2;
+  }
+  if (!PathExists(dataset)) {
+    const std::string under = default_data_dir + "/" + dataset;
+    if (PathExists(under)) dataset = under;
+  }
+  StatusOr<std::vector<std::string>> ids = ReadSplit(dataset, split);
+  StatusOr<ClassTable> table = ReadClassTable(dataset);
+  if (!ids.ok() || !table.ok()) {
+    std::fprintf(stderr, "placerec-eval segment: %s\n",
+                 (!ids.ok() ? ids.status() : table.status()).ToString().c_str());
+    return 1;
+  }
+  if (max_images > 0 && static_cast<int>(ids->size()) > max_images) ids->resize(max_images);
+  StatusOr<SceneOrganizer> organizer = SceneOrganizer::Create(options);
+  if (!organizer.ok()) {
+    std::fprintf(stderr, "placerec-eval segment: %s\n", organizer.status().ToString().c_str());
+    return 1;
+  }
+  for (const char* sub : {"segments", "classes", "overlays"}) {
+    if (!MakeDirectories(out + "/" + sub)) {
+      std::fprintf(stderr, "placerec-eval segment: cannot create %s/%s\n", out.c_str(), sub);
+      return 1;
+    }
+  }
+  cv::setNumThreads(1);
+
+  std::vector<GridSetting> grid;
+  if (baseline) {
+    for (const double k : ks) {
+      for (const double m : mins) grid.push_back({k, static_cast<int>(m), {}});
+    }
+  }
+  ObjectScoreSummary po_score;
+  BackgroundAccuracy background;
+  PixelClassAccuracy pixels;
+  std::map<std::string, double> stage_ms;
+  int scored_images = 0;
+  int64_t segments_total = 0;
+  std::vector<size_t> overlay_at;
+  for (int i = 0; i < overlays && !ids->empty(); ++i) {
+    overlay_at.push_back(static_cast<size_t>(i) * ids->size() / static_cast<size_t>(overlays));
+  }
+  Timer total_timer;
+  for (size_t i = 0; i < ids->size(); ++i) {
+    const std::string& id = (*ids)[i];
+    StatusOr<LabelledImage> image = ReadLabelledImage(dataset, id);
+    if (!image.ok()) {
+      std::fprintf(stderr, "placerec-eval segment: %s\n", image.status().ToString().c_str());
+      return 1;
+    }
+    Timer timer;
+    const WorkingImage working = MakeWorkingImage(image->bgr, sp.working_width);
+    SceneOrganizerSummary summary;
+    const SceneSegmentation segmentation = organizer->Segment(working, &summary);
+    stage_ms["total"] += timer.ElapsedMs();
+    for (const auto& [stage, ms] : summary.timings) stage_ms[stage] += ms;
+    segments_total += segmentation.size();
+    if (segmentation.size() > 65535) {
+      std::fprintf(stderr, "placerec-eval segment: %s has more than 65535 segments\n",
+                   id.c_str());
+      return 1;
+    }
+    const cv::Mat segments = ToOriginal(segmentation.labels, image->bgr.size());
+    cv::Mat ids16(segments.size(), CV_16U);
+    cv::Mat classes8(segments.size(), CV_8U);
+    for (int y = 0; y < segments.rows; ++y) {
+      const int* s = segments.ptr<int>(y);
+      uint16_t* o16 = ids16.ptr<uint16_t>(y);
+      uint8_t* o8 = classes8.ptr<uint8_t>(y);
+      for (int x = 0; x < segments.cols; ++x) {
+        o16[x] = static_cast<uint16_t>(s[x] + 1);
+        o8[x] = static_cast<uint8_t>(segmentation.classes[s[x]]);
+      }
+    }
+    if (!cv::imwrite(out + "/segments/" + id + ".png", ids16) ||
+        !cv::imwrite(out + "/classes/" + id + ".png", classes8)) {
+      std::fprintf(stderr, "placerec-eval segment: cannot write %s's pictures\n", id.c_str());
+      return 1;
+    }
+    const cv::Mat objects = image->objects.empty() ? cv::Mat() : LayerAtSize(image->objects,
+                                                                              segments.size());
+    const cv::Mat gt_classes =
+        image->classes.empty() ? cv::Mat() : LayerAtSize(image->classes, segments.size());
+    if (std::find(overlay_at.begin(), overlay_at.end(), i) != overlay_at.end()) {
+      cv::imwrite(out + "/overlays/" + id + ".png",
+                  DrawOverlay(image->bgr, segments, segmentation.classes, objects));
+    }
+    if (!objects.empty()) {
+      ++scored_images;
+      const std::vector<ObjectScore> scores =
+          ScoreObjects(segments, objects, gt_classes, *table, min_object_fraction);
+      po_score.Add(scores, *table);
+      if (verbose) {
+        double sum = 0;
+        for (const ObjectScore& s : scores) sum += s.iou;
+        std::string rounds;
+        for (const int p : summary.organization.parts) rounds += " " + std::to_string(p);
+        std::fprintf(stderr, "%s: %d superpixels (%d background), structured parts per round:%s,"
+                     " %d segments, mean IoU %.1f over %zu objects\n",
+                     id.c_str(), summary.superpixels, summary.background_superpixels,
+                     rounds.c_str(), segmentation.size(),
+                     scores.empty() ? 0.0 : 100.0 * sum / scores.size(), scores.size());
+      }
+      for (GridSetting& setting : grid) {
+        SuperpixelOptions baseline_options = sp;
+        // Settings are given at 320x240; SuperpixelOptions are at 640x480, scaled by area.
+        baseline_options.k = setting.k * 4.0;
+        baseline_options.min_size = setting.min_size * 4;
+        const SceneSegmentation superpixels = ComputeSuperpixels(working, baseline_options);
+        setting.score.Add(ScoreObjects(ToOriginal(superpixels.labels, image->bgr.size()),
+                                       objects, gt_classes, *table, min_object_fraction),
+                          *table);
+      }
+      if (!gt_classes.empty() && !table->empty()) {
+        // Seed Table 6.4 protocol: ground-truth regions, described and classified.
+        const cv::Size working_size = working.bgr.size();
+        const cv::Mat working_objects = LayerAtSize(image->objects, working_size);
+        cv::Mat regions(working_size, CV_32S);
+        std::map<int, int> compact;
+        for (int y = 0; y < regions.rows; ++y) {
+          const int* o = working_objects.ptr<int>(y);
+          int* r = regions.ptr<int>(y);
+          for (int x = 0; x < regions.cols; ++x) {
+            r[x] = o[x] <= 0 ? -1
+                             : compact.emplace(o[x], static_cast<int>(compact.size()))
+                                   .first->second;
+          }
+        }
+        const int n = static_cast<int>(compact.size());
+        const cv::Mat appearance = organizer->Appearance(organizer->Features(working), regions, n);
+        std::vector<int> majority;
+        const std::vector<int> labels =
+            RegionLabels(regions, n, LayerAtSize(image->classes, working_size), *table, 0.5,
+                         &majority);
+        background.Add(organizer->model().classifier.Scores(appearance), labels, majority,
+                       RegionAreas(regions, n), *table, options.background_threshold);
+        pixels.Add(segments, segmentation.classes, gt_classes, *table);
+      }
+    }
+    if (!quiet && ((i + 1) % 10 == 0 || i + 1 == ids->size())) {
+      std::fprintf(stderr, "\rsegmented %zu/%zu", i + 1, ids->size());
+      if (i + 1 == ids->size()) std::fprintf(stderr, "\n");
+    }
+  }
+
+  nlohmann::json report;
+  report["dataset"] = dataset;
+  report["split"] = split;
+  report["images"] = static_cast<int>(ids->size());
+  report["scored_images"] = scored_images;
+  report["mean_segments_per_image"] =
+      ids->empty() ? 0.0 : static_cast<double>(segments_total) / static_cast<double>(ids->size());
+  report["min_object_fraction"] = min_object_fraction;
+  nlohmann::json& opts = report["options"];
+  opts["models_dir"] = options.models_dir.empty() ? DefaultModelsDir() : options.models_dir;
+  opts["working_width"] = sp.working_width;
+  opts["fh"] = {{"sigma", sp.sigma},
+                {"k_640x480", sp.k},
+                {"min_size_640x480", sp.min_size},
+                {"min_region_fraction", sp.min_region_fraction},
+                {"colour_merge_distance", sp.colour_merge_distance}};
+  opts["texton_stride"] = options.texton_stride;
+  opts["background_threshold"] = options.background_threshold;
+  opts["organization"] = {{"theta", {po.theta_complexity, po.theta_cohesion}},
+                          {"alpha", po.alpha},
+                          {"beta", po.beta},
+                          {"complexity_step", po.complexity_step},
+                          {"complexity_window", po.complexity_window},
+                          {"symmetry_tolerance", po.symmetry_tolerance},
+                          {"alignment_extension", po.alignment_extension},
+                          {"alignment_tolerance", po.alignment_tolerance},
+                          {"enclosed_fraction", po.enclosed_fraction},
+                          {"max_subset", po.max_subset},
+                          {"max_rounds", po.max_rounds},
+                          {"round_colour_merge_distance", po.round_colour_merge_distance},
+                          {"merge_background", po.merge_background}};
+  for (const auto& [stage, ms] : stage_ms) {
+    report["mean_ms"][stage] = ids->empty() ? 0.0 : ms / static_cast<double>(ids->size());
+  }
+  if (scored_images > 0) {
+    report["perceptual_organization"] = po_score.ToJson();
+    if (!grid.empty()) {
+      const GridSetting* best = &grid[0];
+      nlohmann::json settings = nlohmann::json::array();
+      for (const GridSetting& setting : grid) {
+        settings.push_back({{"k_320x240", setting.k},
+                            {"min_size_320x240", setting.min_size},
+                            {"mean_iou", setting.score.Mean()}});
+        if (setting.score.Mean() > best->score.Mean()) best = &setting;
+      }
+      report["superpixels"]["grid"] = settings;
+      report["superpixels"]["best"] = best->score.ToJson();
+      report["superpixels"]["best"]["k_320x240"] = best->k;
+      report["superpixels"]["best"]["min_size_320x240"] = best->min_size;
+    }
+    if (background.total > 0) {
+      report["background"]["ground_truth_regions"] = background.ToJson();
+      report["background"]["output_pixels"] = pixels.ToJson();
+    }
+  } else {
+    report["note"] = "no ground truth (objects/) in the dataset: nothing scored";
+  }
+  report["seconds"] = total_timer.ElapsedMs() / 1000.0;
+  std::ofstream file(out + "/segmentation.json");
+  file << report.dump(2) << "\n";
+  if (!file) {
+    std::fprintf(stderr, "placerec-eval segment: cannot write %s/segmentation.json\n",
+                 out.c_str());
+    return 1;
+  }
+  std::printf("%s: %zu images, %.1f segments per image, %.1f ms per image\n", split.c_str(),
+              ids->size(), report["mean_segments_per_image"].get<double>(),
+              report["mean_ms"].value("total", 0.0));
+  if (scored_images > 0) {
+    auto line = [](const char* name, const nlohmann::json& j) {
+      const nlohmann::json& classes = j["classes"];
+      auto of = [&classes](const char* c) {
+        return classes.contains(c) ? classes[c]["mean_iou"].get<double>() : -1.0;
+      };
+      std::printf("  %-24s mean %.1f %% over %d objects (building %.1f, foreground %.1f)\n",
+                  name, j["mean_iou"].get<double>(), j["objects"].get<int>(), of("building"),
+                  of("foreground"));
+    };
+    line("perceptual organization", report["perceptual_organization"]);
+    if (report.contains("superpixels")) line("superpixels (best FH)", report["superpixels"]["best"]);
+  }
+  std::printf("  wrote %s/segments, classes, overlays, segmentation.json\n", out.c_str());
+  return 0;
+}
+
+}  // namespace placerec
