@@ -20,6 +20,10 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/image/image.h"
+#include "common/organization/filter_bank.h"
+#include "common/organization/perceptual_organization.h"
+#include "common/organization/scene_organizer.h"
+#include "common/organization/textons.h"
 #include "common/pipeline/frame_analyzer.h"
 #include "common/pipeline/place_map.h"
 #include "common/pipeline/recognizer.h"
@@ -293,6 +297,126 @@ void BM_Retrieval(benchmark::State& state) {
 }
 BENCHMARK(BM_Retrieval)->Arg(1000)->Arg(10000)->Arg(100000)->Unit(benchmark::kMillisecond);
 
+// ---- Perceptual Organization segmentation (seed Ch. 3), stage by stage on the frame ----
+
+// The shipped models (models/ or PLACEREC_MODELS) and the frame's intermediate results, computed
+// once so that each stage is timed on its own input. Null when the models are missing.
+struct OrganizationFixture {
+  OrganizationFixture() {
+    StatusOr<SceneOrganizer> created = SceneOrganizer::Create(SceneOrganizerOptions());
+    if (!created.ok()) {
+      error = created.status().ToString();
+      return;
+    }
+    organizer = std::make_unique<SceneOrganizer>(std::move(*created));
+    const SceneOrganizerOptions& options = organizer->options();
+    working = MakeWorkingImage(Data().frame, options.superpixels.working_width);
+    features = organizer->Features(working);
+    parts = organizer->ClassifiedSuperpixels(working);
+    assigner = std::make_unique<TextonAssigner>(organizer->model().textons);
+    map = ComputeTextonMap(features, *assigner, options.texton_stride);
+    appearance = RegionAppearance(parts.labels, parts.size(), map, features, *assigner);
+  }
+  std::string error;
+  std::unique_ptr<SceneOrganizer> organizer;
+  std::unique_ptr<TextonAssigner> assigner;
+  WorkingImage working;
+  cv::Mat features;
+  TextonMap map;
+  cv::Mat appearance;
+  SceneSegmentation parts;  // classified superpixels
+};
+
+OrganizationFixture* Organization(benchmark::State& state) {
+  static OrganizationFixture fixture;
+  if (fixture.organizer == nullptr) {
+    state.SkipWithError(("no background models: " + fixture.error).c_str());
+    return nullptr;
+  }
+  return &fixture;
+}
+
+// Improved superpixels (FH plus small-region and similar-colour merges, seed §3.6) at the
+// working resolution, the working image (resize, Lab) included.
+void BM_OrgSuperpixels(benchmark::State& state) {
+  OrganizationFixture* o = Organization(state);
+  if (o == nullptr) return;
+  const SuperpixelOptions& options = o->organizer->options().superpixels;
+  for (auto _ : state) {
+    const WorkingImage working = MakeWorkingImage(Data().frame, options.working_width);
+    SceneSegmentation superpixels = ComputeSuperpixels(working, options);
+    benchmark::DoNotOptimize(superpixels.labels.data);
+  }
+  state.counters["superpixels"] = o->parts.size();
+}
+BENCHMARK(BM_OrgSuperpixels)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// The 17 filters plus Lab (seed §4.1.1) on the working image.
+void BM_OrgFilterBank(benchmark::State& state) {
+  OrganizationFixture* o = Organization(state);
+  if (o == nullptr) return;
+  for (auto _ : state) {
+    cv::Mat features = ComputeFilterBank(o->working.lab);
+    benchmark::DoNotOptimize(features.data);
+  }
+}
+BENCHMARK(BM_OrgFilterBank)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// Nearest of the 150 textons on the stride grid, then the 151-d appearance of every superpixel.
+void BM_OrgTextons(benchmark::State& state) {
+  OrganizationFixture* o = Organization(state);
+  if (o == nullptr) return;
+  const int stride = o->organizer->options().texton_stride;
+  for (auto _ : state) {
+    const TextonMap map = ComputeTextonMap(o->features, *o->assigner, stride);
+    cv::Mat appearance =
+        RegionAppearance(o->parts.labels, o->parts.size(), map, o->features, *o->assigner);
+    benchmark::DoNotOptimize(appearance.data);
+  }
+}
+BENCHMARK(BM_OrgTextons)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// The five boosted classifiers on every superpixel.
+void BM_OrgClassifiers(benchmark::State& state) {
+  OrganizationFixture* o = Organization(state);
+  if (o == nullptr) return;
+  for (auto _ : state) {
+    std::vector<SegmentClass> classes = o->organizer->model().classifier.Classify(
+        o->appearance, o->organizer->options().background_threshold);
+    benchmark::DoNotOptimize(classes.data());
+  }
+}
+BENCHMARK(BM_OrgClassifiers)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// Algorithm 2 (rounds of Algorithm 1) and the final merges on the classified superpixels.
+void BM_OrgPerceptualOrganization(benchmark::State& state) {
+  OrganizationFixture* o = Organization(state);
+  if (o == nullptr) return;
+  int segments = 0;
+  for (auto _ : state) {
+    SceneSegmentation scene = OrganizeScene(o->parts.labels, o->parts.classes, o->working.lab,
+                                            o->organizer->options().organization);
+    segments = scene.size();
+    benchmark::DoNotOptimize(scene.labels.data);
+  }
+  state.counters["segments"] = segments;
+}
+BENCHMARK(BM_OrgPerceptualOrganization)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// The whole segmentation of a 640x480 frame: working image, superpixels, filter bank, textons,
+// classifiers and Perceptual Organization (what SceneOrganizer::Segment does per frame).
+void BM_OrgWholeSegmentation(benchmark::State& state) {
+  OrganizationFixture* o = Organization(state);
+  if (o == nullptr) return;
+  const int width = o->organizer->options().superpixels.working_width;
+  for (auto _ : state) {
+    const WorkingImage working = MakeWorkingImage(Data().frame, width);
+    SceneSegmentation scene = o->organizer->Segment(working);
+    benchmark::DoNotOptimize(scene.labels.data);
+  }
+}
+BENCHMARK(BM_OrgWholeSegmentation)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
 // Collects mean real time per benchmark so that ratios can be printed after the run.
 class RatioReporter : public benchmark::ConsoleReporter {
  public:
@@ -328,9 +452,11 @@ int main(int argc, char** argv) {
         "\nRatios to OpenCV SIFT in this run (stages: frame Image120; pipeline: the same "
         "40 frames as the SIFT reference):\n");
     for (const char* name : {"BM_StageFeatures", "BM_StageSegmentation", "BM_StageAnalyze",
-                             "BM_StageLandmarks", "BM_Pipeline"}) {
+                             "BM_StageLandmarks", "BM_Pipeline", "BM_OrgSuperpixels",
+                             "BM_OrgFilterBank", "BM_OrgTextons", "BM_OrgClassifiers",
+                             "BM_OrgPerceptualOrganization", "BM_OrgWholeSegmentation"}) {
       const auto it = t.find(name);
-      if (it != t.end()) std::printf("  %-22s %6.2f\n", name, it->second / sift->second);
+      if (it != t.end()) std::printf("  %-30s %6.2f\n", name, it->second / sift->second);
     }
   }
   const auto r10k = t.find("BM_Retrieval/10000");
