@@ -12,8 +12,8 @@
 namespace placerec {
 
 FrameProcessor::FrameProcessor(const RecognizerOptions& options, const DecodeOptions& decode,
-                               PlaceMap* map)
-    : decode_(decode), map_(map), recognizer_(options, map) {}
+                               PlaceMap* map, std::unique_ptr<Segmenter> segmenter)
+    : decode_(decode), map_(map), recognizer_(options, map, std::move(segmenter)) {}
 
 result_t FrameProcessor::Process(const frame_t& frame) {
   try {

@@ -13,8 +13,9 @@ namespace placerec {
 
 class FrameProcessor {
  public:
-  // `map` must outlive the processor.
-  FrameProcessor(const RecognizerOptions& options, const DecodeOptions& decode, PlaceMap* map);
+  // `map` must outlive the processor; a null `segmenter` is made from the options.
+  FrameProcessor(const RecognizerOptions& options, const DecodeOptions& decode, PlaceMap* map,
+                 std::unique_ptr<Segmenter> segmenter = nullptr);
 
   // Frames of one robot must come one at a time and in order; frames of different robots may be
   // processed from different threads at once (Recognizer's contract).

@@ -59,12 +59,14 @@ bool ServerOptions::Check(std::string* error) const {
 StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
   std::string error;
   if (!options.Check(&error)) return Status::InvalidArgument(error);
+  StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.recognizer.analyzer);
+  if (!segmenter.ok()) return segmenter.status();
   StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(options.db_path, options.store);
   if (!store.ok()) return store.status();
   StatusOr<std::unique_ptr<PlaceMap>> map =
       PlaceMap::Open(std::move(*store), options.recognizer.index);
   if (!map.ok()) return map.status();
-  std::unique_ptr<Server> server(new Server(options, std::move(*map)));
+  std::unique_ptr<Server> server(new Server(options, std::move(*map), std::move(*segmenter)));
   if (!server->lcm_.good()) {
     return Status::IoError("cannot open LCM (" + DescribeUrl(options.lcm_url) +
                            "); check the URL and that the network has multicast");
@@ -72,10 +74,11 @@ StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
   return server;
 }
 
-Server::Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map)
+Server::Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map,
+               std::unique_ptr<Segmenter> segmenter)
     : options_(options),
       map_(std::move(map)),
-      processor_(options.recognizer, options.decode, map_.get()),
+      processor_(options.recognizer, options.decode, map_.get(), std::move(segmenter)),
       lcm_(options.lcm_url) {
   queue_ = std::make_unique<LaneWorkQueue<Job>>(options_.workers, options_.queue_capacity,
                                                 [this](Job& job) { Work(job); });

@@ -70,7 +70,8 @@ class Server {
     Timer received;  // since the message arrived
   };
 
-  Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map);
+  Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map,
+         std::unique_ptr<Segmenter> segmenter);
   void OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string& channel);
   void Work(Job& job);
   // Publishes `answer` on its robot's channel; `processed` says whether a worker ran the frame.

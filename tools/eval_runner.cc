@@ -35,9 +35,13 @@ std::string Fixed(double value, int digits) {
 nlohmann::json OptionsJson(const RecognizerOptions& o) {
   nlohmann::json j;
   j["max_image_width"] = o.analyzer.max_image_width;
-  j["segmentation_width"] = o.analyzer.superpixels.working_width;
-  j["fh_k"] = o.analyzer.superpixels.k;
-  j["fh_min_size"] = o.analyzer.superpixels.min_size;
+  const bool organization = o.analyzer.segmentation == SegmentationMethod::kOrganization;
+  const SuperpixelOptions& superpixels =
+      organization ? o.analyzer.organization.superpixels : o.analyzer.superpixels;
+  j["segmentation"] = organization ? "organization" : "superpixels";
+  j["segmentation_width"] = superpixels.working_width;
+  j["fh_k"] = superpixels.k;
+  j["fh_min_size"] = superpixels.min_size;
   j["colour_merge_distance"] = o.analyzer.superpixels.colour_merge_distance;
   j["sift_contrast_threshold"] = o.analyzer.features.contrast_threshold;
   j["object_min_keypoints"] = o.analyzer.objects.min_keypoints;
@@ -73,7 +77,9 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
   if (!store.ok()) return store.status();
   StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
   if (!map.ok()) return map.status();
-  Recognizer recognizer(options, map->get(), eval.make_segmenter ? eval.make_segmenter() : nullptr);
+  StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.analyzer);
+  if (!segmenter.ok()) return segmenter.status();
+  Recognizer recognizer(options, map->get(), std::move(*segmenter));
 
   const int frames = eval.max_frames > 0 ? std::min<int>(eval.max_frames, run.frames.size())
                                          : static_cast<int>(run.frames.size());

@@ -23,8 +23,6 @@ struct EvalOptions {
   bool progress = true;              // a progress line on stderr
   bool print_loop_closures = false;  // one stdout line per loop closure as it is found
   int max_frames = 0;                // stop after this many frames (0: all)
-  // Segmentation used by the analyzer; null means superpixels.
-  std::function<std::unique_ptr<Segmenter>()> make_segmenter;
 };
 
 struct EvalReport {

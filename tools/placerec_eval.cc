@@ -140,7 +140,12 @@ int AnalyzeCommand(int argc, char** argv) {
     std::fprintf(stderr, "placerec-eval analyze: cannot create %s\n", out.c_str());
     return 1;
   }
-  const FrameAnalyzer analyzer(options.analyzer);
+  StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.analyzer);
+  if (!segmenter.ok()) {
+    std::fprintf(stderr, "placerec-eval analyze: %s\n", segmenter.status().message().c_str());
+    return 1;
+  }
+  const FrameAnalyzer analyzer(options.analyzer, std::move(*segmenter));
   for (const std::string& path : images) {
     StatusOr<cv::Mat> image = ReadImageFile(path);
     if (!image.ok()) {

@@ -16,5 +16,7 @@ std::ostream& operator<<(std::ostream& os, QueryObjects value);
 std::istream& operator>>(std::istream& is, QueryObjects& value);
 std::ostream& operator<<(std::ostream& os, IndexSearch value);
 std::istream& operator>>(std::istream& is, IndexSearch& value);
+std::ostream& operator<<(std::ostream& os, SegmentationMethod value);
+std::istream& operator>>(std::istream& is, SegmentationMethod& value);
 
 }  // namespace placerec

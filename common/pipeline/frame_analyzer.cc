@@ -19,13 +19,34 @@ bool AnalyzerOptions::Check(std::string* error) const {
     *error = "min_frame_chroma must be non-negative";
     return false;
   }
-  return features.Check(error) && superpixels.Check(error) && colour.Check(error) &&
-         objects.Check(error);
+  return features.Check(error) && superpixels.Check(error) && organization.Check(error) &&
+         colour.Check(error) && objects.Check(error);
+}
+
+StatusOr<std::unique_ptr<Segmenter>> MakeSegmenter(const AnalyzerOptions& options) {
+  std::unique_ptr<Segmenter> segmenter;
+  if (options.segmentation == SegmentationMethod::kSuperpixels) {
+    segmenter = std::make_unique<SuperpixelSegmenter>(options.superpixels);
+    return segmenter;
+  }
+  StatusOr<SceneOrganizer> organizer = SceneOrganizer::Create(options.organization);
+  if (!organizer.ok()) {
+    return Status(organizer.status().code(),
+                  "Perceptual Organization segmentation: " + organizer.status().message() +
+                      " (train the models with placerec-train background, point --models-dir "
+                      "or PLACEREC_MODELS at them, or use --segmentation superpixels)");
+  }
+  segmenter = std::make_unique<OrganizationSegmenter>(std::move(*organizer));
+  return segmenter;
 }
 
 FrameAnalyzer::FrameAnalyzer(const AnalyzerOptions& options, std::unique_ptr<Segmenter> segmenter)
     : options_(options), segmenter_(std::move(segmenter)) {
-  if (!segmenter_) segmenter_ = std::make_unique<SuperpixelSegmenter>(options_.superpixels);
+  if (!segmenter_) {
+    StatusOr<std::unique_ptr<Segmenter>> made = MakeSegmenter(options_);
+    CHECK(made.ok()) << made.status().message();
+    segmenter_ = std::move(*made);
+  }
 }
 
 namespace {
@@ -55,7 +76,7 @@ FrameObservation FrameAnalyzer::Analyze(const cv::Mat& bgr) const {
   observation.timings.emplace_back("sift", timer.ElapsedMs());
 
   timer.Restart();
-  const WorkingImage working = MakeWorkingImage(frame, options_.superpixels.working_width);
+  const WorkingImage working = MakeWorkingImage(frame, segmenter_->working_width());
   observation.segmentation = segmenter_->Segment(working);
   observation.timings.emplace_back("segmentation", timer.ElapsedMs());
 

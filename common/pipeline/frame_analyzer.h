@@ -1,6 +1,6 @@
 // Pipeline steps 1-6 for one frame, without any state: scale, SIFT, segmentation, colour
-// invariant and objects. Segmentation is pluggable: superpixels now, Perceptual Organization
-// (seed Ch. 3) later, with nothing downstream changing.
+// invariant and objects. Segmentation is pluggable: Perceptual Organization (seed Ch. 3) by
+// default, superpixels alone as the lighter alternative, with nothing downstream changing.
 #pragma once
 
 #include <memory>
@@ -12,8 +12,10 @@
 #include "common/features/features.h"
 #include "common/image/image.h"
 #include "common/objects/objects.h"
+#include "common/organization/scene_organizer.h"
 #include "common/segmentation/segmentation.h"
 #include "common/segmentation/superpixels.h"
+#include "common/util/status.h"
 #include "common/util/timer.h"
 
 namespace placerec {
@@ -24,6 +26,8 @@ class Segmenter {
   virtual ~Segmenter() = default;
   virtual SceneSegmentation Segment(const WorkingImage& image) const = 0;
   virtual std::string name() const = 0;
+  // Width of the working image Segment expects (pixels; 0: the frame's own).
+  virtual int working_width() const = 0;
 };
 
 // Improved superpixels (seed §3.6) as the segmentation, every segment structured.
@@ -32,18 +36,43 @@ class SuperpixelSegmenter : public Segmenter {
   explicit SuperpixelSegmenter(const SuperpixelOptions& options) : options_(options) {}
   SceneSegmentation Segment(const WorkingImage& image) const override;
   std::string name() const override { return "superpixels"; }
+  int working_width() const override { return options_.working_width; }
 
  private:
   SuperpixelOptions options_;
+};
+
+// Perceptual Organization (seed Ch. 3): superpixels, background identification, grouping of the
+// structured parts into objects. Background regions keep their class, so that objects.h can
+// leave them out of the landmarks.
+class OrganizationSegmenter : public Segmenter {
+ public:
+  explicit OrganizationSegmenter(SceneOrganizer organizer) : organizer_(std::move(organizer)) {}
+  SceneSegmentation Segment(const WorkingImage& image) const override {
+    return organizer_.Segment(image);
+  }
+  std::string name() const override { return "organization"; }
+  int working_width() const override { return organizer_.options().superpixels.working_width; }
+
+ private:
+  SceneOrganizer organizer_;
+};
+
+enum class SegmentationMethod {
+  kOrganization,  // Perceptual Organization (seed Ch. 3), the default
+  kSuperpixels,   // improved superpixels alone (seed §3.6), coarser, every segment structured
 };
 
 struct AnalyzerOptions {
   // Frames wider than this are scaled down (pixels) before SIFT; 0 keeps the frame's size.
   int max_image_width = 0;
   FeatureOptions features;
-  // Until Perceptual Organization groups object parts into objects, superpixels serve as the
-  // objects, so they are four times coarser than the seed's initial partition (k 1200 instead
-  // of 300 at 640x480): segments of that size hold enough keypoints to be matched as objects.
+  SegmentationMethod segmentation = SegmentationMethod::kOrganization;
+  // kOrganization: the initial partition (seed values), models and grouping parameters.
+  SceneOrganizerOptions organization;
+  // kSuperpixels: superpixels serve as the objects, so they are four times coarser than the
+  // seed's initial partition (k 1200 instead of 300 at 640x480): segments of that size hold
+  // enough keypoints to be matched as objects.
   SuperpixelOptions superpixels = [] {
     SuperpixelOptions o;
     o.k = 1200.0;
@@ -70,9 +99,14 @@ struct FrameObservation {
   StageTimings timings;  // milliseconds per stage
 };
 
+// The segmenter `options.segmentation` names; kOrganization loads the trained models
+// (options.organization.models_dir) and fails with a message saying what is missing.
+StatusOr<std::unique_ptr<Segmenter>> MakeSegmenter(const AnalyzerOptions& options);
+
 class FrameAnalyzer {
  public:
-  // Uses superpixels when `segmenter` is null.
+  // When `segmenter` is null, MakeSegmenter(options) builds it; a failure to load the models is
+  // then fatal, so callers that want to report it call MakeSegmenter themselves.
   explicit FrameAnalyzer(const AnalyzerOptions& options,
                          std::unique_ptr<Segmenter> segmenter = nullptr);
 

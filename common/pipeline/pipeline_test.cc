@@ -47,8 +47,19 @@ cv::Mat View(const cv::Mat& world, int x) {
   return world(cv::Rect(x, 0, kViewWidth, world.rows)).clone();
 }
 
+// The synthetic street is not a scene the background classifiers were trained on (flat sky and
+// ground colours, rectangles touching each other), so these tests of the stages downstream of
+// segmentation use superpixels as objects; Perceptual Organization is tested in
+// common/organization and on real frames in tests/.
+AnalyzerOptions SyntheticAnalyzerOptions() {
+  AnalyzerOptions options;
+  options.segmentation = SegmentationMethod::kSuperpixels;
+  return options;
+}
+
 RecognizerOptions TestOptions() {
   RecognizerOptions options;
+  options.analyzer = SyntheticAnalyzerOptions();
   // Views 4 steps apart do not overlap: a robot's own places that close are not revisits.
   options.loop.min_same_robot_gap = 4;
   return options;
@@ -63,9 +74,22 @@ TEST(PipelineOptionsTest, DefaultsPass) {
   EXPECT_NE(error.find("max_image_width"), std::string::npos);
 }
 
+TEST(FrameAnalyzerTest, MissingModelsSayWhatToDo) {
+  AnalyzerOptions options;
+  options.organization.models_dir = ::testing::TempDir() + "/no_such_models_dir";
+  const StatusOr<std::unique_ptr<Segmenter>> organization = MakeSegmenter(options);
+  ASSERT_FALSE(organization.ok());
+  EXPECT_NE(organization.status().message().find("placerec-train background"), std::string::npos)
+      << organization.status().message();
+  options.segmentation = SegmentationMethod::kSuperpixels;
+  const StatusOr<std::unique_ptr<Segmenter>> superpixels = MakeSegmenter(options);
+  ASSERT_TRUE(superpixels.ok()) << superpixels.status().message();
+  EXPECT_EQ((*superpixels)->name(), "superpixels");
+}
+
 TEST(FrameAnalyzerTest, FindsObjectsOnTexturedBuildings) {
   const cv::Mat world = World(1);
-  const FrameAnalyzer analyzer{AnalyzerOptions()};
+  const FrameAnalyzer analyzer{SyntheticAnalyzerOptions()};
   const FrameObservation observation = analyzer.Analyze(View(world, 300));
   EXPECT_GT(observation.features.size(), 50);
   EXPECT_GE(observation.objects.size(), 3u);
