@@ -277,6 +277,9 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
   }
 
   // 3. Five binary Gentle AdaBoost classifiers.
+  if (!config.appearance_extras) {
+    region_samples = region_samples.colRange(0, config.textons.k + 1).clone();
+  }
   BackgroundTrainingSummary boost_summary;
   const BackgroundClassifier classifier =
       BackgroundClassifier::Train(region_samples, region_labels, region_weights, config.boost,
@@ -398,6 +401,8 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
   classifiers["weight_trim_rate"] = config.boost.weight_trim_rate;
   classifiers["max_negatives_per_positive"] = config.boost.max_negatives_per_positive;
   classifiers["regions"] = region_samples.rows;
+  classifiers["features"] = region_samples.cols;
+  classifiers["appearance_extras"] = config.appearance_extras;
   classifiers["superpixel_region_count"] = superpixel_regions;
   classifiers["superpixel_regions"] = config.superpixel_regions;
   classifiers["ground_truth_regions"] = config.ground_truth_regions;

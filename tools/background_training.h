@@ -73,6 +73,9 @@ struct BackgroundTrainingConfig {
   // seed trains on ground-truth segments, §6.2.2).
   bool superpixel_regions = true;
   bool ground_truth_regions = true;
+  // Region features: the seed's texton histogram and height (false), or those plus the mean
+  // and standard deviation of each filter-bank feature (true, kAppearanceExtras; textons.h).
+  bool appearance_extras = true;
   // Superpixels whose labelled share is below this are left out; so are regions smaller than
   // min_region_pixels (working pixels).
   double min_labelled_fraction = 0.5;

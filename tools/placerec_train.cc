@@ -46,6 +46,9 @@ int BackgroundCommand(int argc, char** argv) {
   parser.Add("max-depth", &config.boost.max_depth, "depth of each boosted tree");
   parser.Add("negatives-per-positive", &config.boost.max_negatives_per_positive,
              "negatives drawn per positive region (0: all)");
+  parser.Add("appearance-extras", &config.appearance_extras,
+             "region features: texton histogram and height plus the mean and standard deviation "
+             "of the 20 filter-bank features (false: the seed's 151 numbers only)");
   parser.Add("superpixel-regions", &config.superpixel_regions, "train on superpixels");
   parser.Add("ground-truth-regions", &config.ground_truth_regions,
              "also train on ground-truth object regions");

@@ -56,7 +56,11 @@ std::vector<ObjectScore> ScoreObjects(const cv::Mat& segments, const cv::Mat& ob
     for (const auto& [segment, inter] : overlap[object]) {
       const double iou =
           static_cast<double>(inter) / static_cast<double>(area + segment_area[segment] - inter);
-      score.iou = std::max(score.iou, iou);
+      if (iou > score.iou) {
+        score.iou = iou;
+        score.coverage = static_cast<double>(inter) / area;
+        score.purity = static_cast<double>(inter) / segment_area[segment];
+      }
     }
     int best_class = -1;
     int best_pixels = 0;
@@ -77,16 +81,17 @@ void ObjectScoreSummary::Add(const std::vector<ObjectScore>& scores, const Class
   for (const auto& [id, name] : table.names) {
     background_names[name] = IsBackground(table.BackgroundClass(id));
   }
+  auto add = [](const ObjectScore& s, Sum* sum) {
+    sum->iou += s.iou;
+    sum->coverage += s.coverage;
+    sum->purity += s.purity;
+    ++sum->objects;
+  };
   for (const ObjectScore& s : scores) {
-    all_.iou += s.iou;
-    ++all_.objects;
-    Sum& c = classes_[s.class_name];
-    c.iou += s.iou;
-    ++c.objects;
+    add(s, &all_);
+    add(s, &classes_[s.class_name]);
     if (s.class_name == "unknown") continue;
-    Sum& g = groups_[background_names[s.class_name] ? "background" : "structured"];
-    g.iou += s.iou;
-    ++g.objects;
+    add(s, &groups_[background_names[s.class_name] ? "background" : "structured"]);
   }
 }
 
@@ -96,8 +101,11 @@ double ObjectScoreSummary::Mean() const {
 
 nlohmann::json ObjectScoreSummary::ToJson() const {
   auto entry = [](const Sum& s) {
+    const double n = std::max(1, s.objects);
     return nlohmann::json{{"objects", s.objects},
-                          {"mean_iou", s.objects > 0 ? 100.0 * s.iou / s.objects : 0.0}};
+                          {"mean_iou", 100.0 * s.iou / n},
+                          {"mean_coverage", 100.0 * s.coverage / n},
+                          {"mean_purity", 100.0 * s.purity / n}};
   };
   nlohmann::json out = entry(all_);
   for (const auto& [name, sum] : classes_) out["classes"][name] = entry(sum);
@@ -258,6 +266,8 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   bool baseline = true;
   bool quiet = false;
   bool verbose = false;
+  bool oracle_classes = false;
+  bool oracle_grouping = false;
   OrganizationOptions& po = options.organization;
   SuperpixelOptions& sp = options.superpixels;
   FlagParser parser(
@@ -297,6 +307,9 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   parser.Add("texton-stride", &options.texton_stride, "textons on every N-th pixel in x and y");
   parser.Add("background-threshold", &options.background_threshold,
              "a region is background when its best classifier score exceeds this");
+  parser.Add("background-smoothing", &options.background_smoothing,
+             "weight of the neighbours' mean classifier scores in each superpixel's decision "
+             "(0: independent decisions)");
   parser.Add("po-theta-complexity", &po.theta_complexity, "theta_B of eq. 3.6 (seed: 18)");
   parser.Add("po-theta-cohesion", &po.theta_cohesion, "theta_C of eq. 3.6 (seed: 3.5)");
   parser.Add("po-alpha", &po.alpha, "alpha of eq. 3.13 (seed: 20)");
@@ -317,6 +330,13 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
              "Algorithm 2: similar-colour merge between rounds (Delta E; 0: none)");
   parser.Add("po-merge-background", &po.merge_background,
              "merge adjacent background regions of one class at the end");
+  parser.Add("oracle-classes", &oracle_classes,
+             "diagnosis only: superpixels take the background class of their ground-truth "
+             "majority class instead of the classifiers' decision (shows what perfect "
+             "background identification would give)");
+  parser.Add("oracle-grouping", &oracle_grouping,
+             "diagnosis only: the initial partition's regions are grouped by their majority "
+             "ground-truth object (the best any grouping of that partition can score)");
   parser.AddSwitch("quiet", &quiet, "no progress line");
   parser.AddSwitch("verbose", &verbose, "one line per image: parts per round, segments, IoU");
   bool help = false;
@@ -391,7 +411,56 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     Timer timer;
     const WorkingImage working = MakeWorkingImage(image->bgr, sp.working_width);
     SceneOrganizerSummary summary;
-    const SceneSegmentation segmentation = organizer->Segment(working, &summary);
+    SceneSegmentation segmentation;
+    if (oracle_classes && !image->classes.empty()) {
+      SceneSegmentation parts = organizer->ClassifiedSuperpixels(working);
+      const cv::Mat gt = LayerAtSize(image->classes, working.bgr.size());
+      const std::vector<int> labels =
+          RegionLabels(parts.labels, parts.size(), gt, *table, 0.0);
+      for (int r = 0; r < parts.size(); ++r) {
+        parts.classes[r] = labels[r] >= 0 && labels[r] < kBackgroundClasses
+                               ? static_cast<SegmentClass>(labels[r])
+                               : SegmentClass::kStructured;
+      }
+      segmentation = OrganizeScene(parts.labels, parts.classes, working.lab,
+                                   options.organization, &summary.organization);
+      segmentation.scale = working.scale;
+    } else if (oracle_grouping && !image->objects.empty()) {
+      segmentation = organizer->ClassifiedSuperpixels(working);
+      const cv::Mat gt = LayerAtSize(image->objects, working.bgr.size());
+      std::vector<std::map<int, int>> votes(static_cast<size_t>(segmentation.size()));
+      for (int y = 0; y < gt.rows; ++y) {
+        const int* g = gt.ptr<int>(y);
+        const int* l = segmentation.labels.ptr<int>(y);
+        for (int x = 0; x < gt.cols; ++x) ++votes[l[x]][g[x]];
+      }
+      std::map<int, int> group_of_object;
+      std::vector<int> group(votes.size());
+      for (size_t r = 0; r < votes.size(); ++r) {
+        int best = 0;
+        int best_votes = -1;
+        for (const auto& [object, count] : votes[r]) {
+          if (object > 0 && count > best_votes) {
+            best = object;
+            best_votes = count;
+          }
+        }
+        const int next_group = static_cast<int>(group_of_object.size());
+        group[r] = best > 0 ? group_of_object.emplace(best, next_group).first->second : -1;
+      }
+      int next = static_cast<int>(group_of_object.size());
+      for (int& g : group) {
+        if (g < 0) g = next++;
+      }
+      for (int y = 0; y < gt.rows; ++y) {
+        int* l = segmentation.labels.ptr<int>(y);
+        for (int x = 0; x < gt.cols; ++x) l[x] = group[l[x]];
+      }
+      segmentation.classes.assign(static_cast<size_t>(next), SegmentClass::kStructured);
+      segmentation.scale = working.scale;
+    } else {
+      segmentation = organizer->Segment(working, &summary);
+    }
     stage_ms["total"] += timer.ElapsedMs();
     for (const auto& [stage, ms] : summary.timings) stage_ms[stage] += ms;
     segments_total += segmentation.size();
@@ -500,7 +569,10 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
                 {"min_region_fraction", sp.min_region_fraction},
                 {"colour_merge_distance", sp.colour_merge_distance}};
   opts["texton_stride"] = options.texton_stride;
+  opts["oracle_classes"] = oracle_classes;
+  opts["oracle_grouping"] = oracle_grouping;
   opts["background_threshold"] = options.background_threshold;
+  opts["background_smoothing"] = options.background_smoothing;
   opts["organization"] = {{"theta", {po.theta_complexity, po.theta_cohesion}},
                           {"alpha", po.alpha},
                           {"beta", po.beta},

@@ -25,6 +25,10 @@ struct ObjectScore {
   std::string class_name;  // majority class ("unknown" without class ground truth)
   int pixels = 0;
   double iou = 0.0;
+  // Of the best segment: the share of the object it covers and the share of it in the object
+  // (low coverage: the object is split; low purity: it is merged with its surroundings).
+  double coverage = 0.0;
+  double purity = 0.0;
 };
 std::vector<ObjectScore> ScoreObjects(const cv::Mat& segments, const cv::Mat& objects,
                                       const cv::Mat& classes, const ClassTable& table,
@@ -41,6 +45,8 @@ class ObjectScoreSummary {
  private:
   struct Sum {
     double iou = 0;
+    double coverage = 0;
+    double purity = 0;
     int objects = 0;
   };
   Sum all_;

@@ -14,6 +14,11 @@ namespace placerec {
 
 namespace {
 
+// ml::Boost returns the sum of the weak responses only with PREDICT_SUM as well as RAW_OUTPUT;
+// RAW_OUTPUT alone gives the 0/1 vote (OpenCV's DTreesImplForBoost::predictTrees), and the
+// five-way argmax then broke every tie toward the first class (sky).
+constexpr int kSumFlags = cv::ml::StatModel::RAW_OUTPUT | cv::ml::DTrees::PREDICT_SUM;
+
 std::string ClassifierFile(const std::string& directory, int c) {
   return directory + "/background_" + SegmentClassName(BackgroundClassOf(c)) + ".yml.gz";
 }
@@ -102,7 +107,7 @@ BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
     classifier.boosts_[c] = boost;
 
     cv::Mat raw;
-    boost->predict(samples, raw, cv::ml::StatModel::RAW_OUTPUT);
+    boost->predict(samples, raw, kSumFlags);
     int correct = 0;
     for (int r = 0; r < samples.rows; ++r) {
       correct += (raw.at<float>(r) > 0) == (responses.at<int>(r) == 1);
@@ -123,12 +128,16 @@ int BackgroundClassifier::feature_size() const {
 cv::Mat BackgroundClassifier::Scores(const cv::Mat& features) const {
   CHECK(!empty()) << "background classifiers not loaded";
   CHECK_EQ(features.type(), CV_32F);
-  CHECK_EQ(features.cols, feature_size());
+  // Classifiers read the leading columns they were trained on (the seed's k + 1, or all of
+  // RegionAppearance's columns).
+  CHECK_GE(features.cols, feature_size());
+  const cv::Mat used =
+      features.cols == feature_size() ? features : features.colRange(0, feature_size()).clone();
   cv::Mat scores(features.rows, kBackgroundClasses, CV_32F);
   if (features.rows == 0) return scores;
   for (int c = 0; c < kBackgroundClasses; ++c) {
     cv::Mat raw;
-    boosts_[c]->predict(features, raw, cv::ml::StatModel::RAW_OUTPUT);
+    boosts_[c]->predict(used, raw, kSumFlags);
     raw.reshape(1, features.rows).copyTo(scores.col(c));
   }
   return scores;

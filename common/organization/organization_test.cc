@@ -428,7 +428,7 @@ TEST(TextonTest, MapAndRegionHistogramsUseTheGridSamples) {
   }
   const cv::Mat appearance = RegionAppearance(labels, 2, map, features, assigner);
   ASSERT_EQ(appearance.rows, 2);
-  ASSERT_EQ(appearance.cols, model.size() + 1);
+  ASSERT_EQ(appearance.cols, model.size() + 1 + kAppearanceExtras);
   for (int r = 0; r < 2; ++r) {
     EXPECT_NEAR(cv::sum(appearance.row(r).colRange(0, model.size()))[0], 1.0, 1e-5);
     // Rows 1-7: mean row 4, height (4 + 0.5) / 8.
@@ -475,7 +475,7 @@ TEST(BackgroundModelTest, ShippedClassifiersReproduceTheirCheckSample) {
   ASSERT_TRUE(model.ok()) << model.status().ToString();
   const BackgroundModel& m = **model;
   EXPECT_EQ(m.textons.size(), TextonTrainingOptions().k);
-  EXPECT_EQ(m.classifier.feature_size(), m.textons.size() + 1);
+  EXPECT_EQ(m.classifier.feature_size(), m.textons.size() + 1 + kAppearanceExtras);
 
   cv::FileStorage fs(check_path, cv::FileStorage::READ);
   ASSERT_TRUE(fs.isOpened()) << check_path;
@@ -502,6 +502,17 @@ TEST(BackgroundModelTest, ShippedClassifiersReproduceTheirCheckSample) {
   }
   EXPECT_NEAR(static_cast<double>(correct) / static_cast<double>(decided.size()), accuracy,
               1e-9);
+  // Scores are boosted sums, not 0/1 votes (ml::Boost needs PREDICT_SUM with RAW_OUTPUT), so
+  // the five-way decision compares confidences instead of breaking ties toward sky.
+  const cv::Mat scores = m.classifier.Scores(features);
+  int graded = 0;
+  for (int r = 0; r < scores.rows; ++r) {
+    for (int c = 0; c < kBackgroundClasses; ++c) {
+      const float v = scores.at<float>(r, c);
+      graded += v != 0.0f && v != 1.0f;
+    }
+  }
+  EXPECT_GT(graded, scores.rows);
   // The sample holds background and structured regions, so it tests both outcomes.
   const bool has_background = std::any_of(labels.begin(), labels.end(), [](int l) {
     return l >= 0 && l < kBackgroundClasses;

@@ -5,6 +5,7 @@
 #include <glog/logging.h>
 
 #include "common/organization/filter_bank.h"
+#include "common/segmentation/region_graph.h"
 #include "common/util/paths.h"
 
 namespace placerec {
@@ -18,11 +19,15 @@ StatusOr<std::shared_ptr<const BackgroundModel>> LoadBackgroundModel(
   if (!textons.ok()) return textons.status();
   StatusOr<BackgroundClassifier> classifier = BackgroundClassifier::Load(dir);
   if (!classifier.ok()) return classifier.status();
-  if (classifier->feature_size() != textons->size() + 1) {
+  // The seed's k + 1 appearance numbers, or those plus the feature means and deviations.
+  if (classifier->feature_size() != textons->size() + 1 &&
+      classifier->feature_size() != textons->size() + 1 + kAppearanceExtras) {
     return Status::InvalidArgument(dir + ": classifiers read " +
                                    std::to_string(classifier->feature_size()) +
                                    " features but there are " + std::to_string(textons->size()) +
-                                   " textons");
+                                   " textons (expected " + std::to_string(textons->size() + 1) +
+                                   " or " +
+                                   std::to_string(textons->size() + 1 + kAppearanceExtras) + ")");
   }
   auto model = std::make_shared<BackgroundModel>();
   model->textons = std::move(*textons);
@@ -34,6 +39,10 @@ bool SceneOrganizerOptions::Check(std::string* error) const {
   if (!superpixels.Check(error) || !organization.Check(error)) return false;
   if (texton_stride < 1 || texton_stride > 8) {
     *error = "texton_stride must be in [1, 8], got " + std::to_string(texton_stride);
+    return false;
+  }
+  if (!(background_smoothing >= 0.0 && background_smoothing <= 1.0)) {
+    *error = "background_smoothing must be in [0, 1]";
     return false;
   }
   if (!std::isfinite(background_threshold)) {
@@ -85,8 +94,33 @@ SceneSegmentation SceneOrganizer::ClassifiedSuperpixels(const WorkingImage& imag
       RegionAppearance(superpixels.labels, superpixels.size(), map, features, *assigner_);
   if (timings != nullptr) timings->emplace_back("textons", timer.ElapsedMs());
   timer.Restart();
-  superpixels.classes =
-      model_->classifier.Classify(appearance, options_.background_threshold);
+  cv::Mat scores = model_->classifier.Scores(appearance);
+  if (options_.background_smoothing > 0 && scores.rows > 1) {
+    const RegionGraph graph = BuildRegionGraph(superpixels.labels, superpixels.size(), cv::Mat());
+    cv::Mat smoothed(scores.size(), CV_32F);
+    const double w = options_.background_smoothing;
+    for (int r = 0; r < scores.rows; ++r) {
+      double neighbour[kBackgroundClasses] = {};
+      double length = 0;
+      for (const auto& [other, shared] : graph.neighbours[r]) {
+        for (int c = 0; c < kBackgroundClasses; ++c) {
+          neighbour[c] += shared * static_cast<double>(scores.at<float>(other, c));
+        }
+        length += shared;
+      }
+      for (int c = 0; c < kBackgroundClasses; ++c) {
+        const double own = scores.at<float>(r, c);
+        smoothed.at<float>(r, c) =
+            static_cast<float>(length > 0 ? (1 - w) * own + w * neighbour[c] / length : own);
+      }
+    }
+    scores = smoothed;
+  }
+  superpixels.classes.resize(static_cast<size_t>(scores.rows));
+  for (int r = 0; r < scores.rows; ++r) {
+    superpixels.classes[r] =
+        BackgroundClassifier::Decide(scores.ptr<float>(r), options_.background_threshold);
+  }
   if (timings != nullptr) timings->emplace_back("classifiers", timer.ElapsedMs());
   if (features_out != nullptr) *features_out = features;
   return superpixels;

@@ -46,6 +46,11 @@ struct SceneOrganizerOptions {
   // A region is background when its best classifier's score exceeds this (0: the boosted
   // decision).
   double background_threshold = 0.0;
+  // Before the decision, each superpixel's five scores become
+  // (1 - w) * own + w * (boundary-length-weighted mean of its neighbours' scores), w this value
+  // (0: the seed's independent per-region decision). Background classes are spatially
+  // coherent, and a superpixel's histogram over a few dozen texton samples is noisy.
+  double background_smoothing = 0.0;
   OrganizationOptions organization;
   // Directory with the trained models; empty: DefaultModelsDir().
   std::string models_dir;
@@ -76,7 +81,8 @@ class SceneOrganizer {
   // The stages on their own, for evaluation and training.
   // 20-d filter-bank features of the working image (CV_32FC(20)).
   cv::Mat Features(const WorkingImage& image) const;
-  // Region appearance (151-d rows) of `labels` (ids 0..num_regions-1, -1 ignored) from features.
+  // Region appearance (RegionAppearance rows) of `labels` (ids 0..num_regions-1, -1 ignored)
+  // from features.
   cv::Mat Appearance(const cv::Mat& features, const cv::Mat& labels, int num_regions) const;
   // Superpixels classified: the initial partition with background classes, before grouping.
   SceneSegmentation ClassifiedSuperpixels(const WorkingImage& image, cv::Mat* features = nullptr,

@@ -167,7 +167,17 @@ cv::Mat RegionAppearance(const cv::Mat& labels, int num_regions, const TextonMap
   const int stride = map.stride;
   CHECK_EQ(map.ids.rows, (labels.rows + stride - 1) / stride);
   CHECK_EQ(map.ids.cols, (labels.cols + stride - 1) / stride);
-  cv::Mat out = cv::Mat::zeros(num_regions, k + 1, CV_32F);
+  constexpr int kF = kTextonFeatureSize;
+  cv::Mat out = cv::Mat::zeros(num_regions, k + 1 + kAppearanceExtras, CV_32F);
+  // Per region: sums of the features and of their squares over the samples.
+  std::vector<double> sums(static_cast<size_t>(num_regions) * 2 * kF, 0.0);
+  auto accumulate = [&sums](int l, const float* f) {
+    double* s = &sums[static_cast<size_t>(l) * 2 * kF];
+    for (int i = 0; i < kF; ++i) {
+      s[i] += f[i];
+      s[kF + i] += static_cast<double>(f[i]) * f[i];
+    }
+  };
   std::vector<int64_t> row_sum(static_cast<size_t>(num_regions), 0);
   std::vector<int> area(static_cast<size_t>(num_regions), 0);
   std::vector<int> samples(static_cast<size_t>(num_regions), 0);
@@ -188,6 +198,7 @@ cv::Mat RegionAppearance(const cv::Mat& labels, int num_regions, const TextonMap
       if (l < 0 || l >= num_regions) continue;
       ++out.at<float>(l, ids[c]);
       ++samples[l];
+      accumulate(l, features.ptr<float>(r * stride) + static_cast<size_t>(c * stride) * kF);
     }
   }
   // Regions the grid misses: textons of all their pixels.
@@ -209,6 +220,7 @@ cv::Mat RegionAppearance(const cv::Mat& labels, int num_regions, const TextonMap
         ++out.at<float>(l, assigner.Assign(feature_row + static_cast<size_t>(x) *
                                                              kTextonFeatureSize));
         ++samples[l];
+        accumulate(l, feature_row + static_cast<size_t>(x) * kF);
       }
     }
   }
@@ -218,6 +230,13 @@ cv::Mat RegionAppearance(const cv::Mat& labels, int num_regions, const TextonMap
     const float inv = 1.0f / static_cast<float>(samples[l]);
     for (int t = 0; t < k; ++t) row[t] *= inv;
     row[k] = static_cast<float>((static_cast<double>(row_sum[l]) / area[l] + 0.5) / labels.rows);
+    const double* s = &sums[static_cast<size_t>(l) * 2 * kF];
+    for (int i = 0; i < kF; ++i) {
+      const double mean = s[i] / samples[l];
+      const double variance = std::max(0.0, s[kF + i] / samples[l] - mean * mean);
+      row[k + 1 + i] = static_cast<float>(mean);
+      row[k + 1 + kF + i] = static_cast<float>(std::sqrt(variance));
+    }
   }
   return out;
 }

@@ -15,6 +15,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "common/organization/filter_bank.h"
 #include "common/util/status.h"
 
 namespace placerec {
@@ -81,9 +82,18 @@ struct TextonMap {
 // `features` is ComputeFilterBank's CV_32FC(20) image; stride >= 1.
 TextonMap ComputeTextonMap(const cv::Mat& features, const TextonAssigner& assigner, int stride);
 
+// Columns of RegionAppearance after the seed's k + 1 (histogram and height): the mean and the
+// standard deviation of each of the 20 filter-bank features over the region's samples (a
+// documented extension of seed §3.4: mean Lab colour and texture energy, which the histogram
+// only describes through the nearest of 150 centres). Classifiers trained on the seed's
+// 151 numbers read only the first k + 1 columns.
+constexpr int kAppearanceExtras = 2 * kTextonFeatureSize;
+
 // Appearance of every region of `labels` (CV_32S, ids 0..num_regions-1, the size of
-// `features`): a num_regions x (k + 1) CV_32F matrix, each row the region's texton histogram
-// over its grid samples (summing to 1) followed by its centroid height (mean row + 0.5) / rows.
+// `features`): a num_regions x (k + 1 + kAppearanceExtras) CV_32F matrix, each row the region's
+// texton histogram over its grid samples (summing to 1), its centroid height
+// (mean row + 0.5) / rows, then the per-feature means and standard deviations over the same
+// samples.
 // A region without a grid sample is described by the textons of all its pixels. Labels outside
 // 0..num_regions-1 (e.g. -1) are ignored; a region without pixels gets an all-zero row.
 cv::Mat RegionAppearance(const cv::Mat& labels, int num_regions, const TextonMap& map,
