@@ -20,22 +20,6 @@
 namespace placerec {
 namespace {
 
-// The run cut to its first `frames` frames, for scoring a partial feed.
-Run FirstFrames(const Run& run, int frames) {
-  if (frames >= static_cast<int>(run.frames.size())) return run;
-  Run cut = run;
-  cut.frames.resize(frames);
-  cut.positives.clear();
-  for (const auto& p : run.positives) {
-    if (p.first < frames) cut.positives.insert(p);
-  }
-  cut.is_revisit.assign(frames, false);
-  cut.num_revisits = 0;
-  for (const auto& p : cut.positives) cut.is_revisit[p.first] = true;
-  for (bool r : cut.is_revisit) cut.num_revisits += r ? 1 : 0;
-  return cut;
-}
-
 nlohmann::json Spread(const std::vector<double>& values) {
   return {{"median_ms", Median(values)},
           {"p90_ms", Percentile(values, 90)},
@@ -238,23 +222,9 @@ StatusOr<FeedReport> FeedRun(PlacerecClient* client, const Run& run, const FeedO
   report.score = *score;
 
   nlohmann::json& s = report.summary;
-  s["dataset"] = run.dataset_dir;
-  s["run"] = run.name;
-  s["frames"] = frames;
-  s["revisit_frames"] = report.score.revisit_frames;
-  s["answered_frames"] = report.score.answered_frames;
-  s["recall_at_100_precision"] = report.score.recall_at_100_precision;
-  s["threshold_at_100_precision"] = report.score.threshold_at_100_precision;
-  s["max_f1"] = report.score.max_f1;
-  s["threshold_at_max_f1"] = report.score.threshold_at_max_f1;
-  s["average_precision"] = report.score.average_precision;
+  s = ScoreSummary(run, frames, report.score);
   s["loop_closures"] = loop_closures;
-  s["decision"] = {{"true_positives", tp},
-                   {"false_positives", fp},
-                   {"precision", tp + fp > 0 ? static_cast<double>(tp) / (tp + fp) : 1.0},
-                   {"recall", report.score.revisit_frames > 0
-                                  ? static_cast<double>(tp) / report.score.revisit_frames
-                                  : 0.0}};
+  s["decision"] = DecisionSummary(tp, fp, report.score.revisit_frames);
   s["answers"] = by_code;
   s["later_references"] = later_references;
   s["latency"] = Spread(latency);

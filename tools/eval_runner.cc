@@ -157,20 +157,7 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
     }
   }
 
-  Run scored = run;
-  if (frames < static_cast<int>(run.frames.size())) {
-    // Score only the frames that ran.
-    scored.frames.resize(frames);
-    std::set<std::pair<int, int>> kept;
-    for (const auto& p : run.positives) {
-      if (p.first < frames) kept.insert(p);
-    }
-    scored.positives = kept;
-    scored.is_revisit.assign(frames, false);
-    scored.num_revisits = 0;
-    for (const auto& p : kept) scored.is_revisit[p.first] = true;
-    for (bool r : scored.is_revisit) scored.num_revisits += r ? 1 : 0;
-  }
+  const Run scored = FirstFrames(run, frames);  // score only the frames that ran
   StatusOr<RunScore> score = ScoreAnswers(scored, report.answers);
   if (!score.ok()) return score.status();
   report.score = *score;
@@ -188,26 +175,10 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
   }
 
   nlohmann::json& s = report.summary;
-  s["dataset"] = run.dataset_dir;
-  s["run"] = run.name;
-  s["frames"] = frames;
-  s["revisit_frames"] = report.score.revisit_frames;
-  s["answered_frames"] = report.score.answered_frames;
-  s["recall_at_100_precision"] = report.score.recall_at_100_precision;
-  s["threshold_at_100_precision"] = report.score.threshold_at_100_precision;
-  s["max_f1"] = report.score.max_f1;
-  s["threshold_at_max_f1"] = report.score.threshold_at_max_f1;
-  s["precision_at_max_f1"] = report.score.precision_at_max_f1;
-  s["recall_at_max_f1"] = report.score.recall_at_max_f1;
-  s["average_precision"] = report.score.average_precision;
+  s = ScoreSummary(run, frames, report.score);
   s["loop_closures"] = loop_closures;
-  s["decision"] = {{"min_score", options.loop.min_score},
-                   {"true_positives", tp},
-                   {"false_positives", fp},
-                   {"precision", tp + fp > 0 ? static_cast<double>(tp) / (tp + fp) : 1.0},
-                   {"recall", report.score.revisit_frames > 0
-                                  ? static_cast<double>(tp) / report.score.revisit_frames
-                                  : 0.0}};
+  s["decision"] = DecisionSummary(tp, fp, report.score.revisit_frames);
+  s["decision"]["min_score"] = options.loop.min_score;
   s["descriptors_extracted"] = extracted;
   s["descriptors_stored"] = stored;
   s["stored_over_extracted"] = extracted > 0 ? static_cast<double>(stored) / extracted : 0.0;

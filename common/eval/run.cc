@@ -204,4 +204,19 @@ std::vector<std::string> ListRuns(const std::string& dataset_dir) {
   return names;
 }
 
+Run FirstFrames(const Run& run, int frames) {
+  if (frames >= static_cast<int>(run.frames.size())) return run;
+  Run cut = run;
+  cut.frames.resize(std::max(frames, 0));
+  cut.positives.clear();
+  for (const auto& p : run.positives) {
+    if (p.first < frames) cut.positives.insert(p);
+  }
+  cut.is_revisit.assign(cut.frames.size(), false);
+  cut.num_revisits = 0;
+  for (const auto& p : cut.positives) cut.is_revisit[p.first] = true;
+  for (bool r : cut.is_revisit) cut.num_revisits += r ? 1 : 0;
+  return cut;
+}
+
 }  // namespace placerec

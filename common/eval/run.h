@@ -41,6 +41,10 @@ struct Run {
 // file and line, and what to fix, for malformed content. Numbers are parsed locale-independently.
 StatusOr<Run> LoadRun(const std::string& dataset_dir, const std::string& run_name);
 
+// The run cut to its first `frames` frames (positives, revisit flags and count with it), for
+// scoring a partial feed. The whole run when `frames` is not below its length.
+Run FirstFrames(const Run& run, int frames);
+
 // Names of the runs in <dataset>/runs (the <run> of each <run>.frames.csv), sorted; empty when
 // the folder does not exist.
 std::vector<std::string> ListRuns(const std::string& dataset_dir);

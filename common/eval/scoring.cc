@@ -94,4 +94,28 @@ StatusOr<RunScore> ScoreAnswers(const Run& run, const std::vector<Answer>& answe
   return score;
 }
 
+nlohmann::json ScoreSummary(const Run& run, int frames, const RunScore& score) {
+  return {{"dataset", run.dataset_dir},
+          {"run", run.name},
+          {"frames", frames},
+          {"revisit_frames", score.revisit_frames},
+          {"answered_frames", score.answered_frames},
+          {"recall_at_100_precision", score.recall_at_100_precision},
+          {"threshold_at_100_precision", score.threshold_at_100_precision},
+          {"max_f1", score.max_f1},
+          {"threshold_at_max_f1", score.threshold_at_max_f1},
+          {"precision_at_max_f1", score.precision_at_max_f1},
+          {"recall_at_max_f1", score.recall_at_max_f1},
+          {"average_precision", score.average_precision}};
+}
+
+nlohmann::json DecisionSummary(int true_positives, int false_positives, int revisit_frames) {
+  const int claims = true_positives + false_positives;
+  return {{"true_positives", true_positives},
+          {"false_positives", false_positives},
+          {"precision", claims > 0 ? static_cast<double>(true_positives) / claims : 1.0},
+          {"recall", revisit_frames > 0 ? static_cast<double>(true_positives) / revisit_frames
+                                        : 0.0}};
+}
+
 }  // namespace placerec

@@ -7,6 +7,8 @@
 
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "common/eval/answers.h"
 #include "common/eval/run.h"
 
@@ -41,5 +43,14 @@ struct RunScore {
 // is not an earlier frame of the run is simply a false positive. Revisit frames are counted from
 // run.positives, so a hand-built Run needs only frames, name and positives.
 StatusOr<RunScore> ScoreAnswers(const Run& run, const std::vector<Answer>& answers);
+
+// The head of a run's summary.json, shared by placerec-eval and placerec-client: dataset, run,
+// frames fed, revisit and answered frames, recall at 100 % precision, max F1 (with thresholds,
+// precision and recall there) and average precision.
+nlohmann::json ScoreSummary(const Run& run, int frames, const RunScore& score);
+
+// The loop-closure decision's own precision and recall: true and false positives among the
+// answers that claimed a loop closure.
+nlohmann::json DecisionSummary(int true_positives, int false_positives, int revisit_frames);
 
 }  // namespace placerec

@@ -73,6 +73,33 @@ TEST(ScoringTest, HandWorkedCaseWithTies) {
   EXPECT_DOUBLE_EQ(again->average_precision, 29.0 / 48.0);
 }
 
+TEST(ScoringTest, FirstFramesKeepsOnlyTheirRevisits) {
+  const placerec::Run run = TenFrameRun();
+  const placerec::Run cut = FirstFrames(run, 7);
+  EXPECT_EQ(cut.frames.size(), 7u);
+  EXPECT_EQ(cut.positives, (std::set<std::pair<int, int>>{{5, 0}, {5, 1}, {6, 1}}));
+  EXPECT_EQ(cut.num_revisits, 2);
+  EXPECT_EQ(cut.is_revisit,
+            (std::vector<bool>{false, false, false, false, false, true, true}));
+  EXPECT_EQ(FirstFrames(run, 10).num_revisits, 4);
+  EXPECT_EQ(FirstFrames(run, 0).num_revisits, 0);
+}
+
+TEST(ScoringTest, SummariesCarryTheScoreAndTheDecision) {
+  const placerec::Run run = TenFrameRun();
+  StatusOr<RunScore> score = ScoreAnswers(run, {{5, 0, 0.9}, {9, 4, 0.3}});
+  ASSERT_TRUE(score.ok());
+  const nlohmann::json s = ScoreSummary(run, 10, *score);
+  EXPECT_EQ(s["run"], "ten");
+  EXPECT_EQ(s["revisit_frames"], 4);
+  EXPECT_EQ(s["answered_frames"], 2);
+  EXPECT_DOUBLE_EQ(s["recall_at_100_precision"].get<double>(), 0.25);
+  const nlohmann::json d = DecisionSummary(1, 1, 4);
+  EXPECT_DOUBLE_EQ(d["precision"].get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(d["recall"].get<double>(), 0.25);
+  EXPECT_DOUBLE_EQ(DecisionSummary(0, 0, 0)["precision"].get<double>(), 1.0);
+}
+
 TEST(ScoringTest, NoClaimsScoresZero) {
   const placerec::Run run = TenFrameRun();
   for (const std::vector<Answer>& answers :
