@@ -56,6 +56,25 @@ TEST(DescriptorMatchingTest, SquaredDistance) {
   cv::Mat a(1, 128, CV_8U, cv::Scalar(10));
   cv::Mat b(1, 128, CV_8U, cv::Scalar(13));
   EXPECT_EQ(SquaredDistance(a.ptr<uint8_t>(0), b.ptr<uint8_t>(0)), 128 * 9);
+  // Extremes both ways (the SIMD path widens bytes before subtracting) and random rows against
+  // the plain sum.
+  cv::Mat zeros(1, 128, CV_8U, cv::Scalar(0));
+  cv::Mat full(1, 128, CV_8U, cv::Scalar(255));
+  EXPECT_EQ(SquaredDistance(zeros.ptr<uint8_t>(0), full.ptr<uint8_t>(0)), 128 * 255 * 255);
+  EXPECT_EQ(SquaredDistance(full.ptr<uint8_t>(0), zeros.ptr<uint8_t>(0)), 128 * 255 * 255);
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> byte(0, 255);
+  for (int trial = 0; trial < 100; ++trial) {
+    uint8_t x[128];
+    uint8_t y[128];
+    int expected = 0;
+    for (int i = 0; i < 128; ++i) {
+      x[i] = static_cast<uint8_t>(byte(rng));
+      y[i] = static_cast<uint8_t>(byte(rng));
+      expected += (x[i] - y[i]) * (x[i] - y[i]);
+    }
+    EXPECT_EQ(SquaredDistance(x, y), expected);
+  }
 }
 
 TEST(DescriptorMatchingTest, RatioTestFindsTrueMatchesAndRejectsAmbiguousOnes) {
