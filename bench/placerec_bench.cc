@@ -451,10 +451,10 @@ int main(int argc, char** argv) {
     std::printf(
         "\nRatios to OpenCV SIFT in this run (stages: frame Image120; pipeline: the same "
         "40 frames as the SIFT reference):\n");
-    for (const char* name : {"BM_StageFeatures", "BM_StageSegmentation", "BM_StageAnalyze",
-                             "BM_StageLandmarks", "BM_Pipeline", "BM_OrgSuperpixels",
-                             "BM_OrgFilterBank", "BM_OrgTextons", "BM_OrgClassifiers",
-                             "BM_OrgPerceptualOrganization", "BM_OrgWholeSegmentation"}) {
+    for (const char* name :
+         {"BM_StageFeatures", "BM_StageSegmentation", "BM_StageAnalyze", "BM_StageLandmarks",
+          "BM_Pipeline", "BM_OrgSuperpixels", "BM_OrgFilterBank", "BM_OrgTextons",
+          "BM_OrgClassifiers", "BM_OrgPerceptualOrganization", "BM_OrgWholeSegmentation"}) {
       const auto it = t.find(name);
       if (it != t.end()) std::printf("  %-30s %6.2f\n", name, it->second / sift->second);
     }

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -18,21 +19,6 @@ int64_t NowUtime() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
              std::chrono::system_clock::now().time_since_epoch())
       .count();
-}
-
-// Parses the flags of one command; returns -1 to go on, else the exit code (0 after --help).
-int ParseOrExit(FlagParser* parser, int argc, const char* const* argv, const char* command) {
-  bool help = false;
-  const Status parsed = parser->Parse(argc, argv, 2, &help);
-  if (help) {
-    std::printf("%s\n", parser->Help().c_str());
-    return 0;
-  }
-  if (!parsed.ok()) {
-    std::fprintf(stderr, "placerec-client %s: %s\n", command, parsed.message().c_str());
-    return kExitUsage;
-  }
-  return -1;
 }
 
 void AddConnectionFlags(FlagParser* parser, ClientOptions* options) {
@@ -136,8 +122,9 @@ int SendCommand(int argc, const char* const* argv) {
   parser.Add("sequence", &sequence,
              "sequence number of the first image; must be after the robot's last one");
   AddConnectionFlags(&parser, &options);
-  const int parsed = ParseOrExit(&parser, argc, argv, "send");
-  if (parsed >= 0) return parsed;
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-client send")) {
+    return *exit;
+  }
   return SendImages(images, robot, sequence, true, options, "send");
 }
 
@@ -156,8 +143,9 @@ int QueryCommand(int argc, const char* const* argv) {
              "fewer than loop-min-same-robot-gap frames back)");
   parser.Add("sequence", &sequence, "sequence number sent with the first image");
   AddConnectionFlags(&parser, &options);
-  const int parsed = ParseOrExit(&parser, argc, argv, "query");
-  if (parsed >= 0) return parsed;
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-client query")) {
+    return *exit;
+  }
   return SendImages(images, robot, sequence, false, options, "query");
 }
 
@@ -168,8 +156,9 @@ int StatusCommand(int argc, const char* const* argv) {
       "placerec-client status [options]\n\n"
       "Waits for the server's next heartbeat on PLACEREC_STATUS and prints it.");
   AddConnectionFlags(&parser, &options);
-  const int parsed = ParseOrExit(&parser, argc, argv, "status");
-  if (parsed >= 0) return parsed;
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-client status")) {
+    return *exit;
+  }
   StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "status");
   if (!client.ok()) return kExitFailed;
   StatusOr<ServerStatus> status = (*client)->WaitForStatus(options.timeout_s);
@@ -220,8 +209,9 @@ int RunCommand(int argc, const char* const* argv, const std::string& data_defaul
   parser.AddSwitch("quiet", &quiet, "no progress line");
   parser.AddSwitch("no-loops", &no_loops, "do not print loop closures");
   AddConnectionFlags(&parser, &options);
-  const int parsed = ParseOrExit(&parser, argc, argv, "run");
-  if (parsed >= 0) return parsed;
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-client run")) {
+    return *exit;
+  }
   feed.timeout_s = options.timeout_s;
   feed.progress = !quiet;
   feed.print_loop_closures = !no_loops;

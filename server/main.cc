@@ -3,6 +3,7 @@
 // 2 for bad flags.
 #include <csignal>
 #include <cstdio>
+#include <optional>
 #include <string>
 
 #include "common/pipeline/flags.h"
@@ -51,15 +52,8 @@ int Main(int argc, char** argv) {
   parser.Add("min-image-dimension", &options.decode.min_dimension,
              "frames smaller than this in either dimension are rejected (pixels)");
   AddRecognizerFlags(&parser, &options.recognizer);
-  bool help = false;
-  const Status parsed = parser.Parse(argc, argv, 1, &help);
-  if (help) {
-    std::printf("%s\n", parser.Help().c_str());
-    return 0;
-  }
-  if (!parsed.ok()) {
-    std::fprintf(stderr, "placerec-server: %s\n", parsed.message().c_str());
-    return 2;
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 1, "placerec-server")) {
+    return *exit;
   }
   options.store.synchronous_full = !sqlite_normal;
   std::string error;

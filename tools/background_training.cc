@@ -71,8 +71,8 @@ void BackgroundAccuracy::Add(const cv::Mat& scores, const std::vector<int>& labe
       ++called[static_cast<int>(decided)];
       called_pixels[static_cast<int>(decided)] += areas[r];
     }
-    ++confusion[table.Name(majority[r])][IsBackground(decided) ? static_cast<int>(decided)
-                                                               : kBackgroundClasses];
+    ++confusion[table.Name(majority[r])]
+               [IsBackground(decided) ? static_cast<int>(decided) : kBackgroundClasses];
     if (label < kBackgroundClasses) {
       ++regions[label];
       correct[label] += static_cast<int>(decided) == label;
@@ -130,8 +130,7 @@ void Progress(bool on, const char* stage, size_t done, size_t total) {
 // Appends the rows of `features` whose label is >= 0 (and region large enough) to the sample.
 void AppendRegions(const cv::Mat& features, const std::vector<int>& labels,
                    const std::vector<int>& areas, int min_pixels, double weight_power,
-                   cv::Mat* samples, std::vector<int>* sample_labels,
-                   std::vector<float>* weights) {
+                   cv::Mat* samples, std::vector<int>* sample_labels, std::vector<float>* weights) {
   for (int i = 0; i < features.rows; ++i) {
     if (labels[i] < 0 || areas[i] < min_pixels) continue;
     samples->push_back(features.row(i));
@@ -216,8 +215,8 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
     std::uniform_int_distribution<int> col(0, features.cols - 1);
     cv::Mat samples(config.pixels_per_image, kTextonFeatureSize, CV_32F);
     for (int s = 0; s < config.pixels_per_image; ++s) {
-      const float* f = features.ptr<float>(row(rng)) + static_cast<size_t>(col(rng)) *
-                                                           kTextonFeatureSize;
+      const float* f =
+          features.ptr<float>(row(rng)) + static_cast<size_t>(col(rng)) * kTextonFeatureSize;
       std::copy(f, f + kTextonFeatureSize, samples.ptr<float>(s));
     }
     pixel_samples.push_back(samples);
@@ -251,8 +250,8 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
     const SceneSegmentation superpixels = ComputeSuperpixels(working, config.organizer.superpixels);
     const cv::Mat appearance =
         RegionAppearance(superpixels.labels, superpixels.size(), map, features, assigner);
-    const std::vector<int> labels = RegionLabels(superpixels.labels, superpixels.size(), gt,
-                                                 *table, config.min_labelled_fraction);
+    const std::vector<int> labels = RegionLabels(superpixels.labels, superpixels.size(), gt, *table,
+                                                 config.min_labelled_fraction);
     const int before = region_samples.rows;
     if (config.superpixel_regions) {
       AppendRegions(appearance, labels, RegionAreas(superpixels.labels, superpixels.size()),
@@ -281,9 +280,8 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
     region_samples = region_samples.colRange(0, config.textons.k + 1).clone();
   }
   BackgroundTrainingSummary boost_summary;
-  const BackgroundClassifier classifier =
-      BackgroundClassifier::Train(region_samples, region_labels, region_weights, config.boost,
-                                  &boost_summary);
+  const BackgroundClassifier classifier = BackgroundClassifier::Train(
+      region_samples, region_labels, region_weights, config.boost, &boost_summary);
   PLACEREC_RETURN_IF_ERROR(classifier.Save(config.out));
 
   // 4. Accuracy on the evaluation split's ground-truth objects (seed Table 6.4 protocol) and
@@ -311,20 +309,19 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
       const cv::Mat appearance = RegionAppearance(objects, n, map, features, assigner);
       std::vector<int> majority;
       const std::vector<int> labels = RegionLabels(objects, n, gt, *table, 0.5, &majority);
-      objects_accuracy.Add(classifier.Scores(appearance), labels, majority,
-                           RegionAreas(objects, n), *table, config.organizer.background_threshold);
+      objects_accuracy.Add(classifier.Scores(appearance), labels, majority, RegionAreas(objects, n),
+                           *table, config.organizer.background_threshold);
       const SceneSegmentation superpixels =
           ComputeSuperpixels(working, config.organizer.superpixels);
       std::vector<int> superpixel_majority;
       const std::vector<int> superpixel_labels =
           RegionLabels(superpixels.labels, superpixels.size(), gt, *table,
                        config.min_labelled_fraction, &superpixel_majority);
-      superpixel_accuracy.Add(
-          classifier.Scores(
-              RegionAppearance(superpixels.labels, superpixels.size(), map, features, assigner)),
-          superpixel_labels, superpixel_majority,
-          RegionAreas(superpixels.labels, superpixels.size()), *table,
-          config.organizer.background_threshold);
+      superpixel_accuracy.Add(classifier.Scores(RegionAppearance(
+                                  superpixels.labels, superpixels.size(), map, features, assigner)),
+                              superpixel_labels, superpixel_majority,
+                              RegionAreas(superpixels.labels, superpixels.size()), *table,
+                              config.organizer.background_threshold);
       if (static_cast<int>(i) < config.check_images) {
         check_ids.push_back((*eval_ids)[i]);
         for (int r = 0; r < n; ++r) {

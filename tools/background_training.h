@@ -35,15 +35,15 @@ std::vector<int> RegionLabels(const cv::Mat& regions, int n, const cv::Mat& gt_c
 // class, the share of its regions the five-way decision calls that class, and each binary
 // classifier's accuracy over all regions.
 struct BackgroundAccuracy {
-  std::array<int, kBackgroundClasses> regions{};          // regions of the class
-  std::array<int, kBackgroundClasses> correct{};          // ... decided as the class
-  std::array<int, kBackgroundClasses> called{};           // regions decided as the class
-  std::array<int, kBackgroundClasses> binary_correct{};   // classifier right (yes/no)
+  std::array<int, kBackgroundClasses> regions{};             // regions of the class
+  std::array<int, kBackgroundClasses> correct{};             // ... decided as the class
+  std::array<int, kBackgroundClasses> called{};              // regions decided as the class
+  std::array<int, kBackgroundClasses> binary_correct{};      // classifier right (yes/no)
   std::array<int64_t, kBackgroundClasses> pixels{};          // pixels of regions of the class
   std::array<int64_t, kBackgroundClasses> correct_pixels{};  // ... in regions decided right
   std::array<int64_t, kBackgroundClasses> called_pixels{};   // pixels of regions decided so
-  int structured_regions = 0;     // regions of other classes
-  int structured_correct = 0;     // ... decided structured
+  int structured_regions = 0;                                // regions of other classes
+  int structured_correct = 0;                                // ... decided structured
   int total = 0;
   // Dataset class name -> regions decided sky, tree, road, grass, water, structured.
   std::map<std::string, std::array<int, kBackgroundClasses + 1>> confusion;
@@ -51,14 +51,13 @@ struct BackgroundAccuracy {
   // `scores`: BackgroundClassifier::Scores rows; labels and majority class ids from
   // RegionLabels (-1 rows skipped); names from `table`.
   // `areas` (pixels per region) weighs the pixel counts.
-  void Add(const cv::Mat& scores, const std::vector<int>& labels,
-           const std::vector<int>& majority, const std::vector<int>& areas,
-           const ClassTable& table, double threshold);
+  void Add(const cv::Mat& scores, const std::vector<int>& labels, const std::vector<int>& majority,
+           const std::vector<int>& areas, const ClassTable& table, double threshold);
   nlohmann::json ToJson() const;
 };
 
 struct BackgroundTrainingConfig {
-  std::string dataset;         // labelled dataset directory
+  std::string dataset;  // labelled dataset directory
   std::string split = "train";
   std::string eval_split = "test";  // accuracy reported in the manifest ("" or missing: none)
   std::string out;                  // models directory (created)

@@ -83,8 +83,7 @@ StatusOr<LabelledImage> ReadLabelledImage(const std::string& dir, const std::str
     const std::string file = dir + "/" + layer + "/" + id + ".png";
     if (!PathExists(file)) return Status::Ok();
     *out = cv::imread(file, cv::IMREAD_UNCHANGED);
-    if (out->empty() || out->channels() != 1 ||
-        (out->depth() != CV_8U && out->depth() != CV_16U)) {
+    if (out->empty() || out->channels() != 1 || (out->depth() != CV_8U && out->depth() != CV_16U)) {
       return Status::InvalidArgument(file + ": expected a one-channel 8- or 16-bit PNG");
     }
     if (out->size() != image.bgr.size()) {

@@ -4,6 +4,7 @@
 // pr_curve.png and match pictures into OUT.
 #include <cstdio>
 #include <cstring>
+#include <optional>
 #include <string>
 
 #include <opencv2/imgcodecs.hpp>
@@ -60,15 +61,8 @@ int RunCommand(int argc, char** argv) {
                    "print each loop closure as it is found");
   parser.AddSwitch("quiet", &quiet, "no progress line");
   AddRecognizerFlags(&parser, &options);
-  bool help = false;
-  const Status parsed = parser.Parse(argc, argv, 2, &help);
-  if (help) {
-    std::printf("%s\n", parser.Help().c_str());
-    return 0;
-  }
-  if (!parsed.ok()) {
-    std::fprintf(stderr, "placerec-eval run: %s\n", parsed.message().c_str());
-    return 2;
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-eval run")) {
+    return *exit;
   }
   std::string error;
   if (!options.Check(&error)) {
@@ -120,16 +114,12 @@ int AnalyzeCommand(int argc, char** argv) {
   parser.AddPositional("image", &images, "image files");
   parser.Add("out", &out, "output directory");
   AddRecognizerFlags(&parser, &options);
-  bool help = false;
-  const Status parsed = parser.Parse(argc, argv, 2, &help);
-  if (help) {
-    std::printf("%s\n", parser.Help().c_str());
-    return 0;
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-eval analyze")) {
+    return *exit;
   }
   std::string error;
-  if (!parsed.ok() || !options.Check(&error)) {
-    std::fprintf(stderr, "placerec-eval analyze: %s\n",
-                 parsed.ok() ? error.c_str() : parsed.message().c_str());
+  if (!options.Check(&error)) {
+    std::fprintf(stderr, "placerec-eval analyze: %s\n", error.c_str());
     return 2;
   }
   if (images.empty()) {
@@ -184,8 +174,7 @@ int main(int argc, char** argv) {
   if (std::strcmp(argv[1], "run") == 0) return placerec::RunCommand(argc, argv);
   if (std::strcmp(argv[1], "analyze") == 0) return placerec::AnalyzeCommand(argc, argv);
   if (std::strcmp(argv[1], "segment") == 0) {
-    return placerec::SegmentCommand(argc, argv,
-                                    placerec::DataDir("", PLACEREC_DEFAULT_DATA_DIR));
+    return placerec::SegmentCommand(argc, argv, placerec::DataDir("", PLACEREC_DEFAULT_DATA_DIR));
   }
   std::fprintf(stderr, "placerec-eval: unknown command '%s'\n%s\n", argv[1], placerec::kUsage);
   return 2;

@@ -4,6 +4,7 @@
 // writes them with manifest.json (data, split, options, accuracy, date).
 #include <cstdio>
 #include <cstring>
+#include <optional>
 #include <string>
 
 #include <opencv2/core/utility.hpp>
@@ -60,15 +61,9 @@ int BackgroundCommand(int argc, char** argv) {
              "images of --eval-split whose regions form the stored check sample");
   parser.Add("seed", &config.seed, "random seed (pixel sampling, negatives)");
   parser.AddSwitch("quiet", &quiet, "no progress lines");
-  bool help = false;
-  const Status parsed = parser.Parse(argc, argv, 2, &help);
-  if (help) {
-    std::printf("%s\n", parser.Help().c_str());
-    return 0;
-  }
-  if (!parsed.ok()) {
-    std::fprintf(stderr, "placerec-train background: %s\n", parsed.message().c_str());
-    return 2;
+  if (const std::optional<int> exit =
+          parser.ParseOrExit(argc, argv, 2, "placerec-train background")) {
+    return *exit;
   }
   config.textons.seed = config.seed;
   config.boost.seed = config.seed;
@@ -76,8 +71,7 @@ int BackgroundCommand(int argc, char** argv) {
   cv::setNumThreads(1);  // deterministic k-means, and a fair share of a shared machine
   StatusOr<nlohmann::json> manifest = TrainBackgroundModels(config);
   if (!manifest.ok()) {
-    std::fprintf(stderr, "placerec-train background: %s\n",
-                 manifest.status().ToString().c_str());
+    std::fprintf(stderr, "placerec-train background: %s\n", manifest.status().ToString().c_str());
     return 1;
   }
   std::printf("%s\n", manifest->dump(2).c_str());

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <unordered_map>
@@ -32,7 +33,7 @@ std::vector<ObjectScore> ScoreObjects(const cv::Mat& segments, const cv::Mat& ob
   }
   std::unordered_map<int, int> segment_area;
   std::map<int, int> object_area;
-  std::map<int, std::unordered_map<int, int>> overlap;     // object -> segment -> pixels
+  std::map<int, std::unordered_map<int, int>> overlap;    // object -> segment -> pixels
   std::map<int, std::map<int, int>> object_class_pixels;  // object -> class -> pixels
   for (int y = 0; y < segments.rows; ++y) {
     const int* s = segments.ptr<int>(y);
@@ -226,10 +227,9 @@ struct PixelClassAccuracy {
     for (int i = 0; i <= kBackgroundClasses; ++i) {
       const std::string name =
           i < kBackgroundClasses ? SegmentClassName(BackgroundClassOf(i)) : "structured";
-      out["classes"][name] = {
-          {"pixels", truth[i]},
-          {"accuracy", truth[i] > 0 ? 100.0 * both[i] / truth[i] : 0.0},
-          {"precision", output[i] > 0 ? 100.0 * both[i] / output[i] : 0.0}};
+      out["classes"][name] = {{"pixels", truth[i]},
+                              {"accuracy", truth[i] > 0 ? 100.0 * both[i] / truth[i] : 0.0},
+                              {"precision", output[i] > 0 ? 100.0 * both[i] / output[i] : 0.0}};
       correct += both[i];
       total += truth[i];
     }
@@ -339,16 +339,12 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
              "ground-truth object (the best any grouping of that partition can score)");
   parser.AddSwitch("quiet", &quiet, "no progress line");
   parser.AddSwitch("verbose", &verbose, "one line per image: parts per round, segments, IoU");
-  bool help = false;
-  const Status parsed = parser.Parse(argc, argv, 2, &help);
-  if (help) {
-    std::printf("%s\n", parser.Help().c_str());
-    return 0;
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-eval segment")) {
+    return *exit;
   }
   std::string error;
-  if (!parsed.ok() || !options.Check(&error)) {
-    std::fprintf(stderr, "placerec-eval segment: %s\n",
-                 parsed.ok() ? error.c_str() : parsed.message().c_str());
+  if (!options.Check(&error)) {
+    std::fprintf(stderr, "placerec-eval segment: %s\n", error.c_str());
     return 2;
   }
   bool ok_k = false;
@@ -415,15 +411,14 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     if (oracle_classes && !image->classes.empty()) {
       SceneSegmentation parts = organizer->ClassifiedSuperpixels(working);
       const cv::Mat gt = LayerAtSize(image->classes, working.bgr.size());
-      const std::vector<int> labels =
-          RegionLabels(parts.labels, parts.size(), gt, *table, 0.0);
+      const std::vector<int> labels = RegionLabels(parts.labels, parts.size(), gt, *table, 0.0);
       for (int r = 0; r < parts.size(); ++r) {
         parts.classes[r] = labels[r] >= 0 && labels[r] < kBackgroundClasses
                                ? static_cast<SegmentClass>(labels[r])
                                : SegmentClass::kStructured;
       }
-      segmentation = OrganizeScene(parts.labels, parts.classes, working.lab,
-                                   options.organization, &summary.organization);
+      segmentation = OrganizeScene(parts.labels, parts.classes, working.lab, options.organization,
+                                   &summary.organization);
       segmentation.scale = working.scale;
     } else if (oracle_grouping && !image->objects.empty()) {
       segmentation = organizer->ClassifiedSuperpixels(working);
@@ -465,8 +460,7 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     for (const auto& [stage, ms] : summary.timings) stage_ms[stage] += ms;
     segments_total += segmentation.size();
     if (segmentation.size() > 65535) {
-      std::fprintf(stderr, "placerec-eval segment: %s has more than 65535 segments\n",
-                   id.c_str());
+      std::fprintf(stderr, "placerec-eval segment: %s has more than 65535 segments\n", id.c_str());
       return 1;
     }
     const cv::Mat segments = ToOriginal(segmentation.labels, image->bgr.size());
@@ -486,8 +480,8 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
       std::fprintf(stderr, "placerec-eval segment: cannot write %s's pictures\n", id.c_str());
       return 1;
     }
-    const cv::Mat objects = image->objects.empty() ? cv::Mat() : LayerAtSize(image->objects,
-                                                                              segments.size());
+    const cv::Mat objects =
+        image->objects.empty() ? cv::Mat() : LayerAtSize(image->objects, segments.size());
     const cv::Mat gt_classes =
         image->classes.empty() ? cv::Mat() : LayerAtSize(image->classes, segments.size());
     if (std::find(overlay_at.begin(), overlay_at.end(), i) != overlay_at.end()) {
@@ -504,7 +498,8 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
         for (const ObjectScore& s : scores) sum += s.iou;
         std::string rounds;
         for (const int p : summary.organization.parts) rounds += " " + std::to_string(p);
-        std::fprintf(stderr, "%s: %d superpixels (%d background), structured parts per round:%s,"
+        std::fprintf(stderr,
+                     "%s: %d superpixels (%d background), structured parts per round:%s,"
                      " %d segments, mean IoU %.1f over %zu objects\n",
                      id.c_str(), summary.superpixels, summary.background_superpixels,
                      rounds.c_str(), segmentation.size(),
@@ -516,8 +511,8 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
         baseline_options.k = setting.k * 4.0;
         baseline_options.min_size = setting.min_size * 4;
         const SceneSegmentation superpixels = ComputeSuperpixels(working, baseline_options);
-        setting.score.Add(ScoreObjects(ToOriginal(superpixels.labels, image->bgr.size()),
-                                       objects, gt_classes, *table, min_object_fraction),
+        setting.score.Add(ScoreObjects(ToOriginal(superpixels.labels, image->bgr.size()), objects,
+                                       gt_classes, *table, min_object_fraction),
                           *table);
       }
       if (!gt_classes.empty() && !table->empty()) {
@@ -530,17 +525,16 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
           const int* o = working_objects.ptr<int>(y);
           int* r = regions.ptr<int>(y);
           for (int x = 0; x < regions.cols; ++x) {
-            r[x] = o[x] <= 0 ? -1
-                             : compact.emplace(o[x], static_cast<int>(compact.size()))
-                                   .first->second;
+            r[x] = o[x] <= 0
+                       ? -1
+                       : compact.emplace(o[x], static_cast<int>(compact.size())).first->second;
           }
         }
         const int n = static_cast<int>(compact.size());
         const cv::Mat appearance = organizer->Appearance(organizer->Features(working), regions, n);
         std::vector<int> majority;
-        const std::vector<int> labels =
-            RegionLabels(regions, n, LayerAtSize(image->classes, working_size), *table, 0.5,
-                         &majority);
+        const std::vector<int> labels = RegionLabels(
+            regions, n, LayerAtSize(image->classes, working_size), *table, 0.5, &majority);
         background.Add(organizer->model().classifier.Scores(appearance), labels, majority,
                        RegionAreas(regions, n), *table, options.background_threshold);
         pixels.Add(segments, segmentation.classes, gt_classes, *table);
@@ -616,8 +610,7 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   std::ofstream file(out + "/segmentation.json");
   file << report.dump(2) << "\n";
   if (!file) {
-    std::fprintf(stderr, "placerec-eval segment: cannot write %s/segmentation.json\n",
-                 out.c_str());
+    std::fprintf(stderr, "placerec-eval segment: cannot write %s/segmentation.json\n", out.c_str());
     return 1;
   }
   std::printf("%s: %zu images, %.1f segments per image, %.1f ms per image\n", split.c_str(),
@@ -629,12 +622,13 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
       auto of = [&classes](const char* c) {
         return classes.contains(c) ? classes[c]["mean_iou"].get<double>() : -1.0;
       };
-      std::printf("  %-24s mean %.1f %% over %d objects (building %.1f, foreground %.1f)\n",
-                  name, j["mean_iou"].get<double>(), j["objects"].get<int>(), of("building"),
+      std::printf("  %-24s mean %.1f %% over %d objects (building %.1f, foreground %.1f)\n", name,
+                  j["mean_iou"].get<double>(), j["objects"].get<int>(), of("building"),
                   of("foreground"));
     };
     line("perceptual organization", report["perceptual_organization"]);
-    if (report.contains("superpixels")) line("superpixels (best FH)", report["superpixels"]["best"]);
+    if (report.contains("superpixels"))
+      line("superpixels (best FH)", report["superpixels"]["best"]);
   }
   std::printf("  wrote %s/segments, classes, overlays, segmentation.json\n", out.c_str());
   return 0;

@@ -111,11 +111,11 @@ nlohmann::json ScoreSummary(const Run& run, int frames, const RunScore& score) {
 
 nlohmann::json DecisionSummary(int true_positives, int false_positives, int revisit_frames) {
   const int claims = true_positives + false_positives;
-  return {{"true_positives", true_positives},
-          {"false_positives", false_positives},
-          {"precision", claims > 0 ? static_cast<double>(true_positives) / claims : 1.0},
-          {"recall", revisit_frames > 0 ? static_cast<double>(true_positives) / revisit_frames
-                                        : 0.0}};
+  return {
+      {"true_positives", true_positives},
+      {"false_positives", false_positives},
+      {"precision", claims > 0 ? static_cast<double>(true_positives) / claims : 1.0},
+      {"recall", revisit_frames > 0 ? static_cast<double>(true_positives) / revisit_frames : 0.0}};
 }
 
 }  // namespace placerec

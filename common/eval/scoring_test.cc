@@ -79,8 +79,7 @@ TEST(ScoringTest, FirstFramesKeepsOnlyTheirRevisits) {
   EXPECT_EQ(cut.frames.size(), 7u);
   EXPECT_EQ(cut.positives, (std::set<std::pair<int, int>>{{5, 0}, {5, 1}, {6, 1}}));
   EXPECT_EQ(cut.num_revisits, 2);
-  EXPECT_EQ(cut.is_revisit,
-            (std::vector<bool>{false, false, false, false, false, true, true}));
+  EXPECT_EQ(cut.is_revisit, (std::vector<bool>{false, false, false, false, false, true, true}));
   EXPECT_EQ(FirstFrames(run, 10).num_revisits, 4);
   EXPECT_EQ(FirstFrames(run, 0).num_revisits, 0);
 }

@@ -121,9 +121,7 @@ BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
   return classifier;
 }
 
-int BackgroundClassifier::feature_size() const {
-  return empty() ? 0 : boosts_[0]->getVarCount();
-}
+int BackgroundClassifier::feature_size() const { return empty() ? 0 : boosts_[0]->getVarCount(); }
 
 cv::Mat BackgroundClassifier::Scores(const cv::Mat& features) const {
   CHECK(!empty()) << "background classifiers not loaded";
@@ -166,14 +164,14 @@ Status BackgroundClassifier::Save(const std::string& directory) const {
     if (!fs.isOpened()) return Status::IoError("cannot write " + directory + "/background.yml");
     fs << "format_version" << kFormatVersion;
     fs << "features" << feature_size();
-    fs << "classes" << "[";
+    fs << "classes"
+       << "[";
     for (int c = 0; c < kBackgroundClasses; ++c) fs << SegmentClassName(BackgroundClassOf(c));
     fs << "]";
     fs.release();
     for (int c = 0; c < kBackgroundClasses; ++c) boosts_[c]->save(ClassifierFile(directory, c));
   } catch (const cv::Exception& e) {
-    return Status::IoError("cannot write background classifiers to " + directory + ": " +
-                           e.what());
+    return Status::IoError("cannot write background classifiers to " + directory + ": " + e.what());
   }
   return Status::Ok();
 }
@@ -199,8 +197,7 @@ StatusOr<BackgroundClassifier> BackgroundClassifier::Load(const std::string& dir
     }
     for (int c = 0; c < kBackgroundClasses; ++c) {
       if (names[c] != SegmentClassName(BackgroundClassOf(c))) {
-        return Status::InvalidArgument(index + ": class " + std::to_string(c) + " is " +
-                                       names[c]);
+        return Status::InvalidArgument(index + ": class " + std::to_string(c) + " is " + names[c]);
       }
       const std::string file = ClassifierFile(directory, c);
       cv::Ptr<cv::ml::Boost> boost = cv::Algorithm::load<cv::ml::Boost>(file);
@@ -212,8 +209,8 @@ StatusOr<BackgroundClassifier> BackgroundClassifier::Load(const std::string& dir
       classifier.boosts_[c] = boost;
     }
   } catch (const cv::Exception& e) {
-    return Status::InvalidArgument("cannot load background classifiers from " + directory +
-                                   ": " + e.what());
+    return Status::InvalidArgument("cannot load background classifiers from " + directory + ": " +
+                                   e.what());
   }
   return classifier;
 }

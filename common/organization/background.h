@@ -27,7 +27,7 @@ constexpr int kBackgroundClasses = 5;
 SegmentClass BackgroundClassOf(int index);
 
 struct BackgroundTrainingOptions {
-  int weak_count = 150;            // boosted trees per classifier
+  int weak_count = 150;  // boosted trees per classifier
   // Depth of each tree. 3 rather than 2: on 100 held-out stanford_background training images
   // (classifiers trained on the other 472) pixel accuracy 73.1 vs 72.8 % and PO object IoU
   // 44.0 vs 43.3 %; boosting takes about twice as long.

@@ -52,7 +52,7 @@ std::vector<SegmentClass> SkyAndStructured(int parts) {
 // A CIE Lab picture giving every part its own, clearly different colour (so no colour merge
 // hides what the model decides).
 cv::Mat PartColours(const cv::Mat& labels) {
-  static const cv::Vec3f kColours[] = {{80, 0, -30}, {40, 60, 40}, {55, -50, 30},
+  static const cv::Vec3f kColours[] = {{80, 0, -30},  {40, 60, 40}, {55, -50, 30},
                                        {30, 20, -60}, {70, 10, 70}, {20, 0, 0}};
   cv::Mat lab(labels.size(), CV_32FC3);
   for (int y = 0; y < labels.rows; ++y) {
@@ -121,8 +121,8 @@ TEST(BoundaryComplexityTest, SquareIsSimplerThanJaggedShapeOfEqualArea) {
 
 TEST(BoundaryComplexityTest, ConvexContourIsZeroAndNotchedContourIsNot) {
   // A convex octagon, listed point by point along its outline.
-  const std::vector<cv::Point> corners = {{10, 0}, {20, 0}, {30, 10}, {30, 20},
-                                          {20, 30}, {10, 30}, {0, 20}, {0, 10}};
+  const std::vector<cv::Point> corners = {{10, 0},  {20, 0},  {30, 10}, {30, 20},
+                                          {20, 30}, {10, 30}, {0, 20},  {0, 10}};
   std::vector<cv::Point> octagon;
   for (size_t i = 0; i < corners.size(); ++i) {
     const cv::Point a = corners[i];
@@ -204,10 +204,10 @@ struct Figure31 {
 Figure31 MakeFigure31() {
   Figure31 f;
   f.labels = Canvas({140, 120});
-  Fill(&f.labels, {40, 20, 20, 30}, 1);                // a
-  Fill(&f.labels, {60, 20, 20, 30}, 2);                // b
-  FillJagged(&f.labels, 60, 50, 80, 76, 3, 3);         // c
-  Fill(&f.labels, {25, 44, 15, 14}, 4);                // d
+  Fill(&f.labels, {40, 20, 20, 30}, 1);         // a
+  Fill(&f.labels, {60, 20, 20, 30}, 2);         // b
+  FillJagged(&f.labels, 60, 50, 80, 76, 3, 3);  // c
+  Fill(&f.labels, {25, 44, 15, 14}, 4);         // d
   f.lab = PartColours(f.labels);
   f.classes = SkyAndStructured(5);
   return f;
@@ -280,7 +280,7 @@ TEST(PerceptualOrganizationTest, Figure31SceneKeepsEveryPixelAndGroupsOnlyAAndB)
 
 TEST(PerceptualOrganizationTest, AdjacentBackgroundRegionsOfOneClassMerge) {
   cv::Mat labels = Canvas({60, 40});
-  Fill(&labels, {0, 20, 60, 20}, 1);  // a second sky region under the first
+  Fill(&labels, {0, 20, 60, 20}, 1);   // a second sky region under the first
   Fill(&labels, {20, 10, 20, 10}, 2);  // a structured part inside
   const std::vector<SegmentClass> classes = {SegmentClass::kSky, SegmentClass::kSky,
                                              SegmentClass::kStructured};
@@ -325,9 +325,9 @@ TEST(FilterBankTest, HorizontalRampRespondsInDxOnly) {
   }
   const cv::Mat features = ComputeFilterBank(lab);
   const float* f = features.ptr<float>(24) + 48 * kTextonFeatureSize;  // centre, far from borders
-  EXPECT_NEAR(f[0], 0.5f * 48, 1e-3);                // G1.L: a linear ramp is kept
-  EXPECT_NEAR(f[4], 3.0f, 1e-3);                     // G2.a
-  EXPECT_NEAR(f[8], 4.0f, 1e-3);                     // G4.b
+  EXPECT_NEAR(f[0], 0.5f * 48, 1e-3);  // G1.L: a linear ramp is kept
+  EXPECT_NEAR(f[4], 3.0f, 1e-3);       // G2.a
+  EXPECT_NEAR(f[8], 4.0f, 1e-3);       // G4.b
   for (int d = 9; d <= 12; ++d) EXPECT_NEAR(f[d], 0.0, 1e-3) << TextonFeatureName(d);
   // Scale-normalised derivatives: sigma * slope.
   EXPECT_NEAR(f[13], 2.0 * 0.5, 1e-3);  // Dx2
@@ -500,8 +500,7 @@ TEST(BackgroundModelTest, ShippedClassifiersReproduceTheirCheckSample) {
     EXPECT_EQ(static_cast<int>(decided[r]), decisions[r]) << "region " << r;
     correct += static_cast<int>(decided[r]) == labels[r];
   }
-  EXPECT_NEAR(static_cast<double>(correct) / static_cast<double>(decided.size()), accuracy,
-              1e-9);
+  EXPECT_NEAR(static_cast<double>(correct) / static_cast<double>(decided.size()), accuracy, 1e-9);
   // Scores are boosted sums, not 0/1 votes (ml::Boost needs PREDICT_SUM with RAW_OUTPUT), so
   // the five-way decision compares confidences instead of breaking ties toward sky.
   const cv::Mat scores = m.classifier.Scores(features);
@@ -514,9 +513,8 @@ TEST(BackgroundModelTest, ShippedClassifiersReproduceTheirCheckSample) {
   }
   EXPECT_GT(graded, scores.rows);
   // The sample holds background and structured regions, so it tests both outcomes.
-  const bool has_background = std::any_of(labels.begin(), labels.end(), [](int l) {
-    return l >= 0 && l < kBackgroundClasses;
-  });
+  const bool has_background = std::any_of(labels.begin(), labels.end(),
+                                          [](int l) { return l >= 0 && l < kBackgroundClasses; });
   const bool has_structured =
       std::any_of(labels.begin(), labels.end(), [](int l) { return l == 7; });
   EXPECT_TRUE(has_background);

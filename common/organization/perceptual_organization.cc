@@ -34,8 +34,8 @@ bool OrganizationOptions::Check(std::string* error) const {
     return false;
   }
   if (complexity_step < 1) {
-    *error = "organization complexity_step must be at least 1, got " +
-             std::to_string(complexity_step);
+    *error =
+        "organization complexity_step must be at least 1, got " + std::to_string(complexity_step);
     return false;
   }
   if (complexity_window < 2) {
@@ -130,8 +130,7 @@ const PartLink* PartGraph::Link(int a, int b) const {
 double LinkStrength(const PartLink& link, int perimeter_a, int perimeter_b,
                     const OrganizationOptions& options) {
   if (link.symmetric || link.aligned) return 1.0;  // phi psi = 0
-  const double ratio =
-      static_cast<double>(link.shared) / std::max(1, perimeter_a + perimeter_b);
+  const double ratio = static_cast<double>(link.shared) / std::max(1, perimeter_a + perimeter_b);
   const double lambda = options.beta * std::exp(-options.alpha * link.cos_omega * ratio);
   return std::exp(-lambda);
 }
@@ -229,8 +228,7 @@ PartGraph BuildPartGraph(const cv::Mat& labels, int num_parts, const cv::Mat& la
     const cv::Mat crop = labels(p.box);
     cv::Mat mask;
     cv::compare(crop, cv::Scalar(i), mask, cv::CMP_EQ);
-    p.complexity =
-        MaskBoundaryComplexity(mask, options.complexity_step, options.complexity_window);
+    p.complexity = MaskBoundaryComplexity(mask, options.complexity_step, options.complexity_window);
   }
 
   // Cracks between parts, grouped by pair.
@@ -688,14 +686,14 @@ SceneSegmentation OrganizeScene(const cv::Mat& labels, const std::vector<Segment
   std::vector<SegmentClass> current_classes = classes;
   for (int round = 0; round < options.max_rounds; ++round) {
     if (round > 0 && options.round_colour_merge_distance > 0) {
-      const PartGraph graph = BuildPartGraph(current, static_cast<int>(current_classes.size()),
-                                             lab, current_classes, options);
+      const PartGraph graph = BuildPartGraph(current, static_cast<int>(current_classes.size()), lab,
+                                             current_classes, options);
       const std::vector<int> merged =
           SimilarColourGroups(graph, options.round_colour_merge_distance);
       current_classes = Regroup(merged, current_classes, &current);
     }
-    const PartGraph graph = BuildPartGraph(current, static_cast<int>(current_classes.size()),
-                                           lab, current_classes, options);
+    const PartGraph graph = BuildPartGraph(current, static_cast<int>(current_classes.size()), lab,
+                                           current_classes, options);
     int structured = 0;
     for (const Part& p : graph.parts) structured += p.segment_class == SegmentClass::kStructured;
     stats.parts.push_back(structured);

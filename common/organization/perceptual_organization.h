@@ -93,12 +93,12 @@ struct Part {
 // The relation of a part to one neighbour.
 struct PartLink {
   int other = -1;
-  int shared = 0;           // common boundary length, crack edges
-  double cos_omega = 0.0;   // |cos| of the angle between the common boundary's chord and the
-                            // horizontal (eq. 3.13)
-  bool symmetric = false;   // phi = 0 (eq. 3.11)
-  bool aligned = false;     // psi = 0 (eq. 3.12)
-  double strength = 0.0;    // exp(-phi psi lambda), the factor of eq. 3.10
+  int shared = 0;          // common boundary length, crack edges
+  double cos_omega = 0.0;  // |cos| of the angle between the common boundary's chord and the
+                           // horizontal (eq. 3.13)
+  bool symmetric = false;  // phi = 0 (eq. 3.11)
+  bool aligned = false;    // psi = 0 (eq. 3.12)
+  double strength = 0.0;   // exp(-phi psi lambda), the factor of eq. 3.10
 };
 
 struct PartGraph {
@@ -137,10 +137,10 @@ std::vector<int> DetectObject(const PartGraph& graph, int reference,
                               const OrganizationOptions& options);
 
 struct OrganizationSummary {
-  int rounds = 0;                 // rounds run
-  std::vector<int> parts;         // structured parts at the start of each round
-  int background_parts = 0;       // before the final background merge
-  int segments = 0;               // in the result
+  int rounds = 0;            // rounds run
+  std::vector<int> parts;    // structured parts at the start of each round
+  int background_parts = 0;  // before the final background merge
+  int segments = 0;          // in the result
 };
 
 // Algorithm 2 and the final merges: groups the structured parts of a partition (`labels`,

@@ -12,8 +12,7 @@ namespace placerec {
 
 std::string DefaultModelsDir() { return ModelsDir("", PLACEREC_MODELS_DIR); }
 
-StatusOr<std::shared_ptr<const BackgroundModel>> LoadBackgroundModel(
-    const std::string& directory) {
+StatusOr<std::shared_ptr<const BackgroundModel>> LoadBackgroundModel(const std::string& directory) {
   const std::string dir = directory.empty() ? DefaultModelsDir() : directory;
   StatusOr<TextonModel> textons = LoadTextons(dir + "/textons.yml");
   if (!textons.ok()) return textons.status();
@@ -22,12 +21,11 @@ StatusOr<std::shared_ptr<const BackgroundModel>> LoadBackgroundModel(
   // The seed's k + 1 appearance numbers, or those plus the feature means and deviations.
   if (classifier->feature_size() != textons->size() + 1 &&
       classifier->feature_size() != textons->size() + 1 + kAppearanceExtras) {
-    return Status::InvalidArgument(dir + ": classifiers read " +
-                                   std::to_string(classifier->feature_size()) +
-                                   " features but there are " + std::to_string(textons->size()) +
-                                   " textons (expected " + std::to_string(textons->size() + 1) +
-                                   " or " +
-                                   std::to_string(textons->size() + 1 + kAppearanceExtras) + ")");
+    return Status::InvalidArgument(
+        dir + ": classifiers read " + std::to_string(classifier->feature_size()) +
+        " features but there are " + std::to_string(textons->size()) + " textons (expected " +
+        std::to_string(textons->size() + 1) + " or " +
+        std::to_string(textons->size() + 1 + kAppearanceExtras) + ")");
   }
   auto model = std::make_shared<BackgroundModel>();
   model->textons = std::move(*textons);

@@ -217,8 +217,8 @@ cv::Mat RegionAppearance(const cv::Mat& labels, int num_regions, const TextonMap
       for (int x = 0; x < labels.cols; ++x) {
         const int l = row[x];
         if (l < 0 || l >= num_regions || !missed[l]) continue;
-        ++out.at<float>(l, assigner.Assign(feature_row + static_cast<size_t>(x) *
-                                                             kTextonFeatureSize));
+        ++out.at<float>(l,
+                        assigner.Assign(feature_row + static_cast<size_t>(x) * kTextonFeatureSize));
         ++samples[l];
         accumulate(l, feature_row + static_cast<size_t>(x) * kF);
       }
@@ -271,8 +271,7 @@ StatusOr<TextonModel> LoadTextons(const std::string& path) {
     fs["features"] >> features;
     if (version != TextonModel::kFormatVersion) {
       return Status::InvalidArgument(path + ": texton format version " + std::to_string(version) +
-                                     ", expected " +
-                                     std::to_string(TextonModel::kFormatVersion));
+                                     ", expected " + std::to_string(TextonModel::kFormatVersion));
     }
     fs["mean"] >> model.mean;
     fs["inv_std"] >> model.inv_std;

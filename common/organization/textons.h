@@ -33,11 +33,11 @@ struct TextonModel {
 };
 
 struct TextonTrainingOptions {
-  int k = 150;               // textons (seed §4.1.1: k = 150)
-  int max_iterations = 40;   // k-means iterations
-  double epsilon = 1e-3;     // k-means stops when no centre moves more than this
-  int attempts = 1;          // k-means restarts; the most compact result is kept
-  uint64_t seed = 2009;      // random seed of k-means++ seeding
+  int k = 150;              // textons (seed §4.1.1: k = 150)
+  int max_iterations = 40;  // k-means iterations
+  double epsilon = 1e-3;    // k-means stops when no centre moves more than this
+  int attempts = 1;         // k-means restarts; the most compact result is kept
+  uint64_t seed = 2009;     // random seed of k-means++ seeding
   // Standardise every dimension (mean 0, variance 1 on the samples) before clustering; when
   // false the raw responses are clustered (mean 0, scale 1 are stored).
   bool standardise = true;

@@ -31,7 +31,7 @@ struct MapLookup {
   int64_t utime = 0;
   std::vector<IndexQuery> objects;
   std::vector<std::vector<cv::KeyPoint>> object_keypoints;  // per object, per descriptor row
-  int image_width = 0;  // processed frame width, pixels
+  int image_width = 0;                                      // processed frame width, pixels
 };
 
 struct MapLookupResult {

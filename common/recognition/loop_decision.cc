@@ -157,15 +157,15 @@ size_t Localize(const std::vector<PlaceMatch>& ranked, const LoopDecisionOptions
     const double slope = (sw * sxy - sx * sy) / denominator;
     const double intercept = (sy - slope * sx) / sw;
     if (std::abs(slope) >= options.min_scale_slope) {
-      const double crossing = std::clamp(-intercept / slope,
-                                         -static_cast<double>(options.localization_window),
-                                         static_cast<double>(options.localization_window));
+      const double crossing =
+          std::clamp(-intercept / slope, -static_cast<double>(options.localization_window),
+                     static_cast<double>(options.localization_window));
       size_t chosen = 0;
       double nearest = std::abs(crossing);
       for (size_t i = 1; i < ranked.size(); ++i) {
         if (!neighbour(ranked[i])) continue;
-        const double d = std::abs(static_cast<double>(ranked[i].place.sequence -
-                                                      best.place.sequence) - crossing);
+        const double d = std::abs(
+            static_cast<double>(ranked[i].place.sequence - best.place.sequence) - crossing);
         if (d < nearest - 1e-9) {
           nearest = d;
           chosen = i;
@@ -189,8 +189,7 @@ size_t Localize(const std::vector<PlaceMatch>& ranked, const LoopDecisionOptions
 
 std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
                                    const std::vector<std::vector<cv::KeyPoint>>& query_keypoints,
-                                   int query_width,
-                                   const LandmarkIndex& index,
+                                   int query_width, const LandmarkIndex& index,
                                    const std::function<const Place*(PlaceId)>& place_of,
                                    const LoopDecisionOptions& options) {
   std::map<PlaceId, PlaceMatch> by_place;
@@ -225,9 +224,8 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
       for (const KeypointPair& pair : ConsistentOrientation(pairs, options.orientation_tolerance)) {
         match.point_pairs.emplace_back(pair.query->pt, pair.stored->pt);
         match.point_landmarks.push_back(pair.landmark);
-        log_scales[place_id].push_back(
-            std::log(std::max(1e-3f, pair.query->size) / std::max(1e-3f, pair.stored->size) *
-                     width_ratio));
+        log_scales[place_id].push_back(std::log(std::max(1e-3f, pair.query->size) /
+                                                std::max(1e-3f, pair.stored->size) * width_ratio));
       }
     }
     match.matched_descriptors = static_cast<int>(match.point_pairs.size());

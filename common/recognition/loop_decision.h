@@ -99,8 +99,7 @@ struct PlaceMatch {
 // `query_width` is the processed query frame's width in pixels (0: unknown).
 std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
                                    const std::vector<std::vector<cv::KeyPoint>>& query_keypoints,
-                                   int query_width,
-                                   const LandmarkIndex& index,
+                                   int query_width, const LandmarkIndex& index,
                                    const std::function<const Place*(PlaceId)>& place_of,
                                    const LoopDecisionOptions& options);
 

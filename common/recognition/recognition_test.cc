@@ -331,8 +331,9 @@ TEST(LoopDecisionTest, GeometricallyConsistentPlaceRanksFirst) {
 // keypoint sizes scaled by `scale` and angles rotated by `rotation` degrees.
 Landmark ShiftedLandmark(int64_t id, int64_t place, const std::vector<cv::KeyPoint>& query,
                          std::mt19937* rng, float scale = 1.0f, float rotation = 0.0f) {
-  Landmark landmark = MakeLandmark(id, place, RandomDescriptors(static_cast<int>(query.size()), rng),
-                                   static_cast<int>(query.size()));
+  Landmark landmark =
+      MakeLandmark(id, place, RandomDescriptors(static_cast<int>(query.size()), rng),
+                   static_cast<int>(query.size()));
   for (size_t i = 0; i < query.size(); ++i) {
     landmark.keypoints[i] = query[i];
     landmark.keypoints[i].pt += cv::Point2f(15.0f, 0.0f);
@@ -377,12 +378,13 @@ TEST(LoopDecisionTest, MatchesWithInconsistentOrientationAreDropped) {
   const Place place{PlaceId(0), "a", 0, 0, 1};
   LoopDecisionOptions options;
   options.max_inliers_per_landmark = 0;
-  std::vector<PlaceMatch> ranked =
-      RankPlaces(found, {query}, 0, index, [&](PlaceId) { return &place; }, options);
+  std::vector<PlaceMatch> ranked = RankPlaces(
+      found, {query}, 0, index, [&](PlaceId) { return &place; }, options);
   ASSERT_EQ(ranked.size(), 1u);
   EXPECT_EQ(ranked[0].matched_descriptors, 30);
   options.orientation_tolerance = 0;  // off: every match is kept
-  ranked = RankPlaces(found, {query}, 0, index, [&](PlaceId) { return &place; }, options);
+  ranked = RankPlaces(
+      found, {query}, 0, index, [&](PlaceId) { return &place; }, options);
   EXPECT_EQ(ranked[0].matched_descriptors, 50);
 }
 
@@ -396,8 +398,8 @@ TEST(LoopDecisionTest, OneLandmarkScoresAtMostTheCap) {
   MatchAll(&found, 0, 0, LandmarkId(0), 40);
   const Place place{PlaceId(0), "a", 0, 0, 1};
   LoopDecisionOptions options;
-  const std::vector<PlaceMatch> ranked =
-      RankPlaces(found, {query}, 0, index, [&](PlaceId) { return &place; }, options);
+  const std::vector<PlaceMatch> ranked = RankPlaces(
+      found, {query}, 0, index, [&](PlaceId) { return &place; }, options);
   ASSERT_EQ(ranked.size(), 1u);
   EXPECT_GE(ranked[0].inliers, 38);
   EXPECT_EQ(ranked[0].score, options.max_inliers_per_landmark);
@@ -426,7 +428,7 @@ TEST(LoopDecisionTest, LocalizesAtTheNeighbourWithTheQueryScale) {
   ASSERT_FALSE(ranked.empty());
   EXPECT_EQ(ranked[0].place.sequence, 2);
   EXPECT_NEAR(ranked[0].log_scale, 0.0, 1e-6);
-  EXPECT_GE(ranked[0].score, 58);  // place 1's inliers
+  EXPECT_GE(ranked[0].score, 58);   // place 1's inliers
   options.localization_window = 0;  // off: the best place answers
   const std::vector<PlaceMatch> best = RankPlaces(
       found, {query}, 640, index, [&](PlaceId id) { return &places[id.value()]; }, options);

@@ -24,7 +24,7 @@ struct Place {
   int64_t sequence = 0;  // the robot's frame sequence number (monotonic per robot)
   int64_t utime = 0;     // capture time, microseconds since the epoch
   int num_landmarks = 0;
-  int image_width = 0;   // width in pixels of the processed frame its keypoints refer to
+  int image_width = 0;  // width in pixels of the processed frame its keypoints refer to
 
   bool operator==(const Place& other) const {
     return id == other.id && robot == other.robot && sequence == other.sequence &&

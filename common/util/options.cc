@@ -1,5 +1,7 @@
 #include "common/util/options.h"
 
+#include <cstdio>
+
 #include <sstream>
 
 namespace po = boost::program_options;
@@ -36,6 +38,21 @@ Status FlagParser::Parse(int argc, const char* const* argv, int first, bool* hel
     return Status::InvalidArgument(std::string(e.what()) + " (see --help)");
   }
   return Status::Ok();
+}
+
+std::optional<int> FlagParser::ParseOrExit(int argc, const char* const* argv, int first,
+                                           const std::string& program) {
+  bool help = false;
+  const Status parsed = Parse(argc, argv, first, &help);
+  if (help) {
+    std::printf("%s\n", Help().c_str());
+    return 0;
+  }
+  if (!parsed.ok()) {
+    std::fprintf(stderr, "%s: %s\n", program.c_str(), parsed.message().c_str());
+    return 2;
+  }
+  return std::nullopt;
 }
 
 std::string FlagParser::Help() const {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,11 @@ class FlagParser {
   // Parses argv[first..argc). Returns ok with *help_requested set when --help was given (the
   // caller prints Help() and exits 0); an InvalidArgument status with a message otherwise.
   Status Parse(int argc, const char* const* argv, int first, bool* help_requested);
+
+  // Parse for a command's main: nullopt to go on; otherwise the exit code, after printing the
+  // help to stdout (0, for --help) or "<program>: <message>" to stderr (2, for bad flags).
+  std::optional<int> ParseOrExit(int argc, const char* const* argv, int first,
+                                 const std::string& program);
 
   std::string Help() const;
 
