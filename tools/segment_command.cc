@@ -328,6 +328,9 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   parser.Add("po-max-rounds", &po.max_rounds, "Algorithm 2: rounds");
   parser.Add("po-round-colour-merge", &po.round_colour_merge_distance,
              "Algorithm 2: similar-colour merge between rounds (Delta E; 0: none)");
+  parser.Add("po-background-merge-colour", &po.background_merge_colour_distance,
+             "the final background merge joins only regions closer than this in CIE Lab "
+             "(Delta E; 0: any two of one class)");
   parser.Add("po-merge-background", &po.merge_background,
              "merge adjacent background regions of one class at the end");
   parser.Add("oracle-classes", &oracle_classes,
@@ -579,6 +582,7 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
                           {"max_subset", po.max_subset},
                           {"max_rounds", po.max_rounds},
                           {"round_colour_merge_distance", po.round_colour_merge_distance},
+                          {"background_merge_colour_distance", po.background_merge_colour_distance},
                           {"merge_background", po.merge_background}};
   for (const auto& [stage, ms] : stage_ms) {
     report["mean_ms"][stage] = ids->empty() ? 0.0 : ms / static_cast<double>(ids->size());

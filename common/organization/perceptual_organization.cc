@@ -30,7 +30,8 @@ bool OrganizationOptions::Check(std::string* error) const {
       !finite_non_negative(alpha, "alpha") || !finite_non_negative(beta, "beta") ||
       !finite_non_negative(symmetry_tolerance, "symmetry_tolerance") ||
       !finite_non_negative(alignment_extension, "alignment_extension") ||
-      !finite_non_negative(round_colour_merge_distance, "round_colour_merge_distance")) {
+      !finite_non_negative(round_colour_merge_distance, "round_colour_merge_distance") ||
+      !finite_non_negative(background_merge_colour_distance, "background_merge_colour_distance")) {
     return false;
   }
   if (complexity_step < 1) {
@@ -708,13 +709,18 @@ SceneSegmentation OrganizeScene(const cv::Mat& labels, const std::vector<Segment
   stats.background_parts = background;
   if (options.merge_background && background > 1) {
     const int n = static_cast<int>(current_classes.size());
-    const RegionGraph graph = BuildRegionGraph(current, n, cv::Mat());
+    const double max_colour = options.background_merge_colour_distance;
+    const RegionGraph graph = BuildRegionGraph(current, n, max_colour > 0 ? lab : cv::Mat());
     std::vector<int> parent(static_cast<size_t>(n));
     std::iota(parent.begin(), parent.end(), 0);
     for (int a = 0; a < n; ++a) {
       if (!IsBackground(current_classes[a])) continue;
       for (const auto& [b, length] : graph.neighbours[a]) {
         if (current_classes[b] != current_classes[a]) continue;
+        if (max_colour > 0 &&
+            cv::norm(graph.regions[a].mean_lab - graph.regions[b].mean_lab) >= max_colour) {
+          continue;
+        }
         const int ra = FindRoot(&parent, a);
         const int rb = FindRoot(&parent, b);
         if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);

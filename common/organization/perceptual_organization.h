@@ -65,6 +65,11 @@ struct OrganizationOptions {
   // After the last round, adjacent background regions of one class merge (seed §3.7: "merge
   // all the adjacent sky objects and ground objects").
   bool merge_background = true;
+  // When positive, that final merge joins two regions only when their mean CIE Lab colours are
+  // closer than this (Delta E), so that a part misclassified as background does not join a whole
+  // background region. 0: any two of one class (the seed). Chosen on the first 150 training
+  // images of stanford_background (object IoU 45.1 % at 0, 45.5 at 10, 46.3 at 15, 45.8 at 20).
+  double background_merge_colour_distance = 15.0;
 
   bool Check(std::string* error) const;
 };
