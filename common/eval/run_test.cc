@@ -4,7 +4,10 @@
 
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "common/util/paths.h"
 
@@ -147,6 +150,22 @@ TEST_F(RunTest, RejectsMalformedFilesNamingTheLine) {
   ASSERT_FALSE(run.ok());
   EXPECT_EQ(run.status().code(), StatusCode::kNotFound);
   EXPECT_NE(run.status().message().find(positives + " does not exist"), std::string::npos);
+}
+
+TEST(FirstFramesTest, KeepsOnlyTheRevisitsOfTheFramesKept) {
+  // Ten frames; revisits 5 (of 0 and 1), 6 (of 1), 7 (of 2), 8 (of 3).
+  placerec::Run run;
+  for (int i = 0; i < 10; ++i) run.frames.push_back({i, "r", "f.jpg", i});
+  run.positives = {{5, 0}, {5, 1}, {6, 1}, {7, 2}, {8, 3}};
+  run.is_revisit = {false, false, false, false, false, true, true, true, true, false};
+  run.num_revisits = 4;
+  const placerec::Run cut = FirstFrames(run, 7);
+  EXPECT_EQ(cut.frames.size(), 7u);
+  EXPECT_EQ(cut.positives, (std::set<std::pair<int, int>>{{5, 0}, {5, 1}, {6, 1}}));
+  EXPECT_EQ(cut.num_revisits, 2);
+  EXPECT_EQ(cut.is_revisit, (std::vector<bool>{false, false, false, false, false, true, true}));
+  EXPECT_EQ(FirstFrames(run, 10).num_revisits, 4);
+  EXPECT_EQ(FirstFrames(run, 0).num_revisits, 0);
 }
 
 // Every run in the shared evaluation data loads and has the counts ../shared/data/README.md

@@ -73,17 +73,6 @@ TEST(ScoringTest, HandWorkedCaseWithTies) {
   EXPECT_DOUBLE_EQ(again->average_precision, 29.0 / 48.0);
 }
 
-TEST(ScoringTest, FirstFramesKeepsOnlyTheirRevisits) {
-  const placerec::Run run = TenFrameRun();
-  const placerec::Run cut = FirstFrames(run, 7);
-  EXPECT_EQ(cut.frames.size(), 7u);
-  EXPECT_EQ(cut.positives, (std::set<std::pair<int, int>>{{5, 0}, {5, 1}, {6, 1}}));
-  EXPECT_EQ(cut.num_revisits, 2);
-  EXPECT_EQ(cut.is_revisit, (std::vector<bool>{false, false, false, false, false, true, true}));
-  EXPECT_EQ(FirstFrames(run, 10).num_revisits, 4);
-  EXPECT_EQ(FirstFrames(run, 0).num_revisits, 0);
-}
-
 TEST(ScoringTest, SummariesCarryTheScoreAndTheDecision) {
   const placerec::Run run = TenFrameRun();
   StatusOr<RunScore> score = ScoreAnswers(run, {{5, 0, 0.9}, {9, 4, 0.3}});
