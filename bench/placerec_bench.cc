@@ -316,6 +316,7 @@ struct OrganizationFixture {
     assigner = std::make_unique<TextonAssigner>(organizer->model().textons);
     map = ComputeTextonMap(features, *assigner, options.texton_stride);
     appearance = RegionAppearance(parts.labels, parts.size(), map, features, *assigner);
+    merged = options.learned_merge ? organizer->MergeParts(parts, appearance, working.lab) : parts;
   }
   std::string error;
   std::unique_ptr<SceneOrganizer> organizer;
@@ -324,7 +325,8 @@ struct OrganizationFixture {
   cv::Mat features;
   TextonMap map;
   cv::Mat appearance;
-  SceneSegmentation parts;  // classified superpixels
+  SceneSegmentation parts;   // classified superpixels
+  SceneSegmentation merged;  // ... after the learned merging (parts when it is off)
 };
 
 OrganizationFixture* Organization(benchmark::State& state) {
@@ -388,13 +390,28 @@ void BM_OrgClassifiers(benchmark::State& state) {
 }
 BENCHMARK(BM_OrgClassifiers)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
-// Algorithm 2 (rounds of Algorithm 1) and the final merges on the classified superpixels.
+// The learned region merging of the classified superpixels (region_merging.h).
+void BM_OrgLearnedMerge(benchmark::State& state) {
+  OrganizationFixture* o = Organization(state);
+  if (o == nullptr) return;
+  int regions = 0;
+  for (auto _ : state) {
+    SceneSegmentation merged = o->organizer->MergeParts(o->parts, o->appearance, o->working.lab);
+    regions = merged.size();
+    benchmark::DoNotOptimize(merged.labels.data);
+  }
+  state.counters["regions"] = regions;
+}
+BENCHMARK(BM_OrgLearnedMerge)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// Algorithm 2 (rounds of Algorithm 1) and the final merges on the (merged) classified
+// superpixels.
 void BM_OrgPerceptualOrganization(benchmark::State& state) {
   OrganizationFixture* o = Organization(state);
   if (o == nullptr) return;
   int segments = 0;
   for (auto _ : state) {
-    SceneSegmentation scene = OrganizeScene(o->parts.labels, o->parts.classes, o->working.lab,
+    SceneSegmentation scene = OrganizeScene(o->merged.labels, o->merged.classes, o->working.lab,
                                             o->organizer->options().organization);
     segments = scene.size();
     benchmark::DoNotOptimize(scene.labels.data);
@@ -454,7 +471,8 @@ int main(int argc, char** argv) {
     for (const char* name :
          {"BM_StageFeatures", "BM_StageSegmentation", "BM_StageAnalyze", "BM_StageLandmarks",
           "BM_Pipeline", "BM_OrgSuperpixels", "BM_OrgFilterBank", "BM_OrgTextons",
-          "BM_OrgClassifiers", "BM_OrgPerceptualOrganization", "BM_OrgWholeSegmentation"}) {
+          "BM_OrgClassifiers", "BM_OrgLearnedMerge", "BM_OrgPerceptualOrganization",
+          "BM_OrgWholeSegmentation"}) {
       const auto it = t.find(name);
       if (it != t.end()) std::printf("  %-30s %6.2f\n", name, it->second / sift->second);
     }

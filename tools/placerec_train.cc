@@ -2,6 +2,9 @@
 //   placerec-train background --dataset DIR --out models/
 // learns the textons and the five background classifiers (seed §3.4) from DIR's train split and
 // writes them with manifest.json (data, split, options, accuracy, date).
+//   placerec-train grouping --dataset DIR --out models/
+// learns the region-merge classifier (region_merging.h) from DIR's object ground truth with the
+// textons and classifiers already in --out, and writes grouping.yml.gz and grouping.json.
 #include <cstdio>
 #include <cstring>
 #include <optional>
@@ -13,6 +16,7 @@
 #include "common/util/options.h"
 #include "common/util/paths.h"
 #include "tools/background_training.h"
+#include "tools/grouping_training.h"
 
 namespace placerec {
 namespace {
@@ -20,7 +24,8 @@ namespace {
 constexpr char kUsage[] =
     "placerec-train COMMAND [options]\n\n"
     "Commands:\n"
-    "  background   textons and background classifiers (seed §3.4) from a labelled dataset\n\n"
+    "  background   textons and background classifiers (seed §3.4) from a labelled dataset\n"
+    "  grouping     the learned region-merge classifier, from a dataset's object ground truth\n\n"
     "'placerec-train COMMAND --help' lists the options of a command.";
 
 int BackgroundCommand(int argc, char** argv) {
@@ -78,6 +83,55 @@ int BackgroundCommand(int argc, char** argv) {
   return 0;
 }
 
+int GroupingCommand(int argc, char** argv) {
+  GroupingTrainingConfig config;
+  bool quiet = false;
+  FlagParser parser(
+      "placerec-train grouping --dataset DIR --out DIR [options]\n\n"
+      "Learns the region-merge classifier: pairs of adjacent regions (the superpixels of DIR's\n"
+      "training images, and the larger regions their ground-truth objects form) labelled\n"
+      "'same object' or not, described by colour, texture, boundary contrast, shape and\n"
+      "background scores, and a Gentle AdaBoost classifier on them. Reads textons.yml and the\n"
+      "background classifiers from --out (train those first) and writes grouping.yml.gz and\n"
+      "grouping.json there.");
+  parser.AddRequired("dataset", &config.dataset,
+                     "labelled dataset with objects/ (layout of shared/data/README.md)");
+  parser.AddRequired("out", &config.out, "models directory (holds the background models)");
+  parser.Add("split", &config.split, "split to train on");
+  parser.Add("holdout", &config.holdout,
+             "leave the first N images of the split out (to tune the threshold on them)");
+  parser.Add("levels", &config.levels, "ground-truth merge levels recorded after the superpixels");
+  parser.Add("level-fraction", &config.level_fraction,
+             "share of the same-object pairs each level merges");
+  parser.Add("min-purity", &config.min_purity,
+             "regions whose majority object covers less than this are not trained on");
+  parser.Add("on-policy", &config.on_policy,
+             "second pass: train again with the pairs the first model's own merging meets");
+  parser.Add("policy-threshold", &config.policy_threshold,
+             "second pass: the first model merges while its best score exceeds this");
+  parser.Add("max-pairs", &config.max_pairs, "train each model on at most N random pairs (0: all)");
+  parser.Add("features", &config.features,
+             "pair features the model reads: 33 relational ones, or 73 with the pair's place in "
+             "appearance space");
+  parser.Add("weak-count", &config.boost.weak_count, "boosted trees");
+  parser.Add("max-depth", &config.boost.max_depth, "depth of each tree");
+  parser.Add("seed", &config.seed, "random seed (order of the ground-truth merges)");
+  parser.AddSwitch("quiet", &quiet, "no progress lines");
+  if (const std::optional<int> exit =
+          parser.ParseOrExit(argc, argv, 2, "placerec-train grouping")) {
+    return *exit;
+  }
+  config.progress = !quiet;
+  cv::setNumThreads(1);
+  StatusOr<nlohmann::json> manifest = TrainGroupingModel(config);
+  if (!manifest.ok()) {
+    std::fprintf(stderr, "placerec-train grouping: %s\n", manifest.status().ToString().c_str());
+    return 1;
+  }
+  std::printf("%s\n", manifest->dump(2).c_str());
+  return 0;
+}
+
 }  // namespace
 }  // namespace placerec
 
@@ -88,6 +142,7 @@ int main(int argc, char** argv) {
     return argc < 2 ? 2 : 0;
   }
   if (std::strcmp(argv[1], "background") == 0) return placerec::BackgroundCommand(argc, argv);
+  if (std::strcmp(argv[1], "grouping") == 0) return placerec::GroupingCommand(argc, argv);
   std::fprintf(stderr, "placerec-train: unknown command '%s'\n%s\n", argv[1], placerec::kUsage);
   return 2;
 }

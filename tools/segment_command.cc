@@ -310,6 +310,11 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   parser.Add("background-smoothing", &options.background_smoothing,
              "weight of the neighbours' mean classifier scores in each superpixel's decision "
              "(0: independent decisions)");
+  parser.Add("learned-merge", &options.learned_merge,
+             "merge the classified superpixels with the learned region-merge classifier "
+             "(models/grouping.yml.gz) before Perceptual Organization");
+  parser.Add("merge-threshold", &options.merge.threshold,
+             "learned merging: merge while the best pair's boosted score exceeds this");
   parser.Add("po-theta-complexity", &po.theta_complexity, "theta_B of eq. 3.6 (seed: 18)");
   parser.Add("po-theta-cohesion", &po.theta_cohesion, "theta_C of eq. 3.6 (seed: 3.5)");
   parser.Add("po-alpha", &po.alpha, "alpha of eq. 3.13 (seed: 20)");

@@ -30,11 +30,37 @@ StatusOr<std::shared_ptr<const BackgroundModel>> LoadBackgroundModel(const std::
   auto model = std::make_shared<BackgroundModel>();
   model->textons = std::move(*textons);
   model->classifier = std::move(*classifier);
+  StatusOr<RegionMergeModel> grouping = RegionMergeModel::Load(dir);
+  if (grouping.ok()) {
+    model->grouping = std::move(*grouping);
+  } else if (grouping.status().code() != StatusCode::kNotFound) {
+    return grouping.status();
+  }
   return std::shared_ptr<const BackgroundModel>(std::move(model));
 }
 
+RegionMergeOptions DefaultMergeOptions() {
+  RegionMergeOptions options;
+  options.threshold = 0.2;
+  return options;
+}
+
+OrganizationOptions DefaultOrganizationOptions() {
+  OrganizationOptions options;
+  // The learned merging already joins background regions where the boundary and appearance
+  // say one surface; the class-and-colour merge after it only joins more across real
+  // boundaries (held-out object IoU 49.8 % without it, 48.9 % with it).
+  options.merge_background = false;
+  // Nor do the energy-minimising rounds (Algorithm 1 and 2) improve on the learned merging
+  // there: 49.8 % without them (threshold 0.2), 49.6 % with one round (threshold 0.3), 47.9 %
+  // with two. They stay available (--po-max-rounds) and are what recognition uses
+  // (frame_analyzer.h).
+  options.max_rounds = 0;
+  return options;
+}
+
 bool SceneOrganizerOptions::Check(std::string* error) const {
-  if (!superpixels.Check(error) || !organization.Check(error)) return false;
+  if (!superpixels.Check(error) || !merge.Check(error) || !organization.Check(error)) return false;
   if (texton_stride < 1 || texton_stride > 8) {
     *error = "texton_stride must be in [1, 8], got " + std::to_string(texton_stride);
     return false;
@@ -55,6 +81,12 @@ StatusOr<SceneOrganizer> SceneOrganizer::Create(const SceneOrganizerOptions& opt
   if (!options.Check(&error)) return Status::InvalidArgument(error);
   StatusOr<std::shared_ptr<const BackgroundModel>> model = LoadBackgroundModel(options.models_dir);
   if (!model.ok()) return model.status();
+  if (options.learned_merge && (*model)->grouping.empty()) {
+    return Status::NotFound(
+        "the models directory has no " + std::string(RegionMergeModel::kFileName) +
+        " for the learned region merging: train it with 'placerec-train grouping' or switch the "
+        "merging off (learned_merge = false, --learned-merge false)");
+  }
   return SceneOrganizer(options, std::move(*model));
 }
 
@@ -64,6 +96,8 @@ SceneOrganizer::SceneOrganizer(const SceneOrganizerOptions& options,
   std::string error;
   CHECK(options_.Check(&error)) << error;
   CHECK(model_ != nullptr);
+  CHECK(!options_.learned_merge || !model_->grouping.empty())
+      << "learned region merging needs a grouping model";
   assigner_ = std::make_shared<const TextonAssigner>(model_->textons);
 }
 
@@ -79,7 +113,8 @@ cv::Mat SceneOrganizer::Appearance(const cv::Mat& features, const cv::Mat& label
 
 SceneSegmentation SceneOrganizer::ClassifiedSuperpixels(const WorkingImage& image,
                                                         cv::Mat* features_out,
-                                                        StageTimings* timings) const {
+                                                        StageTimings* timings,
+                                                        cv::Mat* appearance_out) const {
   Timer timer;
   SceneSegmentation superpixels = ComputeSuperpixels(image, options_.superpixels);
   if (timings != nullptr) timings->emplace_back("superpixels", timer.ElapsedMs());
@@ -121,16 +156,35 @@ SceneSegmentation SceneOrganizer::ClassifiedSuperpixels(const WorkingImage& imag
   }
   if (timings != nullptr) timings->emplace_back("classifiers", timer.ElapsedMs());
   if (features_out != nullptr) *features_out = features;
+  if (appearance_out != nullptr) *appearance_out = appearance;
   return superpixels;
+}
+
+SceneSegmentation SceneOrganizer::MergeParts(const SceneSegmentation& parts,
+                                             const cv::Mat& appearance, const cv::Mat& lab,
+                                             int* merges) const {
+  MergeState state(parts.labels, parts.size(), lab, appearance, options_.texton_stride,
+                   model_->textons.inv_std, model_->classifier, options_.background_threshold);
+  const int count = MergeRegions(model_->grouping, options_.merge, &state);
+  if (merges != nullptr) *merges = count;
+  SceneSegmentation merged = state.Result();
+  merged.scale = parts.scale;
+  return merged;
 }
 
 SceneSegmentation SceneOrganizer::Segment(const WorkingImage& image,
                                           SceneOrganizerSummary* summary) const {
   SceneOrganizerSummary stats;
-  const SceneSegmentation parts = ClassifiedSuperpixels(image, nullptr, &stats.timings);
+  cv::Mat appearance;
+  SceneSegmentation parts = ClassifiedSuperpixels(image, nullptr, &stats.timings, &appearance);
   stats.superpixels = parts.size();
   for (const SegmentClass c : parts.classes) stats.background_superpixels += IsBackground(c);
   Timer timer;
+  if (options_.learned_merge) {
+    parts = MergeParts(parts, appearance, image.lab, &stats.learned_merges);
+    stats.timings.emplace_back("merging", timer.ElapsedMs());
+    timer.Restart();
+  }
   SceneSegmentation result = OrganizeScene(parts.labels, parts.classes, image.lab,
                                            options_.organization, &stats.organization);
   result.scale = image.scale;

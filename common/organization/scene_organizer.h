@@ -15,6 +15,7 @@
 
 #include "common/organization/background.h"
 #include "common/organization/perceptual_organization.h"
+#include "common/organization/region_merging.h"
 #include "common/organization/textons.h"
 #include "common/segmentation/segmentation.h"
 #include "common/segmentation/superpixels.h"
@@ -27,14 +28,24 @@ namespace placerec {
 // built from.
 std::string DefaultModelsDir();
 
-// Textons and background classifiers, loaded once and shared (read-only) by every organizer.
+// Textons, background classifiers and the learned grouping model, loaded once and shared
+// (read-only) by every organizer.
 struct BackgroundModel {
   TextonModel textons;
   BackgroundClassifier classifier;
+  RegionMergeModel grouping;  // empty when the directory has no grouping.yml.gz
 };
 
-// Loads textons.yml and the background classifiers from `directory` (empty: DefaultModelsDir()).
+// Loads textons.yml, the background classifiers and, when present, grouping.yml.gz from
+// `directory` (empty: DefaultModelsDir()).
 StatusOr<std::shared_ptr<const BackgroundModel>> LoadBackgroundModel(const std::string& directory);
+
+// The learned merging's threshold, chosen on the 150 stanford_background training images the
+// shipped grouping model was not trained on (models/grouping.json).
+RegionMergeOptions DefaultMergeOptions();
+// The seed's Perceptual Organization options, except where the learned merging changes what
+// works best on those held-out images (see the definition).
+OrganizationOptions DefaultOrganizationOptions();
 
 struct SceneOrganizerOptions {
   // The initial partition (seed §3.6, §6.1.2: sigma 0.5, k 300, min 20 at 640x480, small and
@@ -51,7 +62,12 @@ struct SceneOrganizerOptions {
   // (0: the seed's independent per-region decision). Background classes are spatially
   // coherent, and a superpixel's histogram over a few dozen texton samples is noisy.
   double background_smoothing = 0.0;
-  OrganizationOptions organization;
+  // Learned region merging (region_merging.h) of the classified superpixels before Perceptual
+  // Organization; needs grouping.yml.gz in the models directory.
+  bool learned_merge = true;
+  RegionMergeOptions merge = DefaultMergeOptions();
+  // Perceptual Organization of the (merged) parts; see DefaultOrganizationOptions.
+  OrganizationOptions organization = DefaultOrganizationOptions();
   // Directory with the trained models; empty: DefaultModelsDir().
   std::string models_dir;
 
@@ -62,8 +78,9 @@ struct SceneOrganizerOptions {
 struct SceneOrganizerSummary {
   int superpixels = 0;
   int background_superpixels = 0;
+  int learned_merges = 0;  // merges of the learned region merging
   OrganizationSummary organization;
-  StageTimings timings;  // superpixels, filter_bank, textons, classifiers, organization
+  StageTimings timings;  // superpixels, filter_bank, textons, classifiers, merging, organization
 };
 
 class SceneOrganizer {
@@ -84,9 +101,15 @@ class SceneOrganizer {
   // Region appearance (RegionAppearance rows) of `labels` (ids 0..num_regions-1, -1 ignored)
   // from features.
   cv::Mat Appearance(const cv::Mat& features, const cv::Mat& labels, int num_regions) const;
-  // Superpixels classified: the initial partition with background classes, before grouping.
+  // Superpixels classified: the initial partition with background classes, before grouping;
+  // optionally with the filter-bank features and the superpixels' RegionAppearance rows.
   SceneSegmentation ClassifiedSuperpixels(const WorkingImage& image, cv::Mat* features = nullptr,
-                                          StageTimings* timings = nullptr) const;
+                                          StageTimings* timings = nullptr,
+                                          cv::Mat* appearance = nullptr) const;
+  // The learned region merging of classified superpixels (`appearance` their RegionAppearance
+  // rows); returns the merged partition with re-decided classes.
+  SceneSegmentation MergeParts(const SceneSegmentation& parts, const cv::Mat& appearance,
+                               const cv::Mat& lab, int* merges = nullptr) const;
 
   const SceneOrganizerOptions& options() const { return options_; }
   const BackgroundModel& model() const { return *model_; }

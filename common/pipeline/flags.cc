@@ -70,6 +70,11 @@ void AddOrganizationFlags(FlagParser* p, SceneOrganizerOptions* o) {
   p->Add("background-threshold", &o->background_threshold,
          "a region is background when its best classifier score exceeds this (0: boosted "
          "decision)");
+  p->Add("learned-merge", &o->learned_merge,
+         "organization: merge the classified superpixels with the learned region-merge "
+         "classifier (models/grouping.yml.gz) before Perceptual Organization");
+  p->Add("merge-threshold", &o->merge.threshold,
+         "organization: learned merging goes on while the best pair's score exceeds this");
   p->Add("po-theta-b", &o->organization.theta_complexity,
          "structure potential weight of boundary complexity (eq. 3.6: 18)");
   p->Add("po-theta-c", &o->organization.theta_cohesion,

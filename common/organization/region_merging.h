@@ -1,0 +1,146 @@
+// Learned region merging: an extension of the seed's between-round similar-colour merge (§3.7,
+// Algorithm 2) in which a boosted classifier, trained on ground-truth objects, judges whether
+// two adjacent regions belong to one object. It looks at what the colour rule looks at (mean
+// CIE Lab difference) and at what the colour rule misses: texture (texton histograms), the
+// contrast along the common boundary, how much boundary the two share, their sizes, heights and
+// background-classifier scores. Regions merge greedily, most confident pair first, and every
+// merge re-describes the merged region (appearance, background class, boundaries), so the
+// decisions further up see whole parts rather than superpixels.
+//
+// MergeState keeps a partition with everything a pair's features need, updated exactly on
+// every merge (sums of pixels, samples and boundary cracks; seed Lemma 1 for boundary lengths).
+// The model file (normally models/grouping.yml.gz) is one OpenCV ml::Boost with a format version
+// and the feature count; placerec-train grouping learns it.
+#pragma once
+
+#include <array>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/ml.hpp>
+
+#include "common/organization/background.h"
+#include "common/segmentation/segmentation.h"
+#include "common/util/status.h"
+
+namespace placerec {
+
+// Features of a region pair (MergeState::PairFeatures); the layout is part of the model format.
+// The first kMergeRelationFeatures compare the two regions (colour, texture, boundary, shape,
+// background scores); the rest place the pair in appearance space: for each of the 20
+// filter-bank features, the smaller and the larger of the two regions' means. A model reads
+// the leading columns it was trained on.
+constexpr int kMergeRelationFeatures = 33;
+constexpr int kMergeFeatures = kMergeRelationFeatures + 2 * 20;
+
+struct RegionMergeOptions {
+  // Regions merge while the most confident pair's boosted score (> 0: "one object") exceeds
+  // this; higher merges less.
+  double threshold = 0.0;
+  bool Check(std::string* error) const;
+};
+
+// A partition under agglomeration.
+class MergeState {
+ public:
+  // `labels` CV_32S ids 0..num_regions-1 covering the image; `lab` the working image's CIE Lab
+  // (CV_32FC3); `appearance` RegionAppearance rows of the regions (k + 1 + kAppearanceExtras
+  // columns) computed on the texton grid of `texton_stride`; `feature_inv_std` the textons'
+  // per-feature scale (TextonModel::inv_std, 1 x 20); `classifier` decides the background class
+  // of every (merged) region.
+  MergeState(const cv::Mat& labels, int num_regions, const cv::Mat& lab, const cv::Mat& appearance,
+             int texton_stride, const cv::Mat& feature_inv_std,
+             const BackgroundClassifier& classifier, double background_threshold);
+
+  int capacity() const { return static_cast<int>(regions_.size()); }
+  bool alive(int region) const { return regions_[region].alive; }
+  // Adjacent pairs (a < b) of live regions.
+  std::vector<std::pair<int, int>> Pairs() const;
+  const std::map<int, int>& NeighboursOf(int region) const;  // live neighbour -> edge index
+  // Writes kMergeFeatures numbers; symmetric in a and b.
+  void PairFeatures(int a, int b, float* out) const;
+  // Merges b into a (both live and adjacent); a survives with the union's description.
+  void Merge(int a, int b);
+  // The current partition: labels compacted to 0..n-1 in order of first appearance, with each
+  // region's background class.
+  SceneSegmentation Result() const;
+  // The id every initial region now belongs to.
+  int Find(int region) const;
+  SegmentClass ClassOf(int region) const { return regions_[region].segment_class; }
+
+ private:
+  struct Region {
+    bool alive = true;
+    double area = 0;
+    double sum_x = 0, sum_y = 0;
+    cv::Vec3d lab_sum, lab_squares;
+    int min_x = 0, min_y = 0, max_x = 0, max_y = 0;
+    double perimeter = 0;
+    double samples = 0;
+    std::vector<float> appearance;  // RegionAppearance row
+    std::array<float, kBackgroundClasses> scores{};
+    SegmentClass segment_class = SegmentClass::kStructured;
+    std::map<int, int> neighbours;  // neighbour -> index into edges_
+  };
+  struct Edge {
+    double shared = 0;        // crack edges
+    double contrast_sum = 0;  // Delta E across each crack
+    double strong = 0;        // cracks with Delta E above kStrongContrast
+    double wide_sum = 0;      // Delta E of the smoothed image one pixel beyond each side
+    double horizontal = 0;    // cracks between vertically adjacent pixels
+  };
+
+  void Describe(Region* region) const;
+
+  cv::Mat labels_;
+  cv::Size size_;
+  int k_ = 0;  // textons
+  std::vector<float> inv_std_;
+  const BackgroundClassifier& classifier_;
+  double background_threshold_ = 0;
+  std::vector<Region> regions_;
+  std::vector<Edge> edges_;
+  mutable std::vector<int> parent_;
+};
+
+class RegionMergeModel {
+ public:
+  static constexpr int kFormatVersion = 1;
+  static constexpr const char* kFileName = "grouping.yml.gz";
+
+  struct TrainingOptions {
+    int weak_count = 150;
+    int max_depth = 3;
+    double weight_trim_rate = 0.95;
+    bool Check(std::string* error) const;
+  };
+
+  RegionMergeModel() = default;
+  // `features` n x d CV_32F (d <= kMergeFeatures: the leading columns of PairFeatures),
+  // `labels` 1 (same object) / 0, `weights` per row.
+  static RegionMergeModel Train(const cv::Mat& features, const std::vector<int>& labels,
+                                const std::vector<float>& weights, const TrainingOptions& options);
+  // Loads DIR/grouping.yml.gz; NotFound when the file is missing.
+  static StatusOr<RegionMergeModel> Load(const std::string& directory);
+  Status Save(const std::string& directory) const;
+
+  bool empty() const { return !boost_; }
+  int feature_size() const { return empty() ? 0 : boost_->getVarCount(); }
+  // Boosted scores (> 0: one object) of feature rows (at least feature_size() columns).
+  cv::Mat Scores(const cv::Mat& features) const;
+
+ private:
+  cv::Ptr<cv::ml::Boost> boost_;
+};
+
+// Greedy agglomeration: merges the adjacent pair with the highest score while it exceeds
+// options.threshold, re-scoring the merged region's pairs after every merge. Returns the
+// number of merges. `after_merge`, when given, is called with the surviving region after every
+// merge (training records the pairs the merging meets).
+int MergeRegions(const RegionMergeModel& model, const RegionMergeOptions& options,
+                 MergeState* state, const std::function<void(int)>& after_merge = nullptr);
+
+}  // namespace placerec

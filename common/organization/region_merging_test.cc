@@ -1,0 +1,254 @@
+#include "common/organization/region_merging.h"
+
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "common/organization/filter_bank.h"
+#include "common/organization/scene_organizer.h"
+#include "common/organization/textons.h"
+#include "common/segmentation/region_graph.h"
+
+namespace placerec {
+namespace {
+
+// The shipped textons and background classifiers (models/); the tests that need them skip
+// when they are missing.
+std::shared_ptr<const BackgroundModel> ShippedModel() {
+  const std::string dir = PLACEREC_MODELS_DIR;
+  if (!std::filesystem::exists(dir + "/background.yml")) return nullptr;
+  StatusOr<std::shared_ptr<const BackgroundModel>> model = LoadBackgroundModel(dir);
+  return model.ok() ? *model : nullptr;
+}
+
+// A 64 x 48 CIE Lab image of four noisy colour blocks and its labels: the blocks, each cut
+// into a left and a right half (8 regions).
+struct Scene {
+  cv::Mat lab;     // CV_32FC3
+  cv::Mat labels;  // CV_32S
+  int regions = 8;
+};
+
+Scene MakeScene() {
+  Scene scene;
+  const int w = 64;
+  const int h = 48;
+  cv::Mat bgr(h, w, CV_8UC3);
+  const cv::Vec3b colours[4] = {{200, 120, 40}, {40, 160, 60}, {90, 90, 200}, {150, 150, 150}};
+  std::mt19937 rng(7);
+  std::normal_distribution<float> noise(0.0f, 6.0f);
+  scene.labels.create(h, w, CV_32S);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const int block = (y < h / 2 ? 0 : 2) + (x < w / 2 ? 0 : 1);
+      cv::Vec3b c = colours[block];
+      for (int k = 0; k < 3; ++k) c[k] = cv::saturate_cast<uchar>(c[k] + noise(rng));
+      bgr.at<cv::Vec3b>(y, x) = c;
+      const int half = (x % (w / 2)) < w / 4 ? 0 : 1;
+      scene.labels.at<int>(y, x) = block * 2 + half;
+    }
+  }
+  cv::Mat bgr_float;
+  bgr.convertTo(bgr_float, CV_32F, 1.0 / 255.0);
+  cv::cvtColor(bgr_float, scene.lab, cv::COLOR_BGR2Lab);
+  return scene;
+}
+
+cv::Mat AppearanceOf(const BackgroundModel& model, const cv::Mat& lab, const cv::Mat& labels,
+                     int regions, int stride) {
+  const TextonAssigner assigner(model.textons);
+  const cv::Mat features = ComputeFilterBank(lab);
+  return RegionAppearance(labels, regions, ComputeTextonMap(features, assigner, stride), features,
+                          assigner);
+}
+
+MergeState StateOf(const BackgroundModel& model, const cv::Mat& lab, const cv::Mat& labels,
+                   int regions) {
+  constexpr int kStride = 2;
+  return MergeState(labels, regions, lab, AppearanceOf(model, lab, labels, regions, kStride),
+                    kStride, model.textons.inv_std, model.classifier, 0.0);
+}
+
+TEST(MergeStateTest, PairFeaturesAreSymmetric) {
+  const std::shared_ptr<const BackgroundModel> model = ShippedModel();
+  if (!model) GTEST_SKIP() << "no trained models in " << PLACEREC_MODELS_DIR;
+  const Scene scene = MakeScene();
+  const MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions);
+  const std::vector<std::pair<int, int>> pairs = state.Pairs();
+  ASSERT_FALSE(pairs.empty());
+  for (const auto& [a, b] : pairs) {
+    float ab[kMergeFeatures];
+    float ba[kMergeFeatures];
+    state.PairFeatures(a, b, ab);
+    state.PairFeatures(b, a, ba);
+    for (int f = 0; f < kMergeFeatures; ++f) {
+      EXPECT_FLOAT_EQ(ab[f], ba[f]) << "pair " << a << "," << b << " feature " << f;
+    }
+  }
+}
+
+// The incremental bookkeeping of Merge equals a state built from scratch on the merged labels:
+// every pair's features (colour, textons, boundary contrast and lengths, shape, classifier
+// scores) agree.
+TEST(MergeStateTest, MergedStateEqualsStateBuiltFromMergedLabels) {
+  const std::shared_ptr<const BackgroundModel> model = ShippedModel();
+  if (!model) GTEST_SKIP() << "no trained models in " << PLACEREC_MODELS_DIR;
+  const Scene scene = MakeScene();
+  MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions);
+  // Join the halves of the top-left block, then that block with the top-right block's left
+  // half, then the bottom blocks' inner halves.
+  state.Merge(0, 1);
+  state.Merge(0, 2);
+  state.Merge(5, 6);
+  const SceneSegmentation merged = state.Result();
+  ASSERT_EQ(merged.size(), 5);
+  const MergeState fresh = StateOf(*model, scene.lab, merged.labels, merged.size());
+  // Map the incremental state's live ids to the compact ids of Result().
+  std::vector<int> compact_of(static_cast<size_t>(state.capacity()), -1);
+  for (int y = 0; y < scene.labels.rows; ++y) {
+    for (int x = 0; x < scene.labels.cols; ++x) {
+      compact_of[state.Find(scene.labels.at<int>(y, x))] = merged.labels.at<int>(y, x);
+    }
+  }
+  const std::vector<std::pair<int, int>> pairs = state.Pairs();
+  ASSERT_EQ(pairs.size(), fresh.Pairs().size());
+  for (const auto& [a, b] : pairs) {
+    float incremental[kMergeFeatures];
+    float scratch[kMergeFeatures];
+    state.PairFeatures(a, b, incremental);
+    fresh.PairFeatures(compact_of[a], compact_of[b], scratch);
+    for (int f = 0; f < kMergeFeatures; ++f) {
+      EXPECT_NEAR(incremental[f], scratch[f], 1e-3 * (1.0 + std::abs(scratch[f])))
+          << "pair " << a << "," << b << " feature " << f;
+    }
+  }
+  for (int r = 0; r < state.capacity(); ++r) {
+    if (state.alive(r)) {
+      EXPECT_EQ(state.ClassOf(r), fresh.ClassOf(compact_of[r]));
+    }
+  }
+}
+
+TEST(MergeStateTest, ResultCoversEveryPixelAndFollowsMerges) {
+  const std::shared_ptr<const BackgroundModel> model = ShippedModel();
+  if (!model) GTEST_SKIP() << "no trained models in " << PLACEREC_MODELS_DIR;
+  const Scene scene = MakeScene();
+  MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions);
+  state.Merge(3, 2);
+  EXPECT_FALSE(state.alive(2));
+  EXPECT_EQ(state.Find(2), 3);
+  const SceneSegmentation result = state.Result();
+  EXPECT_EQ(result.size(), 7);
+  EXPECT_EQ(static_cast<int>(result.classes.size()), 7);
+  double min_id = 0;
+  double max_id = 0;
+  cv::minMaxLoc(result.labels, &min_id, &max_id);
+  EXPECT_EQ(min_id, 0);
+  EXPECT_EQ(max_id, 6);
+  EXPECT_EQ(result.labels.at<int>(0, 40), result.labels.at<int>(0, 55));  // regions 2 and 3
+  EXPECT_NE(result.labels.at<int>(0, 20), result.labels.at<int>(0, 40));  // 1 stays apart
+}
+
+// A model trained on one feature (pairs merge when their colour difference is small).
+RegionMergeModel ColourRuleModel() {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> value(0.0f, 40.0f);
+  cv::Mat features(400, kMergeFeatures, CV_32F);
+  std::vector<int> labels;
+  for (int r = 0; r < features.rows; ++r) {
+    for (int f = 0; f < kMergeFeatures; ++f) features.at<float>(r, f) = value(rng);
+    labels.push_back(features.at<float>(r, 0) < 15.0f ? 1 : 0);
+  }
+  RegionMergeModel::TrainingOptions options;
+  options.weak_count = 20;
+  options.max_depth = 1;
+  return RegionMergeModel::Train(features, labels, {}, options);
+}
+
+TEST(RegionMergeModelTest, SaveLoadRoundTripGivesTheSameScores) {
+  const RegionMergeModel model = ColourRuleModel();
+  const std::string dir = ::testing::TempDir() + "/grouping_roundtrip";
+  std::filesystem::create_directories(dir);
+  ASSERT_TRUE(model.Save(dir).ok());
+  const StatusOr<RegionMergeModel> loaded = RegionMergeModel::Load(dir);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+  cv::Mat probe(2, kMergeFeatures, CV_32F, cv::Scalar(20.0f));
+  probe.at<float>(0, 0) = 2.0f;  // similar colours
+  probe.at<float>(1, 0) = 35.0f;
+  const cv::Mat before = model.Scores(probe);
+  const cv::Mat after = loaded->Scores(probe);
+  EXPECT_GT(before.at<float>(0), 0.0f);
+  EXPECT_LT(before.at<float>(1), 0.0f);
+  EXPECT_FLOAT_EQ(before.at<float>(0), after.at<float>(0));
+  EXPECT_FLOAT_EQ(before.at<float>(1), after.at<float>(1));
+}
+
+TEST(RegionMergeModelTest, MissingFileIsNotFoundAndForeignFileIsRejected) {
+  const StatusOr<RegionMergeModel> missing = RegionMergeModel::Load("/nonexistent/placerec");
+  ASSERT_FALSE(missing.ok());
+  EXPECT_EQ(missing.status().code(), StatusCode::kNotFound);
+  const std::string dir = ::testing::TempDir() + "/grouping_foreign";
+  std::filesystem::create_directories(dir);
+  {
+    cv::FileStorage fs(dir + "/" + RegionMergeModel::kFileName, cv::FileStorage::WRITE);
+    fs << "format_version" << 99 << "features" << 3;
+  }
+  const StatusOr<RegionMergeModel> foreign = RegionMergeModel::Load(dir);
+  ASSERT_FALSE(foreign.ok());
+  EXPECT_NE(foreign.status().message().find("placerec-train grouping"), std::string::npos);
+}
+
+TEST(MergeRegionsTest, ThresholdDecidesHowFarMergingGoes) {
+  const std::shared_ptr<const BackgroundModel> model = ShippedModel();
+  if (!model) GTEST_SKIP() << "no trained models in " << PLACEREC_MODELS_DIR;
+  const Scene scene = MakeScene();
+  const RegionMergeModel colour = ColourRuleModel();
+  RegionMergeOptions options;
+  // The colour rule joins the two halves of each block (same colour) but no two blocks.
+  MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions);
+  EXPECT_EQ(MergeRegions(colour, options, &state), 4);
+  const SceneSegmentation blocks = state.Result();
+  EXPECT_EQ(blocks.size(), 4);
+  // Nothing scores above +infinity.
+  options.threshold = std::numeric_limits<double>::max();
+  MergeState untouched = StateOf(*model, scene.lab, scene.labels, scene.regions);
+  EXPECT_EQ(MergeRegions(colour, options, &untouched), 0);
+  EXPECT_EQ(untouched.Result().size(), scene.regions);
+  // Everything scores above -infinity: one region.
+  options.threshold = std::numeric_limits<double>::lowest();
+  MergeState all = StateOf(*model, scene.lab, scene.labels, scene.regions);
+  EXPECT_EQ(MergeRegions(colour, options, &all), scene.regions - 1);
+  EXPECT_EQ(all.Result().size(), 1);
+}
+
+// The shipped grouping model on the synthetic blocks: the halves of one block belong together,
+// two blocks of very different colour do not.
+TEST(ShippedGroupingModelTest, JoinsHalvesOfOneSurfaceAndKeepsDifferentSurfacesApart) {
+  const std::shared_ptr<const BackgroundModel> model = ShippedModel();
+  if (!model || model->grouping.empty()) {
+    GTEST_SKIP() << "no trained grouping model in " << PLACEREC_MODELS_DIR;
+  }
+  const Scene scene = MakeScene();
+  const MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions);
+  cv::Mat halves(4, kMergeFeatures, CV_32F);
+  for (int block = 0; block < 4; ++block) {
+    state.PairFeatures(2 * block, 2 * block + 1, halves.ptr<float>(block));
+  }
+  cv::Mat blocks(2, kMergeFeatures, CV_32F);
+  state.PairFeatures(1, 2, blocks.ptr<float>(0));  // orange | green, side by side
+  state.PairFeatures(0, 4, blocks.ptr<float>(1));  // orange above blue
+  const cv::Mat same = model->grouping.Scores(halves);
+  const cv::Mat different = model->grouping.Scores(blocks);
+  for (int r = 0; r < same.rows; ++r) EXPECT_GT(same.at<float>(r), 0.0f) << "block " << r;
+  for (int r = 0; r < different.rows; ++r) EXPECT_LT(different.at<float>(r), 0.0f) << "pair " << r;
+}
+
+}  // namespace
+}  // namespace placerec

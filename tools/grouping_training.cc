@@ -1,0 +1,330 @@
+#include "tools/grouping_training.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <numeric>
+#include <random>
+
+#include "common/util/paths.h"
+#include "common/util/timer.h"
+#include "tools/labelled_dataset.h"
+
+namespace placerec {
+namespace {
+
+std::string Today() {
+  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  char text[32];
+  std::strftime(text, sizeof(text), "%Y-%m-%d", std::gmtime(&now));
+  return text;
+}
+
+// Ground-truth object votes of a region and their majority.
+struct Votes {
+  std::map<int, int> counts;  // object id (0: none) -> pixels
+  int total = 0;
+
+  // The majority object when it is a real object covering at least `min_purity`; else -1.
+  int Majority(double min_purity) const {
+    int best = -1;
+    int best_count = 0;
+    for (const auto& [object, count] : counts) {
+      if (count > best_count) {
+        best = object;
+        best_count = count;
+      }
+    }
+    if (best <= 0 || best_count < min_purity * total) return -1;
+    return best;
+  }
+  void Add(const Votes& other) {
+    for (const auto& [object, count] : other.counts) counts[object] += count;
+    total += other.total;
+  }
+};
+
+struct PairSample {
+  cv::Mat features;
+  std::vector<int> labels;
+};
+
+// Records the pairs of `state` with a changed region (both when `changed` is empty).
+void Record(const MergeState& state, const std::vector<Votes>& votes,
+            const std::vector<char>& changed, double min_purity, PairSample* sample) {
+  float row[kMergeFeatures];
+  for (const auto& [a, b] : state.Pairs()) {
+    if (!changed.empty() && !changed[a] && !changed[b]) continue;
+    const int ma = votes[a].Majority(min_purity);
+    const int mb = votes[b].Majority(min_purity);
+    if (ma < 0 || mb < 0) continue;
+    state.PairFeatures(a, b, row);
+    sample->features.push_back(cv::Mat(1, kMergeFeatures, CV_32F, row));
+    sample->labels.push_back(ma == mb ? 1 : 0);
+  }
+}
+
+}  // namespace
+
+namespace {
+
+// What the passes need of one training image.
+struct TrainingImage {
+  SceneSegmentation parts;
+  cv::Mat lab;
+  cv::Mat appearance;
+  std::vector<Votes> votes;
+};
+
+// At most `max_rows` rows of `sample`, drawn at random.
+PairSample Subsample(const PairSample& sample, int max_rows, std::mt19937_64* rng) {
+  if (max_rows <= 0 || sample.features.rows <= max_rows) return sample;
+  std::vector<int> rows(static_cast<size_t>(sample.features.rows));
+  std::iota(rows.begin(), rows.end(), 0);
+  std::shuffle(rows.begin(), rows.end(), *rng);
+  rows.resize(static_cast<size_t>(max_rows));
+  std::sort(rows.begin(), rows.end());
+  PairSample out;
+  out.features.create(max_rows, kMergeFeatures, CV_32F);
+  for (int r = 0; r < max_rows; ++r) {
+    sample.features.row(rows[r]).copyTo(out.features.row(r));
+    out.labels.push_back(sample.labels[rows[r]]);
+  }
+  return out;
+}
+
+struct TrainedModel {
+  RegionMergeModel model;
+  int pairs = 0;
+  int positives = 0;
+  double same_object_recall = 0;
+  double different_object_recall = 0;
+  double seconds = 0;
+};
+
+// Trains on (a random subset of) `sample`; positives weigh negatives / positives so the two
+// classes weigh alike.
+StatusOr<TrainedModel> TrainOn(const PairSample& all, const GroupingTrainingConfig& config,
+                               std::mt19937_64* rng) {
+  const PairSample sample = Subsample(all, config.max_pairs, rng);
+  int positives = 0;
+  for (const int l : sample.labels) positives += l;
+  const int negatives = static_cast<int>(sample.labels.size()) - positives;
+  if (positives == 0 || negatives == 0) {
+    return Status::InvalidArgument("training needs both same-object and different-object pairs");
+  }
+  std::vector<float> weights(sample.labels.size(), 1.0f);
+  for (size_t r = 0; r < weights.size(); ++r) {
+    if (sample.labels[r]) weights[r] = static_cast<float>(negatives) / positives;
+  }
+  if (config.progress) {
+    std::fprintf(stderr, "boosting on %d pairs (%d same object, %d different)\n",
+                 sample.features.rows, positives, negatives);
+  }
+  Timer timer;
+  TrainedModel trained;
+  trained.model = RegionMergeModel::Train(sample.features.colRange(0, config.features).clone(),
+                                          sample.labels, weights, config.boost);
+  trained.seconds = timer.ElapsedMs() / 1000.0;
+  trained.pairs = sample.features.rows;
+  trained.positives = positives;
+  const cv::Mat scores = trained.model.Scores(sample.features);
+  int true_positives = 0;
+  int true_negatives = 0;
+  for (int r = 0; r < scores.rows; ++r) {
+    const bool merge = scores.at<float>(r) > 0;
+    true_positives += merge && sample.labels[r];
+    true_negatives += !merge && !sample.labels[r];
+  }
+  trained.same_object_recall = 100.0 * true_positives / positives;
+  trained.different_object_recall = 100.0 * true_negatives / negatives;
+  return trained;
+}
+
+}  // namespace
+
+StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config) {
+  std::string error;
+  SceneOrganizerOptions organizer_options = config.organizer;
+  organizer_options.learned_merge = false;
+  if (!config.boost.Check(&error) || !organizer_options.Check(&error)) {
+    return Status::InvalidArgument(error);
+  }
+  if (config.levels < 0 || !(config.level_fraction > 0 && config.level_fraction <= 1) ||
+      !(config.min_purity > 0 && config.min_purity <= 1) || config.holdout < 0 ||
+      config.max_pairs < 0 || !std::isfinite(config.policy_threshold) || config.features < 1 ||
+      config.features > kMergeFeatures) {
+    return Status::InvalidArgument(
+        "levels >= 0, level_fraction and min_purity in (0, 1], holdout and max_pairs >= 0, a "
+        "finite policy threshold, features in 1.." +
+        std::to_string(kMergeFeatures));
+  }
+  organizer_options.models_dir = config.out;
+  StatusOr<SceneOrganizer> organizer = SceneOrganizer::Create(organizer_options);
+  if (!organizer.ok()) return organizer.status();
+  StatusOr<std::vector<std::string>> ids = ReadSplit(config.dataset, config.split);
+  if (!ids.ok()) return ids.status();
+  if (static_cast<int>(ids->size()) <= config.holdout) {
+    return Status::InvalidArgument("the holdout leaves no training image");
+  }
+  const BackgroundModel& background = organizer->model();
+  auto new_state = [&](const TrainingImage& t) {
+    return MergeState(t.parts.labels, t.parts.size(), t.lab, t.appearance,
+                      organizer_options.texton_stride, background.textons.inv_std,
+                      background.classifier, organizer_options.background_threshold);
+  };
+
+  // Pass 1: superpixels and ground-truth merge levels.
+  Timer timer;
+  PairSample sample;
+  std::mt19937_64 rng(config.seed);
+  std::vector<TrainingImage> images;
+  const size_t total = ids->size() - static_cast<size_t>(config.holdout);
+  for (size_t i = static_cast<size_t>(config.holdout); i < ids->size(); ++i) {
+    StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*ids)[i]);
+    if (!image.ok()) return image.status();
+    if (image->objects.empty()) {
+      return Status::InvalidArgument(config.dataset + ": image " + (*ids)[i] +
+                                     " has no objects/ layer to learn grouping from");
+    }
+    const WorkingImage working =
+        MakeWorkingImage(image->bgr, organizer_options.superpixels.working_width);
+    TrainingImage t;
+    t.parts = organizer->ClassifiedSuperpixels(working, nullptr, nullptr, &t.appearance);
+    t.lab = working.lab;
+    const cv::Mat objects = LayerAtSize(image->objects, working.bgr.size());
+    t.votes.resize(static_cast<size_t>(t.parts.size()));
+    for (int y = 0; y < objects.rows; ++y) {
+      const int* o = objects.ptr<int>(y);
+      const int* l = t.parts.labels.ptr<int>(y);
+      for (int x = 0; x < objects.cols; ++x) {
+        ++t.votes[l[x]].counts[o[x]];
+        ++t.votes[l[x]].total;
+      }
+    }
+    std::vector<Votes> votes = t.votes;
+    MergeState state = new_state(t);
+    Record(state, votes, {}, config.min_purity, &sample);
+    for (int level = 0; level < config.levels; ++level) {
+      std::vector<std::pair<int, int>> candidates;
+      for (const auto& [a, b] : state.Pairs()) {
+        const int ma = votes[a].Majority(config.min_purity);
+        if (ma >= 0 && ma == votes[b].Majority(config.min_purity)) candidates.emplace_back(a, b);
+      }
+      if (candidates.empty()) break;
+      std::shuffle(candidates.begin(), candidates.end(), rng);
+      const size_t merge_count = std::max<size_t>(
+          1, static_cast<size_t>(config.level_fraction * static_cast<double>(candidates.size())));
+      std::vector<char> changed(static_cast<size_t>(state.capacity()), 0);
+      for (size_t c = 0; c < merge_count; ++c) {
+        const int a = state.Find(candidates[c].first);
+        const int b = state.Find(candidates[c].second);
+        if (a == b || state.NeighboursOf(a).count(b) == 0) continue;
+        state.Merge(a, b);
+        votes[a].Add(votes[b]);
+        changed[a] = 1;
+      }
+      Record(state, votes, changed, config.min_purity, &sample);
+    }
+    images.push_back(std::move(t));
+    if (config.progress && (images.size() % 20 == 0 || images.size() == total)) {
+      std::fprintf(stderr, "\rpass 1: pairs from %zu/%zu images: %d", images.size(), total,
+                   sample.features.rows);
+      if (images.size() == total) std::fprintf(stderr, "\n");
+    }
+  }
+  const double pairs_seconds = timer.ElapsedMs() / 1000.0;
+  const int pass1_pairs = sample.features.rows;
+  StatusOr<TrainedModel> trained = TrainOn(sample, config, &rng);
+  if (!trained.ok()) return trained.status();
+  nlohmann::json passes;
+  passes.push_back({{"pairs", pass1_pairs},
+                    {"trained_on", trained->pairs},
+                    {"same_object_recall", trained->same_object_recall},
+                    {"different_object_recall", trained->different_object_recall},
+                    {"boosting_seconds", trained->seconds}});
+
+  // Pass 2: the first model's own greedy merging, every pair it meets after a merge.
+  if (config.on_policy) {
+    timer.Restart();
+    RegionMergeOptions policy;
+    policy.threshold = config.policy_threshold;
+    size_t done = 0;
+    for (const TrainingImage& t : images) {
+      std::vector<Votes> votes = t.votes;
+      MergeState state = new_state(t);
+      float row[kMergeFeatures];
+      MergeRegions(trained->model, policy, &state, [&](int a) {
+        // The survivor absorbed some region b; fold every now-dead region's votes into it.
+        for (int r = 0; r < state.capacity(); ++r) {
+          if (r != a && !state.alive(r) && votes[r].total > 0 && state.Find(r) == a) {
+            votes[a].Add(votes[r]);
+            votes[r] = Votes();
+          }
+        }
+        const int ma = votes[a].Majority(config.min_purity);
+        if (ma < 0) return;
+        for (const auto& [n, edge] : state.NeighboursOf(a)) {
+          const int mn = votes[n].Majority(config.min_purity);
+          if (mn < 0) continue;
+          state.PairFeatures(a, n, row);
+          sample.features.push_back(cv::Mat(1, kMergeFeatures, CV_32F, row));
+          sample.labels.push_back(ma == mn ? 1 : 0);
+        }
+      });
+      ++done;
+      if (config.progress && (done % 20 == 0 || done == images.size())) {
+        std::fprintf(stderr, "\rpass 2: pairs from %zu/%zu images: %d", done, images.size(),
+                     sample.features.rows - pass1_pairs);
+        if (done == images.size()) std::fprintf(stderr, "\n");
+      }
+    }
+    const double policy_seconds = timer.ElapsedMs() / 1000.0;
+    trained = TrainOn(sample, config, &rng);
+    if (!trained.ok()) return trained.status();
+    passes.push_back({{"pairs", sample.features.rows - pass1_pairs},
+                      {"policy_threshold", config.policy_threshold},
+                      {"pairs_seconds", policy_seconds},
+                      {"trained_on", trained->pairs},
+                      {"same_object_recall", trained->same_object_recall},
+                      {"different_object_recall", trained->different_object_recall},
+                      {"boosting_seconds", trained->seconds}});
+  }
+  PLACEREC_RETURN_IF_ERROR(trained->model.Save(config.out));
+
+  nlohmann::json manifest;
+  manifest["format_version"] = RegionMergeModel::kFormatVersion;
+  manifest["created"] = Today();
+  manifest["file"] = RegionMergeModel::kFileName;
+  manifest["command"] = "placerec-train grouping --dataset " +
+                        std::filesystem::path(config.dataset).filename().string() + " --split " +
+                        config.split + " --holdout " + std::to_string(config.holdout) +
+                        " --features " + std::to_string(config.features) + " --out models";
+  manifest["data"] = {{"dataset", std::filesystem::path(config.dataset).filename().string()},
+                      {"split", config.split},
+                      {"holdout_first_images", config.holdout},
+                      {"images", static_cast<int>(images.size())}};
+  manifest["pairs"] = {{"levels", config.levels},
+                       {"level_fraction", config.level_fraction},
+                       {"min_purity", config.min_purity},
+                       {"max_pairs", config.max_pairs},
+                       {"pass1_seconds", pairs_seconds}};
+  manifest["passes"] = passes;
+  manifest["boost"] = {{"type", "gentle"},
+                       {"weak_count", config.boost.weak_count},
+                       {"max_depth", config.boost.max_depth},
+                       {"weight_trim_rate", config.boost.weight_trim_rate},
+                       {"features", config.features}};
+  manifest["seed"] = config.seed;
+  std::ofstream out(config.out + "/grouping.json");
+  if (!out) return Status::IoError("cannot write " + config.out + "/grouping.json");
+  out << manifest.dump(2) << "\n";
+  return manifest;
+}
+
+}  // namespace placerec

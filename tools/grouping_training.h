@@ -1,0 +1,54 @@
+// placerec-train grouping: learns the region-merge classifier of region_merging.h from a
+// labelled dataset's object ground truth (stanford_background train by default).
+//
+// Training pairs come from the superpixels of every training image and from the larger regions
+// that appear while those superpixels are merged by their ground-truth objects, so the model
+// sees pairs of the sizes it meets during its own greedy merging: a pair is positive when both
+// regions' majority object is the same, negative when it differs (regions whose majority object
+// covers less than half of them are left out). A second pass then lets the first model merge
+// the superpixels greedily itself (down to `policy_threshold`, a little further than it would
+// at run time) and adds the pairs it meets after every merge, mistakes included, so the final
+// model also learns from the impure regions its own merging produces.
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "common/organization/region_merging.h"
+#include "common/organization/scene_organizer.h"
+#include "common/util/status.h"
+
+namespace placerec {
+
+struct GroupingTrainingConfig {
+  std::string dataset;  // labelled dataset directory (needs objects/)
+  std::string split = "train";
+  // The first `holdout` images of the split are not trained on (for choosing the merge
+  // threshold on images the model has not seen).
+  int holdout = 0;
+  std::string out;  // models directory: reads textons and classifiers, writes grouping.yml.gz
+  // Ground-truth merges between recorded states: each level merges this share of the
+  // then-possible same-object pairs; states are recorded before the first level and after each.
+  int levels = 3;
+  double level_fraction = 0.5;
+  // Regions whose majority object covers less than this share are left out of training pairs.
+  double min_purity = 0.5;
+  // The second (on-policy) pass, and how far its greedy merging goes.
+  bool on_policy = true;
+  double policy_threshold = -0.5;
+  // Each model trains on at most this many pairs, drawn at random (0: all).
+  int max_pairs = 200000;
+  // The leading columns of the pair features the model reads (region_merging.h).
+  int features = kMergeFeatures;
+  RegionMergeModel::TrainingOptions boost;
+  SceneOrganizerOptions organizer;  // working width, initial partition, texton stride
+  uint64_t seed = 2009;
+  bool progress = true;
+};
+
+// Trains and writes OUT/grouping.yml.gz and OUT/grouping.json (the manifest); returns the
+// manifest.
+StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config);
+
+}  // namespace placerec
