@@ -272,7 +272,8 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   SuperpixelOptions& sp = options.superpixels;
   FlagParser parser(
       "placerec-eval segment --dataset DIR --split test --out OUT [options]\n\n"
-      "Segments every image of DIR/<split>.txt with Perceptual Organization (seed Ch. 3) and\n"
+      "Segments every image of DIR/<split>.txt (superpixels, background classes, the learned\n"
+      "region merging, then Perceptual Organization as configured; seed Ch. 3) and\n"
       "writes OUT/segments/<id>.png (16-bit segment ids 1..n, every pixel in one segment),\n"
       "OUT/classes/<id>.png (8-bit: 0 sky, 1 tree, 2 road, 3 grass, 4 water, 7 structured) and\n"
       "OUT/overlays/<id>.png; with ground truth in DIR (classes/, objects/, classes.txt) it also\n"
@@ -340,8 +341,9 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
              "merge adjacent background regions of one class at the end");
   parser.Add("oracle-classes", &oracle_classes,
              "diagnosis only: superpixels take the background class of their ground-truth "
-             "majority class instead of the classifiers' decision (shows what perfect "
-             "background identification would give)");
+             "majority class instead of the classifiers' decision, then the --po-* grouping "
+             "runs without the learned merging (shows what perfect background identification "
+             "would give the seed's rule)");
   parser.Add("oracle-grouping", &oracle_grouping,
              "diagnosis only: the initial partition's regions are grouped by their majority "
              "ground-truth object (the best any grouping of that partition can score)");
@@ -575,6 +577,8 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   opts["oracle_grouping"] = oracle_grouping;
   opts["background_threshold"] = options.background_threshold;
   opts["background_smoothing"] = options.background_smoothing;
+  opts["learned_merge"] = {{"enabled", options.learned_merge},
+                           {"threshold", options.merge.threshold}};
   opts["organization"] = {{"theta", {po.theta_complexity, po.theta_cohesion}},
                           {"alpha", po.alpha},
                           {"beta", po.beta},

@@ -52,8 +52,7 @@ OrganizationOptions DefaultOrganizationOptions() {
   // boundaries (held-out object IoU 49.8 % without it, 48.9 % with it).
   options.merge_background = false;
   // Nor do the energy-minimising rounds (Algorithm 1 and 2) improve on the learned merging
-  // there: 49.8 % without them (threshold 0.2), 49.6 % with one round (threshold 0.3), 47.9 %
-  // with two. They stay available (--po-max-rounds) and are what recognition uses
+  // there (threshold 0.3: 49.7 % without them, 49.6 % with one round, 47.9 % with two). They stay available (--po-max-rounds) and are what recognition uses
   // (frame_analyzer.h).
   options.max_rounds = 0;
   return options;
