@@ -309,11 +309,9 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
                       {"split", config.split},
                       {"holdout_first_images", config.holdout},
                       {"images", static_cast<int>(images.size())}};
-  manifest["pairs"] = {{"levels", config.levels},
-                       {"level_fraction", config.level_fraction},
-                       {"min_purity", config.min_purity},
-                       {"max_pairs", config.max_pairs},
-                       {"pass1_seconds", pairs_seconds}};
+  manifest["pairs"] = {{"levels", config.levels},         {"level_fraction", config.level_fraction},
+                       {"min_purity", config.min_purity}, {"max_pairs", config.max_pairs},
+                       {"on_policy", config.on_policy},   {"pass1_seconds", pairs_seconds}};
   manifest["passes"] = passes;
   manifest["boost"] = {{"type", "gentle"},
                        {"weak_count", config.boost.weak_count},

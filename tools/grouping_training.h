@@ -5,10 +5,12 @@
 // that appear while those superpixels are merged by their ground-truth objects, so the model
 // sees pairs of the sizes it meets during its own greedy merging: a pair is positive when both
 // regions' majority object is the same, negative when it differs (regions whose majority object
-// covers less than half of them are left out). A second pass then lets the first model merge
-// the superpixels greedily itself (down to `policy_threshold`, a little further than it would
-// at run time) and adds the pairs it meets after every merge, mistakes included, so the final
-// model also learns from the impure regions its own merging produces.
+// covers less than half of them are left out). A second pass (`on_policy`) then lets the first
+// model merge the superpixels greedily itself (down to `policy_threshold`) and adds the pairs it
+// meets after every merge, mistakes included, and trains again, so the final model also learns
+// from the impure regions its own merging produces. Without that pass the model scored a point
+// higher on held-out stanford_background images (50.8 vs 49.8 %) but five lower on msrc_v2
+// training images (52.8 vs 57.9 %), a dataset it never saw; the pass is on.
 #pragma once
 
 #include <string>
@@ -40,7 +42,7 @@ struct GroupingTrainingConfig {
   // Each model trains on at most this many pairs, drawn at random (0: all).
   int max_pairs = 200000;
   // The leading columns of the pair features the model reads (region_merging.h).
-  int features = kMergeFeatures;
+  int features = kMergeRelationFeatures;
   RegionMergeModel::TrainingOptions boost;
   SceneOrganizerOptions organizer;  // working width, initial partition, texton stride
   uint64_t seed = 2009;

@@ -111,8 +111,8 @@ int GroupingCommand(int argc, char** argv) {
              "second pass: the first model merges while its best score exceeds this");
   parser.Add("max-pairs", &config.max_pairs, "train each model on at most N random pairs (0: all)");
   parser.Add("features", &config.features,
-             "pair features the model reads: 33 relational ones, or 73 with the pair's place in "
-             "appearance space");
+             "pair features the model reads: the 33 relational ones, or 73 with the pair's place "
+             "in appearance space (no better on held-out images)");
   parser.Add("weak-count", &config.boost.weak_count, "boosted trees");
   parser.Add("max-depth", &config.boost.max_depth, "depth of each tree");
   parser.Add("seed", &config.seed, "random seed (order of the ground-truth merges)");

@@ -41,7 +41,7 @@ struct BackgroundModel {
 StatusOr<std::shared_ptr<const BackgroundModel>> LoadBackgroundModel(const std::string& directory);
 
 // The learned merging's threshold, chosen on the 150 stanford_background training images the
-// shipped grouping model was not trained on (models/grouping.json).
+// shipped grouping model was not trained on (models/grouping.json, models/README.md).
 RegionMergeOptions DefaultMergeOptions();
 // The seed's Perceptual Organization options, except where the learned merging changes what
 // works best on those held-out images (see the definition).
