@@ -316,7 +316,6 @@ struct OrganizationFixture {
     assigner = std::make_unique<TextonAssigner>(organizer->model().textons);
     map = ComputeTextonMap(features, *assigner, options.texton_stride);
     appearance = RegionAppearance(parts.labels, parts.size(), map, features, *assigner);
-    merged = options.learned_merge ? organizer->MergeParts(parts, appearance, working.lab) : parts;
   }
   std::string error;
   std::unique_ptr<SceneOrganizer> organizer;
@@ -325,8 +324,7 @@ struct OrganizationFixture {
   cv::Mat features;
   TextonMap map;
   cv::Mat appearance;
-  SceneSegmentation parts;   // classified superpixels
-  SceneSegmentation merged;  // ... after the learned merging (parts when it is off)
+  SceneSegmentation parts;  // classified superpixels
 };
 
 OrganizationFixture* Organization(benchmark::State& state) {
@@ -404,15 +402,15 @@ void BM_OrgLearnedMerge(benchmark::State& state) {
 }
 BENCHMARK(BM_OrgLearnedMerge)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
-// Algorithm 2 (rounds of Algorithm 1) and the final merges on the (merged) classified
-// superpixels.
+// Algorithm 2 (rounds of Algorithm 1) and the final merges with the seed's options on the
+// classified superpixels: the grouping recognition uses (AnalyzerOptions).
 void BM_OrgPerceptualOrganization(benchmark::State& state) {
   OrganizationFixture* o = Organization(state);
   if (o == nullptr) return;
   int segments = 0;
   for (auto _ : state) {
-    SceneSegmentation scene = OrganizeScene(o->merged.labels, o->merged.classes, o->working.lab,
-                                            o->organizer->options().organization);
+    SceneSegmentation scene =
+        OrganizeScene(o->parts.labels, o->parts.classes, o->working.lab, OrganizationOptions());
     segments = scene.size();
     benchmark::DoNotOptimize(scene.labels.data);
   }
@@ -420,8 +418,8 @@ void BM_OrgPerceptualOrganization(benchmark::State& state) {
 }
 BENCHMARK(BM_OrgPerceptualOrganization)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
-// The whole segmentation of a 640x480 frame: working image, superpixels, filter bank, textons,
-// classifiers and Perceptual Organization (what SceneOrganizer::Segment does per frame).
+// The whole segmentation of a 640x480 frame as `placerec-eval segment` runs it by default:
+// working image, superpixels, filter bank, textons, classifiers, learned merging.
 void BM_OrgWholeSegmentation(benchmark::State& state) {
   OrganizationFixture* o = Organization(state);
   if (o == nullptr) return;
@@ -433,6 +431,22 @@ void BM_OrgWholeSegmentation(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_OrgWholeSegmentation)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// The same with the seed's grouping instead of the learned merging (what recognition runs).
+void BM_OrgWholeSegmentationSeed(benchmark::State& state) {
+  OrganizationFixture* o = Organization(state);
+  if (o == nullptr) return;
+  SceneOrganizerOptions options = o->organizer->options();
+  options.learned_merge = false;
+  options.organization = OrganizationOptions();
+  const SceneOrganizer seed(options, std::make_shared<BackgroundModel>(o->organizer->model()));
+  for (auto _ : state) {
+    const WorkingImage working = MakeWorkingImage(Data().frame, options.superpixels.working_width);
+    SceneSegmentation scene = seed.Segment(working);
+    benchmark::DoNotOptimize(scene.labels.data);
+  }
+}
+BENCHMARK(BM_OrgWholeSegmentationSeed)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 // Collects mean real time per benchmark so that ratios can be printed after the run.
 class RatioReporter : public benchmark::ConsoleReporter {
@@ -472,7 +486,7 @@ int main(int argc, char** argv) {
          {"BM_StageFeatures", "BM_StageSegmentation", "BM_StageAnalyze", "BM_StageLandmarks",
           "BM_Pipeline", "BM_OrgSuperpixels", "BM_OrgFilterBank", "BM_OrgTextons",
           "BM_OrgClassifiers", "BM_OrgLearnedMerge", "BM_OrgPerceptualOrganization",
-          "BM_OrgWholeSegmentation"}) {
+          "BM_OrgWholeSegmentation", "BM_OrgWholeSegmentationSeed"}) {
       const auto it = t.find(name);
       if (it != t.end()) std::printf("  %-30s %6.2f\n", name, it->second / sift->second);
     }
