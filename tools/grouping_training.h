@@ -8,9 +8,8 @@
 // covers less than half of them are left out). A second pass (`on_policy`) then lets the first
 // model merge the superpixels greedily itself (down to `policy_threshold`) and adds the pairs it
 // meets after every merge, mistakes included, and trains again, so the final model also learns
-// from the impure regions its own merging produces. Without that pass the model scored a point
-// higher on held-out stanford_background images (50.8 vs 49.8 %) but five lower on msrc_v2
-// training images (52.8 vs 57.9 %), a dataset it never saw; the pass is on.
+// from the impure regions its own merging produces. The shipped model averages one model trained
+// with that pass and one without it (placerec-train grouping-ensemble; models/README.md).
 #pragma once
 
 #include <string>

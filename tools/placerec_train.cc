@@ -7,8 +7,11 @@
 // textons and classifiers already in --out, and writes grouping.yml.gz and grouping.json.
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <optional>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include <opencv2/core/utility.hpp>
 
@@ -25,7 +28,9 @@ constexpr char kUsage[] =
     "placerec-train COMMAND [options]\n\n"
     "Commands:\n"
     "  background   textons and background classifiers (seed §3.4) from a labelled dataset\n"
-    "  grouping     the learned region-merge classifier, from a dataset's object ground truth\n\n"
+    "  grouping     the learned region-merge classifier, from a dataset's object ground truth\n"
+    "  grouping-ensemble\n"
+    "               one grouping model that averages the scores of trained ones\n\n"
     "'placerec-train COMMAND --help' lists the options of a command.";
 
 int BackgroundCommand(int argc, char** argv) {
@@ -132,6 +137,65 @@ int GroupingCommand(int argc, char** argv) {
   return 0;
 }
 
+int GroupingEnsembleCommand(int argc, char** argv) {
+  std::string members;
+  std::string out;
+  FlagParser parser(
+      "placerec-train grouping-ensemble --members DIR,DIR[,...] --out DIR\n\n"
+      "Combines the grouping models (grouping.yml.gz) of several models directories into one\n"
+      "whose score is the mean of theirs, and writes it with grouping.json (the members'\n"
+      "manifests) into --out.");
+  parser.AddRequired("members", &members, "comma-separated models directories to combine");
+  parser.AddRequired("out", &out, "models directory to write (created if missing)");
+  if (const std::optional<int> exit =
+          parser.ParseOrExit(argc, argv, 2, "placerec-train grouping-ensemble")) {
+    return *exit;
+  }
+  std::vector<RegionMergeModel> models;
+  nlohmann::json manifest;
+  manifest["format_version"] = RegionMergeModel::kFormatVersion;
+  manifest["file"] = RegionMergeModel::kFileName;
+  manifest["command"] = "placerec-train grouping-ensemble --members " + members + " --out " + out;
+  std::stringstream list(members);
+  for (std::string dir; std::getline(list, dir, ',');) {
+    if (dir.empty()) continue;
+    StatusOr<RegionMergeModel> model = RegionMergeModel::Load(dir);
+    if (!model.ok()) {
+      std::fprintf(stderr, "placerec-train grouping-ensemble: %s\n",
+                   model.status().ToString().c_str());
+      return 1;
+    }
+    models.push_back(std::move(*model));
+    nlohmann::json member = {{"directory", dir}};
+    std::ifstream in(dir + "/grouping.json");
+    if (in) member["manifest"] = nlohmann::json::parse(in, nullptr, false);
+    manifest["members"].push_back(member);
+  }
+  if (models.size() < 2) {
+    std::fprintf(stderr, "placerec-train grouping-ensemble: --members needs at least two\n");
+    return 2;
+  }
+  if (!MakeDirectories(out)) {
+    std::fprintf(stderr, "placerec-train grouping-ensemble: cannot create %s\n", out.c_str());
+    return 1;
+  }
+  const RegionMergeModel ensemble = RegionMergeModel::Ensemble(models);
+  if (const Status status = ensemble.Save(out); !status.ok()) {
+    std::fprintf(stderr, "placerec-train grouping-ensemble: %s\n", status.ToString().c_str());
+    return 1;
+  }
+  std::ofstream file(out + "/grouping.json");
+  file << manifest.dump(2) << "\n";
+  if (!file) {
+    std::fprintf(stderr, "placerec-train grouping-ensemble: cannot write %s/grouping.json\n",
+                 out.c_str());
+    return 1;
+  }
+  std::printf("%d classifiers from %zu models written to %s/%s\n", ensemble.members(),
+              models.size(), out.c_str(), RegionMergeModel::kFileName);
+  return 0;
+}
+
 }  // namespace
 }  // namespace placerec
 
@@ -143,6 +207,9 @@ int main(int argc, char** argv) {
   }
   if (std::strcmp(argv[1], "background") == 0) return placerec::BackgroundCommand(argc, argv);
   if (std::strcmp(argv[1], "grouping") == 0) return placerec::GroupingCommand(argc, argv);
+  if (std::strcmp(argv[1], "grouping-ensemble") == 0) {
+    return placerec::GroupingEnsembleCommand(argc, argv);
+  }
   std::fprintf(stderr, "placerec-train: unknown command '%s'\n%s\n", argv[1], placerec::kUsage);
   return 2;
 }

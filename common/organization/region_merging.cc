@@ -373,8 +373,23 @@ RegionMergeModel RegionMergeModel::Train(const cv::Mat& features, const std::vec
   boost->train(cv::ml::TrainData::create(features, cv::ml::ROW_SAMPLE, responses, cv::noArray(),
                                          cv::noArray(), sample_weights));
   RegionMergeModel model;
-  model.boost_ = boost;
+  model.members_.push_back(boost);
   return model;
+}
+
+RegionMergeModel RegionMergeModel::Ensemble(const std::vector<RegionMergeModel>& models) {
+  RegionMergeModel ensemble;
+  for (const RegionMergeModel& m : models) {
+    CHECK(!m.empty()) << "an ensemble member is empty";
+    ensemble.members_.insert(ensemble.members_.end(), m.members_.begin(), m.members_.end());
+  }
+  return ensemble;
+}
+
+int RegionMergeModel::feature_size() const {
+  int size = 0;
+  for (const auto& m : members_) size = std::max(size, m->getVarCount());
+  return size;
 }
 
 Status RegionMergeModel::Save(const std::string& directory) const {
@@ -385,10 +400,12 @@ Status RegionMergeModel::Save(const std::string& directory) const {
     if (!fs.isOpened()) return Status::IoError("cannot write " + path);
     fs << "format_version" << kFormatVersion;
     fs << "features" << feature_size();
-    fs << "boost"
-       << "{";
-    boost_->write(fs);
-    fs << "}";
+    fs << "members" << members();
+    for (int i = 0; i < members(); ++i) {
+      fs << "member_" + std::to_string(i) << "{";
+      members_[i]->write(fs);
+      fs << "}";
+    }
   } catch (const cv::Exception& e) {
     return Status::IoError("cannot write " + path + ": " + e.what());
   }
@@ -405,21 +422,31 @@ StatusOr<RegionMergeModel> RegionMergeModel::Load(const std::string& directory) 
     if (!fs.isOpened()) return Status::NotFound("cannot read " + path);
     int version = 0;
     int features = 0;
+    int members = 1;
     fs["format_version"] >> version;
     fs["features"] >> features;
-    if (version != kFormatVersion || features < 1 || features > kMergeFeatures) {
+    if (version == 2) fs["members"] >> members;
+    if ((version != 1 && version != 2) || features < 1 || features > kMergeFeatures ||
+        members < 1) {
       return Status::InvalidArgument(
           path + ": format version " + std::to_string(version) + " with " +
-          std::to_string(features) + " features; this build reads version " +
-          std::to_string(kFormatVersion) + " with at most " + std::to_string(kMergeFeatures) +
-          " (retrain with placerec-train grouping)");
+          std::to_string(features) + " features; this build reads versions 1 and 2 with at most " +
+          std::to_string(kMergeFeatures) + " (retrain with placerec-train grouping)");
     }
-    cv::Ptr<cv::ml::Boost> boost = cv::ml::Boost::create();
-    boost->read(fs["boost"]);
-    if (!boost->isTrained() || boost->getVarCount() != features) {
-      return Status::InvalidArgument(path + ": not a trained grouping model");
+    for (int i = 0; i < members; ++i) {
+      cv::Ptr<cv::ml::Boost> boost = cv::ml::Boost::create();
+      boost->read(fs[version == 1 ? std::string("boost") : "member_" + std::to_string(i)]);
+      if (!boost->isTrained() || boost->getVarCount() < 1 || boost->getVarCount() > features) {
+        return Status::InvalidArgument(path + ": member " + std::to_string(i) +
+                                       " is not a trained grouping classifier");
+      }
+      model.members_.push_back(boost);
     }
-    model.boost_ = boost;
+    if (model.feature_size() != features) {
+      return Status::InvalidArgument(path + ": members read " +
+                                     std::to_string(model.feature_size()) + " features, not " +
+                                     std::to_string(features));
+    }
   } catch (const cv::Exception& e) {
     return Status::InvalidArgument("cannot load " + path + ": " + e.what());
   }
@@ -430,13 +457,17 @@ cv::Mat RegionMergeModel::Scores(const cv::Mat& features) const {
   CHECK(!empty()) << "grouping model not loaded";
   CHECK_EQ(features.type(), CV_32F);
   CHECK_GE(features.cols, feature_size());
-  cv::Mat scores(features.rows, 1, CV_32F);
+  cv::Mat scores = cv::Mat::zeros(features.rows, 1, CV_32F);
   if (features.rows == 0) return scores;
-  const cv::Mat used =
-      features.cols == feature_size() ? features : features.colRange(0, feature_size()).clone();
-  cv::Mat raw;
-  boost_->predict(used, raw, kSumFlags);
-  raw.reshape(1, features.rows).copyTo(scores);
+  for (const auto& member : members_) {
+    const int used_columns = member->getVarCount();
+    const cv::Mat used =
+        features.cols == used_columns ? features : features.colRange(0, used_columns).clone();
+    cv::Mat raw;
+    member->predict(used, raw, kSumFlags);
+    scores += raw.reshape(1, features.rows);
+  }
+  scores *= 1.0 / members();
   return scores;
 }
 

@@ -106,9 +106,12 @@ class MergeState {
   mutable std::vector<int> parent_;
 };
 
+// One boosted classifier, or an ensemble of several whose scores are averaged (the shipped
+// model averages two training variants; models/README.md).
 class RegionMergeModel {
  public:
-  static constexpr int kFormatVersion = 1;
+  // 1: one classifier under "boost"; 2: "members" classifiers under "member_<i>".
+  static constexpr int kFormatVersion = 2;
   static constexpr const char* kFileName = "grouping.yml.gz";
 
   struct TrainingOptions {
@@ -123,17 +126,22 @@ class RegionMergeModel {
   // `labels` 1 (same object) / 0, `weights` per row.
   static RegionMergeModel Train(const cv::Mat& features, const std::vector<int>& labels,
                                 const std::vector<float>& weights, const TrainingOptions& options);
-  // Loads DIR/grouping.yml.gz; NotFound when the file is missing.
+  // The ensemble of every member of `models` (none empty); its score is their mean score.
+  static RegionMergeModel Ensemble(const std::vector<RegionMergeModel>& models);
+  // Loads DIR/grouping.yml.gz (format 1 or 2); NotFound when the file is missing.
   static StatusOr<RegionMergeModel> Load(const std::string& directory);
   Status Save(const std::string& directory) const;
 
-  bool empty() const { return !boost_; }
-  int feature_size() const { return empty() ? 0 : boost_->getVarCount(); }
-  // Boosted scores (> 0: one object) of feature rows (at least feature_size() columns).
+  bool empty() const { return members_.empty(); }
+  int members() const { return static_cast<int>(members_.size()); }
+  // Columns read: the most any member reads.
+  int feature_size() const;
+  // Scores (> 0: one object) of feature rows (at least feature_size() columns): the mean of the
+  // members' boosted sums.
   cv::Mat Scores(const cv::Mat& features) const;
 
  private:
-  cv::Ptr<cv::ml::Boost> boost_;
+  std::vector<cv::Ptr<cv::ml::Boost>> members_;
 };
 
 // Greedy agglomeration: merges the adjacent pair with the highest score while it exceeds

@@ -156,15 +156,16 @@ TEST(MergeStateTest, ResultCoversEveryPixelAndFollowsMerges) {
   EXPECT_NE(result.labels.at<int>(0, 20), result.labels.at<int>(0, 40));  // 1 stays apart
 }
 
-// A model trained on one feature (pairs merge when their colour difference is small).
-RegionMergeModel ColourRuleModel() {
+// A model trained on one feature (pairs merge when their colour difference is small, below
+// `limit`).
+RegionMergeModel ColourRuleModel(float limit = 15.0f) {
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> value(0.0f, 40.0f);
   cv::Mat features(400, kMergeFeatures, CV_32F);
   std::vector<int> labels;
   for (int r = 0; r < features.rows; ++r) {
     for (int f = 0; f < kMergeFeatures; ++f) features.at<float>(r, f) = value(rng);
-    labels.push_back(features.at<float>(r, 0) < 15.0f ? 1 : 0);
+    labels.push_back(features.at<float>(r, 0) < limit ? 1 : 0);
   }
   RegionMergeModel::TrainingOptions options;
   options.weak_count = 20;
@@ -188,6 +189,33 @@ TEST(RegionMergeModelTest, SaveLoadRoundTripGivesTheSameScores) {
   EXPECT_LT(before.at<float>(1), 0.0f);
   EXPECT_FLOAT_EQ(before.at<float>(0), after.at<float>(0));
   EXPECT_FLOAT_EQ(before.at<float>(1), after.at<float>(1));
+}
+
+TEST(RegionMergeModelTest, EnsembleScoresAreTheMeanOfItsMembersAndSurviveSaveLoad) {
+  const RegionMergeModel strict = ColourRuleModel(10.0f);
+  const RegionMergeModel loose = ColourRuleModel(25.0f);
+  const RegionMergeModel ensemble = RegionMergeModel::Ensemble({strict, loose});
+  EXPECT_EQ(ensemble.members(), 2);
+  cv::Mat probe(3, kMergeFeatures, CV_32F, cv::Scalar(20.0f));
+  probe.at<float>(0, 0) = 2.0f;   // both merge
+  probe.at<float>(1, 0) = 18.0f;  // only the loose one merges
+  probe.at<float>(2, 0) = 35.0f;  // neither
+  const cv::Mat a = strict.Scores(probe);
+  const cv::Mat b = loose.Scores(probe);
+  const cv::Mat mean = ensemble.Scores(probe);
+  for (int r = 0; r < probe.rows; ++r) {
+    EXPECT_NEAR(mean.at<float>(r), 0.5f * (a.at<float>(r) + b.at<float>(r)), 1e-5) << r;
+  }
+  EXPECT_LT(a.at<float>(1), 0.0f);
+  EXPECT_GT(b.at<float>(1), 0.0f);
+  const std::string dir = ::testing::TempDir() + "/grouping_ensemble";
+  std::filesystem::create_directories(dir);
+  ASSERT_TRUE(ensemble.Save(dir).ok());
+  const StatusOr<RegionMergeModel> loaded = RegionMergeModel::Load(dir);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+  EXPECT_EQ(loaded->members(), 2);
+  const cv::Mat again = loaded->Scores(probe);
+  for (int r = 0; r < probe.rows; ++r) EXPECT_FLOAT_EQ(again.at<float>(r), mean.at<float>(r));
 }
 
 TEST(RegionMergeModelTest, MissingFileIsNotFoundAndForeignFileIsRejected) {
@@ -228,8 +256,8 @@ TEST(MergeRegionsTest, ThresholdDecidesHowFarMergingGoes) {
   EXPECT_EQ(all.Result().size(), 1);
 }
 
-// The shipped grouping model on the synthetic blocks: the halves of one block belong together,
-// two blocks of very different colour do not.
+// The shipped grouping model at the default threshold on the synthetic blocks: the halves of
+// one block belong together, two blocks of very different colour do not.
 TEST(ShippedGroupingModelTest, JoinsHalvesOfOneSurfaceAndKeepsDifferentSurfacesApart) {
   const std::shared_ptr<const BackgroundModel> model = ShippedModel();
   if (!model || model->grouping.empty()) {
@@ -246,8 +274,12 @@ TEST(ShippedGroupingModelTest, JoinsHalvesOfOneSurfaceAndKeepsDifferentSurfacesA
   state.PairFeatures(0, 4, blocks.ptr<float>(1));  // orange above blue
   const cv::Mat same = model->grouping.Scores(halves);
   const cv::Mat different = model->grouping.Scores(blocks);
-  for (int r = 0; r < same.rows; ++r) EXPECT_GT(same.at<float>(r), 0.0f) << "block " << r;
-  for (int r = 0; r < different.rows; ++r) EXPECT_LT(different.at<float>(r), 0.0f) << "pair " << r;
+  // Judged at the shipped threshold, as SceneOrganizer merges.
+  const double threshold = DefaultMergeOptions().threshold;
+  for (int r = 0; r < same.rows; ++r) EXPECT_GT(same.at<float>(r), threshold) << "block " << r;
+  for (int r = 0; r < different.rows; ++r) {
+    EXPECT_LT(different.at<float>(r), threshold) << "pair " << r;
+  }
 }
 
 }  // namespace

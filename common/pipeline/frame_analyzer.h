@@ -70,10 +70,9 @@ struct AnalyzerOptions {
   SegmentationMethod segmentation = SegmentationMethod::kOrganization;
   // kOrganization: the initial partition (seed values), models and grouping parameters.
   // Recognition uses the seed's grouping (Algorithm 2, background merge) without the learned
-  // region merging that `placerec-eval segment` uses by default: with it, objects are coarser
-  // and recall at 100 % precision fell (corridor_loop 0.591 -> 0.341, day_left_then_day_right
-  // 0.360 -> 0.345; max F1 0.818 -> 0.860 and 0.783 -> 0.775), so it stays an option
-  // (--learned-merge true) for the place map.
+  // region merging that `placerec-eval segment` uses by default. With it (--learned-merge true
+  // --po-rounds 0) R@100P / max F1 rose on corridor_loop (0.591 -> 0.636, 0.818 -> 0.870) but
+  // R@100P fell on day_left_then_day_right (0.360 -> 0.280; max F1 0.783 -> 0.804).
   SceneOrganizerOptions organization = [] {
     SceneOrganizerOptions o;
     o.learned_merge = false;
