@@ -17,6 +17,13 @@
 
 namespace placerec {
 
+std::string TodayUtc() {
+  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
+  char text[32];
+  std::strftime(text, sizeof(text), "%Y-%m-%d", std::gmtime(&now));
+  return text;
+}
+
 std::vector<int> RegionLabels(const cv::Mat& regions, int n, const cv::Mat& gt_classes,
                               const ClassTable& table, double min_labelled_fraction,
                               std::vector<int>* majority_out) {
@@ -112,13 +119,6 @@ nlohmann::json BackgroundAccuracy::ToJson() const {
 }
 
 namespace {
-
-std::string Today() {
-  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  char text[32];
-  std::strftime(text, sizeof(text), "%Y-%m-%d", std::gmtime(&now));
-  return text;
-}
 
 void Progress(bool on, const char* stage, size_t done, size_t total) {
   if (on && (done % 20 == 0 || done == total)) {
@@ -374,7 +374,7 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
   // 5. The manifest.
   nlohmann::json manifest;
   manifest["format_version"] = 1;
-  manifest["created"] = Today();
+  manifest["created"] = TodayUtc();
   manifest["command"] = "placerec-train background --dataset " +
                         std::filesystem::path(config.dataset).filename().string() + " --split " +
                         config.split + " --out models";

@@ -20,13 +20,16 @@
 
 namespace placerec {
 
+// Today's date in UTC as YYYY-MM-DD (the "created" field of the training manifests).
+std::string TodayUtc();
+
+// Pixels of every region 0..n-1 of `regions` (other ids ignored).
+std::vector<int> RegionAreas(const cv::Mat& regions, int n);
+
 // Label of every region of `regions` (CV_32S ids 0..n-1 at the size of `gt_classes`, CV_32S
 // dataset class ids): the background class (0..4) or 7 of the majority class among its labelled
 // pixels, or -1 when fewer than `min_labelled_fraction` of its pixels are labelled. The majority
 // class ids themselves go to `majority` when not null (-1 when unlabelled).
-// Pixels of every region 0..n-1 of `regions` (other ids ignored).
-std::vector<int> RegionAreas(const cv::Mat& regions, int n);
-
 std::vector<int> RegionLabels(const cv::Mat& regions, int n, const cv::Mat& gt_classes,
                               const ClassTable& table, double min_labelled_fraction,
                               std::vector<int>* majority = nullptr);

@@ -1,10 +1,8 @@
 #include "tools/grouping_training.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <ctime>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -13,17 +11,11 @@
 
 #include "common/util/paths.h"
 #include "common/util/timer.h"
+#include "tools/background_training.h"
 #include "tools/labelled_dataset.h"
 
 namespace placerec {
 namespace {
-
-std::string Today() {
-  const std::time_t now = std::chrono::system_clock::to_time_t(std::chrono::system_clock::now());
-  char text[32];
-  std::strftime(text, sizeof(text), "%Y-%m-%d", std::gmtime(&now));
-  return text;
-}
 
 // Ground-truth object votes of a region and their majority.
 struct Votes {
@@ -54,24 +46,28 @@ struct PairSample {
   std::vector<int> labels;
 };
 
-// Records the pairs of `state` with a changed region (both when `changed` is empty).
-void Record(const MergeState& state, const std::vector<Votes>& votes,
-            const std::vector<char>& changed, double min_purity, PairSample* sample) {
+// Appends the pair (a, b) labelled "same object" or not by its regions' majority objects; a
+// pair with an impure or unlabelled region is left out.
+void RecordPair(const MergeState& state, const std::vector<Votes>& votes, int a, int b,
+                double min_purity, PairSample* sample) {
+  const int ma = votes[a].Majority(min_purity);
+  const int mb = votes[b].Majority(min_purity);
+  if (ma < 0 || mb < 0) return;
   float row[kMergeFeatures];
-  for (const auto& [a, b] : state.Pairs()) {
-    if (!changed.empty() && !changed[a] && !changed[b]) continue;
-    const int ma = votes[a].Majority(min_purity);
-    const int mb = votes[b].Majority(min_purity);
-    if (ma < 0 || mb < 0) continue;
-    state.PairFeatures(a, b, row);
-    sample->features.push_back(cv::Mat(1, kMergeFeatures, CV_32F, row));
-    sample->labels.push_back(ma == mb ? 1 : 0);
-  }
+  state.PairFeatures(a, b, row);
+  sample->features.push_back(cv::Mat(1, kMergeFeatures, CV_32F, row));
+  sample->labels.push_back(ma == mb ? 1 : 0);
 }
 
-}  // namespace
-
-namespace {
+// Records the pairs of `state` with a changed region (all when `changed` is empty).
+void Record(const MergeState& state, const std::vector<Votes>& votes,
+            const std::vector<char>& changed, double min_purity, PairSample* sample) {
+  for (const auto& [a, b] : state.Pairs()) {
+    if (changed.empty() || changed[a] || changed[b]) {
+      RecordPair(state, votes, a, b, min_purity, sample);
+    }
+  }
+}
 
 // What the passes need of one training image.
 struct TrainingImage {
@@ -258,23 +254,10 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
     for (const TrainingImage& t : images) {
       std::vector<Votes> votes = t.votes;
       MergeState state = new_state(t);
-      float row[kMergeFeatures];
-      MergeRegions(trained->model, policy, &state, [&](int a) {
-        // The survivor absorbed some region b; fold every now-dead region's votes into it.
-        for (int r = 0; r < state.capacity(); ++r) {
-          if (r != a && !state.alive(r) && votes[r].total > 0 && state.Find(r) == a) {
-            votes[a].Add(votes[r]);
-            votes[r] = Votes();
-          }
-        }
-        const int ma = votes[a].Majority(config.min_purity);
-        if (ma < 0) return;
+      MergeRegions(trained->model, policy, &state, [&](int a, int b) {
+        votes[a].Add(votes[b]);
         for (const auto& [n, edge] : state.NeighboursOf(a)) {
-          const int mn = votes[n].Majority(config.min_purity);
-          if (mn < 0) continue;
-          state.PairFeatures(a, n, row);
-          sample.features.push_back(cv::Mat(1, kMergeFeatures, CV_32F, row));
-          sample.labels.push_back(ma == mn ? 1 : 0);
+          RecordPair(state, votes, a, n, config.min_purity, &sample);
         }
       });
       ++done;
@@ -299,7 +282,7 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
 
   nlohmann::json manifest;
   manifest["format_version"] = RegionMergeModel::kFormatVersion;
-  manifest["created"] = Today();
+  manifest["created"] = TodayUtc();
   manifest["file"] = RegionMergeModel::kFileName;
   manifest["command"] = "placerec-train grouping --dataset " +
                         std::filesystem::path(config.dataset).filename().string() + " --split " +

@@ -25,6 +25,30 @@ std::string ClassifierFile(const std::string& directory, int c) {
 
 }  // namespace
 
+cv::Ptr<cv::ml::Boost> TrainGentleBoost(const cv::Mat& samples, const cv::Mat& responses,
+                                        const cv::Mat& weights, int weak_count, int max_depth,
+                                        double weight_trim_rate) {
+  cv::Ptr<cv::ml::Boost> boost = cv::ml::Boost::create();
+  boost->setBoostType(cv::ml::Boost::GENTLE);
+  boost->setWeakCount(weak_count);
+  boost->setMaxDepth(max_depth);
+  boost->setWeightTrimRate(weight_trim_rate);
+  boost->setUseSurrogates(false);
+  boost->setCVFolds(0);
+  boost->train(cv::ml::TrainData::create(samples, cv::ml::ROW_SAMPLE, responses, cv::noArray(),
+                                         cv::noArray(), weights));
+  return boost;
+}
+
+cv::Mat BoostedSums(const cv::ml::Boost& boost, const cv::Mat& samples) {
+  cv::Mat sums(samples.rows, 1, CV_32F);
+  if (samples.rows == 0) return sums;
+  cv::Mat raw;
+  boost.predict(samples, raw, kSumFlags);
+  raw.reshape(1, samples.rows).copyTo(sums);
+  return sums;
+}
+
 SegmentClass BackgroundClassOf(int index) {
   CHECK(index >= 0 && index < kBackgroundClasses) << "background class index " << index;
   return static_cast<SegmentClass>(index);
@@ -95,19 +119,12 @@ BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
         ++row;
       }
     }
-    cv::Ptr<cv::ml::Boost> boost = cv::ml::Boost::create();
-    boost->setBoostType(cv::ml::Boost::GENTLE);
-    boost->setWeakCount(options.weak_count);
-    boost->setMaxDepth(options.max_depth);
-    boost->setWeightTrimRate(options.weight_trim_rate);
-    boost->setUseSurrogates(false);
-    boost->setCVFolds(0);
-    boost->train(cv::ml::TrainData::create(samples, cv::ml::ROW_SAMPLE, responses, cv::noArray(),
-                                           cv::noArray(), sample_weights));
+    const cv::Ptr<cv::ml::Boost> boost =
+        TrainGentleBoost(samples, responses, sample_weights, options.weak_count, options.max_depth,
+                         options.weight_trim_rate);
     classifier.boosts_[c] = boost;
 
-    cv::Mat raw;
-    boost->predict(samples, raw, kSumFlags);
+    const cv::Mat raw = BoostedSums(*boost, samples);
     int correct = 0;
     for (int r = 0; r < samples.rows; ++r) {
       correct += (raw.at<float>(r) > 0) == (responses.at<int>(r) == 1);
@@ -133,11 +150,7 @@ cv::Mat BackgroundClassifier::Scores(const cv::Mat& features) const {
       features.cols == feature_size() ? features : features.colRange(0, feature_size()).clone();
   cv::Mat scores(features.rows, kBackgroundClasses, CV_32F);
   if (features.rows == 0) return scores;
-  for (int c = 0; c < kBackgroundClasses; ++c) {
-    cv::Mat raw;
-    boosts_[c]->predict(used, raw, kSumFlags);
-    raw.reshape(1, features.rows).copyTo(scores.col(c));
-  }
+  for (int c = 0; c < kBackgroundClasses; ++c) BoostedSums(*boosts_[c], used).copyTo(scores.col(c));
   return scores;
 }
 

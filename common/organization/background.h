@@ -49,6 +49,16 @@ struct BackgroundTrainingSummary {
   double seconds = 0.0;
 };
 
+// The Gentle AdaBoost both learned classifiers of this module use (background classes here,
+// region merging in region_merging.h): OpenCV ml::Boost on the rows of `samples` (CV_32F) with
+// 0/1 `responses` (CV_32S column) and initial per-row `weights` (CV_32F column), no surrogates,
+// no cross-validation.
+cv::Ptr<cv::ml::Boost> TrainGentleBoost(const cv::Mat& samples, const cv::Mat& responses,
+                                        const cv::Mat& weights, int weak_count, int max_depth,
+                                        double weight_trim_rate);
+// The boosted sum of the weak responses for every row (> 0: the positive class), n x 1 CV_32F.
+cv::Mat BoostedSums(const cv::ml::Boost& boost, const cv::Mat& samples);
+
 class BackgroundClassifier {
  public:
   static constexpr int kFormatVersion = 1;

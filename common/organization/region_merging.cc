@@ -16,7 +16,6 @@
 namespace placerec {
 namespace {
 
-constexpr int kSumFlags = cv::ml::StatModel::RAW_OUTPUT | cv::ml::Boost::PREDICT_SUM;
 // A crack whose two pixels differ by more than this (Delta E) counts as a strong edge.
 constexpr double kStrongContrast = 10.0;
 
@@ -363,17 +362,9 @@ RegionMergeModel RegionMergeModel::Train(const cv::Mat& features, const std::vec
     responses.at<int>(r) = labels[r] != 0 ? 1 : 0;
     if (!weights.empty()) sample_weights.at<float>(r) = weights[r];
   }
-  cv::Ptr<cv::ml::Boost> boost = cv::ml::Boost::create();
-  boost->setBoostType(cv::ml::Boost::GENTLE);
-  boost->setWeakCount(options.weak_count);
-  boost->setMaxDepth(options.max_depth);
-  boost->setWeightTrimRate(options.weight_trim_rate);
-  boost->setUseSurrogates(false);
-  boost->setCVFolds(0);
-  boost->train(cv::ml::TrainData::create(features, cv::ml::ROW_SAMPLE, responses, cv::noArray(),
-                                         cv::noArray(), sample_weights));
   RegionMergeModel model;
-  model.members_.push_back(boost);
+  model.members_.push_back(TrainGentleBoost(features, responses, sample_weights, options.weak_count,
+                                            options.max_depth, options.weight_trim_rate));
   return model;
 }
 
@@ -463,9 +454,7 @@ cv::Mat RegionMergeModel::Scores(const cv::Mat& features) const {
     const int used_columns = member->getVarCount();
     const cv::Mat used =
         features.cols == used_columns ? features : features.colRange(0, used_columns).clone();
-    cv::Mat raw;
-    member->predict(used, raw, kSumFlags);
-    scores += raw.reshape(1, features.rows);
+    scores += BoostedSums(*member, used);
   }
   scores *= 1.0 / members();
   return scores;
@@ -474,7 +463,7 @@ cv::Mat RegionMergeModel::Scores(const cv::Mat& features) const {
 // ---- Agglomeration ----
 
 int MergeRegions(const RegionMergeModel& model, const RegionMergeOptions& options,
-                 MergeState* state, const std::function<void(int)>& after_merge) {
+                 MergeState* state, const std::function<void(int, int)>& after_merge) {
   std::string error;
   CHECK(options.Check(&error)) << error;
   std::vector<int> stamp(static_cast<size_t>(state->capacity()), 0);
@@ -505,7 +494,7 @@ int MergeRegions(const RegionMergeModel& model, const RegionMergeOptions& option
     state->Merge(a, b);
     ++merges;
     ++stamp[a];
-    if (after_merge) after_merge(a);
+    if (after_merge) after_merge(a, b);
     pairs.clear();
     for (const auto& [n, edge] : state->NeighboursOf(a)) pairs.emplace_back(a, n);
     score_pairs(pairs);

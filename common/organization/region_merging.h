@@ -146,9 +146,9 @@ class RegionMergeModel {
 
 // Greedy agglomeration: merges the adjacent pair with the highest score while it exceeds
 // options.threshold, re-scoring the merged region's pairs after every merge. Returns the
-// number of merges. `after_merge`, when given, is called with the surviving region after every
-// merge (training records the pairs the merging meets).
+// number of merges. `after_merge`, when given, is called with the surviving and the absorbed
+// region after every merge (training records the pairs the merging meets).
 int MergeRegions(const RegionMergeModel& model, const RegionMergeOptions& options,
-                 MergeState* state, const std::function<void(int)>& after_merge = nullptr);
+                 MergeState* state, const std::function<void(int, int)>& after_merge = nullptr);
 
 }  // namespace placerec

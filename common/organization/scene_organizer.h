@@ -61,6 +61,8 @@ struct SceneOrganizerOptions {
   // (1 - w) * own + w * (boundary-length-weighted mean of its neighbours' scores), w this value
   // (0: the seed's independent per-region decision). Background classes are spatially
   // coherent, and a superpixel's histogram over a few dozen texton samples is noisy.
+  // It shapes the superpixels' classes only: the learned merging decides every region it keeps
+  // again from the region's own classifier scores.
   double background_smoothing = 0.0;
   // Learned region merging (region_merging.h) of the classified superpixels before Perceptual
   // Organization; needs grouping.yml.gz in the models directory.
