@@ -382,7 +382,8 @@ void BM_OrgClassifiers(benchmark::State& state) {
   if (o == nullptr) return;
   for (auto _ : state) {
     std::vector<SegmentClass> classes = o->organizer->model().classifier.Classify(
-        o->appearance, o->organizer->options().background_threshold);
+        o->appearance, o->organizer->options().background_threshold,
+        o->organizer->options().one_per_class);
     benchmark::DoNotOptimize(classes.data());
   }
 }
@@ -432,13 +433,13 @@ void BM_OrgWholeSegmentation(benchmark::State& state) {
 }
 BENCHMARK(BM_OrgWholeSegmentation)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
-// The same with the seed's grouping instead of the learned merging (what recognition runs).
+// The same as recognition runs it (AnalyzerOptions: the seed's grouping instead of the learned
+// merging, the five-way background decision).
 void BM_OrgWholeSegmentationSeed(benchmark::State& state) {
   OrganizationFixture* o = Organization(state);
   if (o == nullptr) return;
-  SceneOrganizerOptions options = o->organizer->options();
-  options.learned_merge = false;
-  options.organization = OrganizationOptions();
+  SceneOrganizerOptions options = AnalyzerOptions().organization;
+  options.models_dir = o->organizer->options().models_dir;
   const SceneOrganizer seed(options, std::make_shared<BackgroundModel>(o->organizer->model()));
   for (auto _ : state) {
     const WorkingImage working = MakeWorkingImage(Data().frame, options.superpixels.working_width);

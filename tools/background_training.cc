@@ -61,18 +61,24 @@ std::vector<int> RegionLabels(const cv::Mat& regions, int n, const cv::Mat& gt_c
   return labels;
 }
 
-void BackgroundAccuracy::Add(const cv::Mat& scores, const std::vector<int>& labels,
-                             const std::vector<int>& majority, const std::vector<int>& areas,
-                             const ClassTable& table, double threshold) {
+void BackgroundAccuracy::Add(const cv::Mat& scores, const std::vector<float>& rivals,
+                             const std::vector<int>& labels, const std::vector<int>& majority,
+                             const std::vector<int>& areas, const ClassTable& table,
+                             double threshold) {
   CHECK_EQ(scores.rows, static_cast<int>(labels.size()));
+  CHECK(rivals.empty() || rivals.size() == labels.size());
   for (int r = 0; r < scores.rows; ++r) {
     const int label = labels[r];
     if (label < 0) continue;
     const float* s = scores.ptr<float>(r);
-    const SegmentClass decided = BackgroundClassifier::Decide(s, threshold);
+    const SegmentClass decided =
+        rivals.empty() ? BackgroundClassifier::Decide(s, threshold)
+                       : BackgroundClassifier::Decide(s, threshold, rivals[r]);
     ++total;
+    // Each binary classifier on its own: its boosted decision (> 0), whatever the threshold
+    // of the five-way decision.
     for (int c = 0; c < kBackgroundClasses; ++c) {
-      binary_correct[c] += (s[c] > threshold) == (label == c);
+      binary_correct[c] += (s[c] > 0.0f) == (label == c);
     }
     if (IsBackground(decided)) {
       ++called[static_cast<int>(decided)];
@@ -124,18 +130,6 @@ void Progress(bool on, const char* stage, size_t done, size_t total) {
   if (on && (done % 20 == 0 || done == total)) {
     std::fprintf(stderr, "\r%s %zu/%zu", stage, done, total);
     if (done == total) std::fprintf(stderr, "\n");
-  }
-}
-
-// Appends the rows of `features` whose label is >= 0 (and region large enough) to the sample.
-void AppendRegions(const cv::Mat& features, const std::vector<int>& labels,
-                   const std::vector<int>& areas, int min_pixels, double weight_power,
-                   cv::Mat* samples, std::vector<int>* sample_labels, std::vector<float>* weights) {
-  for (int i = 0; i < features.rows; ++i) {
-    if (labels[i] < 0 || areas[i] < min_pixels) continue;
-    samples->push_back(features.row(i));
-    sample_labels->push_back(labels[i]);
-    weights->push_back(static_cast<float>(std::pow(static_cast<double>(areas[i]), weight_power)));
   }
 }
 
@@ -198,6 +192,30 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
   }
   StatusOr<std::vector<std::string>> ids = ReadSplit(config.dataset, config.split);
   if (!ids.ok()) return ids.status();
+  if (config.holdout < 0 || config.holdout >= static_cast<int>(ids->size())) {
+    return Status::InvalidArgument("holdout must be in [0, " + std::to_string(ids->size()) +
+                                   "), got " + std::to_string(config.holdout));
+  }
+  ids->erase(ids->begin(), ids->begin() + config.holdout);
+  // Structured classes by name -> dataset class ids.
+  std::vector<std::string> structured_names;
+  std::map<int, int> structured_index;  // dataset class id -> structured class index
+  for (const std::string& wanted : config.structured_classes) {
+    bool found = false;
+    for (const auto& [id, name] : table->names) {
+      if (table->IsUnlabelled(id) || IsBackground(table->BackgroundClass(id))) continue;
+      if (wanted != "all" && wanted != name) continue;
+      found = true;
+      if (structured_index.count(id) > 0) continue;
+      structured_index[id] = static_cast<int>(structured_names.size());
+      structured_names.push_back(name);
+    }
+    if (!found) {
+      return Status::InvalidArgument("structured class '" + wanted + "' is not a labelled, " +
+                                     "non-background class of " + config.dataset +
+                                     "/classes.txt");
+    }
+  }
   if (!MakeDirectories(config.out)) return Status::IoError("cannot create " + config.out);
   const int working_width = config.organizer.superpixels.working_width;
   Timer total_timer;
@@ -237,35 +255,44 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
   const int stride = config.organizer.texton_stride;
   cv::Mat region_samples;
   std::vector<int> region_labels;
+  std::vector<int> region_structured;  // structured class index per sample, -1 none
   std::vector<float> region_weights;
+  cv::Mat gt_of_image;  // the current image's classes at the working size (read by append)
+  auto append = [&](const cv::Mat& appearance, const cv::Mat& regions, int n, double fraction) {
+    std::vector<int> majority;
+    const std::vector<int> labels = RegionLabels(regions, n, gt_of_image, *table, fraction,
+                                                 &majority);
+    const std::vector<int> areas = RegionAreas(regions, n);
+    for (int i = 0; i < n; ++i) {
+      if (labels[i] < 0 || areas[i] < config.min_region_pixels) continue;
+      region_samples.push_back(appearance.row(i));
+      region_labels.push_back(labels[i]);
+      const auto it = structured_index.find(majority[i]);
+      region_structured.push_back(it == structured_index.end() ? -1 : it->second);
+      region_weights.push_back(
+          static_cast<float>(std::pow(static_cast<double>(areas[i]), config.area_weight_power)));
+    }
+  };
   int superpixel_regions = 0;
   for (size_t i = 0; i < ids->size(); ++i) {
     StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*ids)[i]);
     if (!image.ok()) return image.status();
     if (image->classes.empty()) continue;
     const WorkingImage working = MakeWorkingImage(image->bgr, working_width);
-    const cv::Mat gt = LayerAtSize(image->classes, working.bgr.size());
+    gt_of_image = LayerAtSize(image->classes, working.bgr.size());
     const cv::Mat features = ComputeFilterBank(working.lab);
     const TextonMap map = ComputeTextonMap(features, assigner, stride);
     const SceneSegmentation superpixels = ComputeSuperpixels(working, config.organizer.superpixels);
-    const cv::Mat appearance =
-        RegionAppearance(superpixels.labels, superpixels.size(), map, features, assigner);
-    const std::vector<int> labels = RegionLabels(superpixels.labels, superpixels.size(), gt, *table,
-                                                 config.min_labelled_fraction);
     const int before = region_samples.rows;
     if (config.superpixel_regions) {
-      AppendRegions(appearance, labels, RegionAreas(superpixels.labels, superpixels.size()),
-                    config.min_region_pixels, config.area_weight_power, &region_samples,
-                    &region_labels, &region_weights);
+      append(RegionAppearance(superpixels.labels, superpixels.size(), map, features, assigner),
+             superpixels.labels, superpixels.size(), config.min_labelled_fraction);
     }
     superpixel_regions += region_samples.rows - before;
     if (config.ground_truth_regions && !image->objects.empty()) {
       int n = 0;
       const cv::Mat objects = ObjectRegions(LayerAtSize(image->objects, working.bgr.size()), &n);
-      const cv::Mat object_appearance = RegionAppearance(objects, n, map, features, assigner);
-      AppendRegions(object_appearance, RegionLabels(objects, n, gt, *table, 0.5),
-                    RegionAreas(objects, n), config.min_region_pixels, config.area_weight_power,
-                    &region_samples, &region_labels, &region_weights);
+      append(RegionAppearance(objects, n, map, features, assigner), objects, n, 0.5);
     }
     Progress(config.progress, "regions", i + 1, ids->size());
   }
@@ -280,8 +307,9 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
     region_samples = region_samples.colRange(0, config.textons.k + 1).clone();
   }
   BackgroundTrainingSummary boost_summary;
-  const BackgroundClassifier classifier = BackgroundClassifier::Train(
-      region_samples, region_labels, region_weights, config.boost, &boost_summary);
+  const BackgroundClassifier classifier =
+      BackgroundClassifier::Train(region_samples, region_labels, region_weights, config.boost,
+                                  &boost_summary, structured_names, region_structured);
   PLACEREC_RETURN_IF_ERROR(classifier.Save(config.out));
 
   // 4. Accuracy on the evaluation split's ground-truth objects (seed Table 6.4 protocol) and
@@ -296,6 +324,12 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
     if (!eval_ids.ok()) return eval_ids.status();
     BackgroundAccuracy objects_accuracy;
     BackgroundAccuracy superpixel_accuracy;
+    // The decision segmentation makes: one-per-class when its options ask for it.
+    auto rivals_of = [&](const cv::Mat& appearance) {
+      return config.organizer.one_per_class
+                 ? BackgroundClassifier::RowMaxima(classifier.StructuredScores(appearance))
+                 : std::vector<float>();
+    };
     for (size_t i = 0; i < eval_ids->size(); ++i) {
       StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*eval_ids)[i]);
       if (!image.ok()) return image.status();
@@ -309,17 +343,20 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
       const cv::Mat appearance = RegionAppearance(objects, n, map, features, assigner);
       std::vector<int> majority;
       const std::vector<int> labels = RegionLabels(objects, n, gt, *table, 0.5, &majority);
-      objects_accuracy.Add(classifier.Scores(appearance), labels, majority, RegionAreas(objects, n),
-                           *table, config.organizer.background_threshold);
+      objects_accuracy.Add(classifier.Scores(appearance), rivals_of(appearance), labels, majority,
+                           RegionAreas(objects, n), *table,
+                           config.organizer.background_threshold);
       const SceneSegmentation superpixels =
           ComputeSuperpixels(working, config.organizer.superpixels);
       std::vector<int> superpixel_majority;
       const std::vector<int> superpixel_labels =
           RegionLabels(superpixels.labels, superpixels.size(), gt, *table,
                        config.min_labelled_fraction, &superpixel_majority);
-      superpixel_accuracy.Add(classifier.Scores(RegionAppearance(
-                                  superpixels.labels, superpixels.size(), map, features, assigner)),
-                              superpixel_labels, superpixel_majority,
+      const cv::Mat superpixel_appearance =
+          RegionAppearance(superpixels.labels, superpixels.size(), map, features, assigner);
+      superpixel_accuracy.Add(classifier.Scores(superpixel_appearance),
+                              rivals_of(superpixel_appearance), superpixel_labels,
+                              superpixel_majority,
                               RegionAreas(superpixels.labels, superpixels.size()), *table,
                               config.organizer.background_threshold);
       if (static_cast<int>(i) < config.check_images) {
@@ -342,7 +379,8 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
   nlohmann::json check;
   if (!check_features.empty()) {
     const std::vector<SegmentClass> decided =
-        classifier.Classify(check_features, config.organizer.background_threshold);
+        classifier.Classify(check_features, config.organizer.background_threshold,
+                            config.organizer.one_per_class);
     std::vector<int> decided_ids;
     int correct = 0;
     for (size_t r = 0; r < decided.size(); ++r) {
@@ -360,6 +398,8 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
       fs << "features" << check_features;
       fs << "labels" << check_labels;
       fs << "decisions" << decided_ids;
+      fs << "threshold" << config.organizer.background_threshold;
+      fs << "one_per_class" << static_cast<int>(config.organizer.one_per_class);
       fs << "accuracy" << accuracy;
     } catch (const cv::Exception& e) {
       return Status::IoError("cannot write " + path + ": " + e.what());
@@ -377,9 +417,12 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
   manifest["created"] = TodayUtc();
   manifest["command"] = "placerec-train background --dataset " +
                         std::filesystem::path(config.dataset).filename().string() + " --split " +
-                        config.split + " --out models";
+                        config.split +
+                        (config.holdout > 0 ? " --holdout " + std::to_string(config.holdout) : "") +
+                        " --out models";
   manifest["data"] = {{"dataset", std::filesystem::path(config.dataset).filename().string()},
                       {"split", config.split},
+                      {"holdout_first_images", config.holdout},
                       {"images", static_cast<int>(ids->size())}};
   manifest["textons"] = {{"file", "textons.yml"},
                          {"k", config.textons.k},
@@ -406,8 +449,12 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
   classifiers["min_labelled_fraction"] = config.min_labelled_fraction;
   classifiers["min_region_pixels"] = config.min_region_pixels;
   classifiers["area_weight_power"] = config.area_weight_power;
-  for (int c = 0; c < kBackgroundClasses; ++c) {
-    const std::string name = SegmentClassName(BackgroundClassOf(c));
+  classifiers["structured_classes"] = structured_names;
+  classifiers["decision"] = {{"threshold", config.organizer.background_threshold},
+                             {"one_per_class", config.organizer.one_per_class}};
+  for (int c = 0; c < kBackgroundClasses + static_cast<int>(structured_names.size()); ++c) {
+    const std::string name = c < kBackgroundClasses ? SegmentClassName(BackgroundClassOf(c))
+                                                    : structured_names[c - kBackgroundClasses];
     classifiers["files"].push_back("background_" + name + ".yml.gz");
     classifiers["per_class"][name] = {
         {"positives", boost_summary.positives[c]},

@@ -51,11 +51,13 @@ struct BackgroundAccuracy {
   // Dataset class name -> regions decided sky, tree, road, grass, water, structured.
   std::map<std::string, std::array<int, kBackgroundClasses + 1>> confusion;
 
-  // `scores`: BackgroundClassifier::Scores rows; labels and majority class ids from
+  // `scores`: BackgroundClassifier::Scores rows; `rivals`: each row's best structured score
+  // for the one-per-class decision (empty: threshold only); labels and majority class ids from
   // RegionLabels (-1 rows skipped); names from `table`.
   // `areas` (pixels per region) weighs the pixel counts.
-  void Add(const cv::Mat& scores, const std::vector<int>& labels, const std::vector<int>& majority,
-           const std::vector<int>& areas, const ClassTable& table, double threshold);
+  void Add(const cv::Mat& scores, const std::vector<float>& rivals, const std::vector<int>& labels,
+           const std::vector<int>& majority, const std::vector<int>& areas, const ClassTable& table,
+           double threshold);
   nlohmann::json ToJson() const;
 };
 
@@ -82,6 +84,12 @@ struct BackgroundTrainingConfig {
   // min_region_pixels (working pixels).
   double min_labelled_fraction = 0.5;
   int min_region_pixels = 30;
+  // Structured classes that get a classifier of their own (for the one-per-class decision):
+  // dataset class names; {"all"}: every labelled class that is not a background class; empty:
+  // none (the five background classifiers only).
+  std::vector<std::string> structured_classes = {"all"};
+  // The first `holdout` images of `split` are left out of training (validation).
+  int holdout = 0;
   // A training region's initial boosting weight is its area (working pixels) to this power:
   // 0 weighs every region alike, 1 weighs by pixels.
   double area_weight_power = 0.0;

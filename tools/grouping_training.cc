@@ -172,7 +172,8 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
   auto new_state = [&](const TrainingImage& t) {
     return MergeState(t.parts.labels, t.parts.size(), t.lab, t.appearance,
                       organizer_options.texton_stride, background.textons.inv_std,
-                      background.classifier, organizer_options.background_threshold);
+                      background.classifier, organizer_options.background_threshold,
+                      organizer_options.one_per_class);
   };
 
   // Pass 1: superpixels and ground-truth merge levels.
@@ -301,6 +302,10 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
                        {"max_depth", config.boost.max_depth},
                        {"weight_trim_rate", config.boost.weight_trim_rate},
                        {"features", config.features}};
+  manifest["background_decision"] = {
+      {"threshold", organizer_options.background_threshold},
+      {"one_per_class", organizer_options.one_per_class},
+      {"structured_classes", background.classifier.structured_names()}};
   manifest["seed"] = config.seed;
   std::ofstream out(config.out + "/grouping.json");
   if (!out) return Status::IoError("cannot write " + config.out + "/grouping.json");

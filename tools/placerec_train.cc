@@ -40,7 +40,8 @@ int BackgroundCommand(int argc, char** argv) {
       "placerec-train background --dataset DIR --out DIR [options]\n\n"
       "Learns k-means textons on filter-bank responses of pixels sampled from DIR's training\n"
       "images, then five binary Gentle AdaBoost classifiers (sky, tree, road, grass, water) on\n"
-      "the texton histograms of their superpixels and ground-truth regions, and writes\n"
+      "the texton histograms of their superpixels and ground-truth regions (and one per\n"
+      "structured class, for the one-per-class decision), and writes\n"
       "textons.yml, background*.yml*, check_sample.yml.gz and manifest.json into --out.");
   parser.AddRequired("dataset", &config.dataset,
                      "labelled dataset (layout of shared/data/README.md), e.g. "
@@ -70,10 +71,28 @@ int BackgroundCommand(int argc, char** argv) {
   parser.Add("check-images", &config.check_images,
              "images of --eval-split whose regions form the stored check sample");
   parser.Add("seed", &config.seed, "random seed (pixel sampling, negatives)");
+  parser.Add("holdout", &config.holdout,
+             "leave the first N images of --split out of training (validation)");
+  std::string structured = "all";
+  parser.Add("structured-classes", &structured,
+             "comma-separated dataset classes that get a classifier of their own for the "
+             "one-per-class decision ('all': every labelled non-background class; 'none')");
+  parser.Add("one-per-class", &config.organizer.one_per_class,
+             "the reported accuracy uses the one-per-class decision (a background class must "
+             "beat every structured class)");
+  parser.Add("background-threshold", &config.organizer.background_threshold,
+             "the reported accuracy's decision threshold");
   parser.AddSwitch("quiet", &quiet, "no progress lines");
   if (const std::optional<int> exit =
           parser.ParseOrExit(argc, argv, 2, "placerec-train background")) {
     return *exit;
+  }
+  config.structured_classes.clear();
+  if (structured != "none") {
+    std::stringstream list(structured);
+    for (std::string name; std::getline(list, name, ',');) {
+      if (!name.empty()) config.structured_classes.push_back(name);
+    }
   }
   config.textons.seed = config.seed;
   config.boost.seed = config.seed;
@@ -116,8 +135,14 @@ int GroupingCommand(int argc, char** argv) {
              "second pass: the first model merges while its best score exceeds this");
   parser.Add("max-pairs", &config.max_pairs, "train each model on at most N random pairs (0: all)");
   parser.Add("features", &config.features,
-             "pair features the model reads: the 33 relational ones, or 73 with the pair's place "
-             "in appearance space (no better on held-out images)");
+             "pair features the model reads: the 33 relational ones, 42 with the structured "
+             "classes' scores (needs background classifiers trained with structured classes), "
+             "82 with the pair's place in appearance space");
+  parser.Add("background-threshold", &config.organizer.background_threshold,
+             "background decision of the regions while pairs are described (the shipped model "
+             "was trained with 0)");
+  parser.Add("one-per-class", &config.organizer.one_per_class,
+             "background decision: a background class must also beat every structured class");
   parser.Add("weak-count", &config.boost.weak_count, "boosted trees");
   parser.Add("max-depth", &config.boost.max_depth, "depth of each tree");
   parser.Add("seed", &config.seed, "random seed (order of the ground-truth merges)");

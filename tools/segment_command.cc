@@ -308,6 +308,9 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   parser.Add("texton-stride", &options.texton_stride, "textons on every N-th pixel in x and y");
   parser.Add("background-threshold", &options.background_threshold,
              "a region is background when its best classifier score exceeds this");
+  parser.Add("one-per-class", &options.one_per_class,
+             "a region is background only when its best background classifier also beats every "
+             "structured class's (seed §6.2.1; needs models with structured classifiers)");
   parser.Add("background-smoothing", &options.background_smoothing,
              "weight of the neighbours' mean classifier scores in each superpixel's decision "
              "(0: independent decisions)");
@@ -545,8 +548,13 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
         std::vector<int> majority;
         const std::vector<int> labels = RegionLabels(
             regions, n, LayerAtSize(image->classes, working_size), *table, 0.5, &majority);
-        background.Add(organizer->model().classifier.Scores(appearance), labels, majority,
-                       RegionAreas(regions, n), *table, options.background_threshold);
+        const BackgroundClassifier& classifier = organizer->model().classifier;
+        background.Add(classifier.Scores(appearance),
+                       options.one_per_class
+                           ? BackgroundClassifier::RowMaxima(classifier.StructuredScores(appearance))
+                           : std::vector<float>(),
+                       labels, majority, RegionAreas(regions, n), *table,
+                       options.background_threshold);
         pixels.Add(segments, segmentation.classes, gt_classes, *table);
       }
     }
@@ -577,6 +585,8 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   opts["oracle_grouping"] = oracle_grouping;
   opts["background_threshold"] = options.background_threshold;
   opts["background_smoothing"] = options.background_smoothing;
+  opts["one_per_class"] = options.one_per_class;
+  opts["structured_classes"] = organizer->model().classifier.structured_names();
   opts["learned_merge"] = {{"enabled", options.learned_merge},
                            {"threshold", options.merge.threshold}};
   opts["organization"] = {{"theta", {po.theta_complexity, po.theta_cohesion}},

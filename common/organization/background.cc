@@ -1,13 +1,17 @@
 #include "common/organization/background.h"
 
 #include <algorithm>
+#include <atomic>
+#include <cctype>
 #include <cmath>
 #include <numeric>
 #include <random>
+#include <thread>
 
 #include <glog/logging.h>
 #include <opencv2/core/persistence.hpp>
 
+#include "common/util/paths.h"
 #include "common/util/timer.h"
 
 namespace placerec {
@@ -19,8 +23,33 @@ namespace {
 // five-way argmax then broke every tie toward the first class (sky).
 constexpr int kSumFlags = cv::ml::StatModel::RAW_OUTPUT | cv::ml::DTrees::PREDICT_SUM;
 
+std::string ClassifierFile(const std::string& directory, const std::string& name) {
+  return directory + "/background_" + name + ".yml.gz";
+}
+
 std::string ClassifierFile(const std::string& directory, int c) {
-  return directory + "/background_" + SegmentClassName(BackgroundClassOf(c)) + ".yml.gz";
+  return ClassifierFile(directory, SegmentClassName(BackgroundClassOf(c)));
+}
+
+// One trained classifier file that reads `features` columns.
+StatusOr<cv::Ptr<cv::ml::Boost>> LoadBoost(const std::string& file, int features) {
+  if (!PathExists(file)) return Status::NotFound("cannot read " + file);
+  cv::Ptr<cv::ml::Boost> boost = cv::Algorithm::load<cv::ml::Boost>(file);
+  if (!boost || !boost->isTrained()) return Status::NotFound("cannot read " + file);
+  if (boost->getVarCount() != features) {
+    return Status::InvalidArgument(file + ": " + std::to_string(boost->getVarCount()) +
+                                   " features, expected " + std::to_string(features));
+  }
+  return boost;
+}
+
+// Structured class names become file names: letters, digits, '_' and '-' only.
+bool SafeName(const std::string& name) {
+  if (name.empty()) return false;
+  for (const char ch : name) {
+    if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '_' && ch != '-') return false;
+  }
+  return true;
 }
 
 }  // namespace
@@ -78,25 +107,39 @@ BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
                                                  const std::vector<int>& labels,
                                                  const std::vector<float>& weights,
                                                  const BackgroundTrainingOptions& options,
-                                                 BackgroundTrainingSummary* summary) {
+                                                 BackgroundTrainingSummary* summary,
+                                                 const std::vector<std::string>& structured_names,
+                                                 const std::vector<int>& structured_labels) {
   std::string error;
   CHECK(options.Check(&error)) << error;
   CHECK_EQ(features.type(), CV_32F);
   CHECK_EQ(features.rows, static_cast<int>(labels.size()));
   CHECK(weights.empty() || weights.size() == labels.size());
+  CHECK(structured_names.empty() || structured_labels.size() == labels.size());
   Timer timer;
+  const int classes = kBackgroundClasses + static_cast<int>(structured_names.size());
   BackgroundTrainingSummary stats;
-  BackgroundClassifier classifier;
-  for (int c = 0; c < kBackgroundClasses; ++c) {
+  stats.positives.assign(classes, 0);
+  stats.negatives.assign(classes, 0);
+  stats.training_accuracy.assign(classes, 0.0);
+  std::vector<cv::Ptr<cv::ml::Boost>> boosts(static_cast<size_t>(classes));
+
+  // Classifier c: background class c, or structured class c - kBackgroundClasses.
+  auto train_one = [&](int c) {
     std::vector<int> positives;
     std::vector<int> negatives;
     for (int i = 0; i < features.rows; ++i) {
       if (labels[i] < 0) continue;
-      (labels[i] == c ? positives : negatives).push_back(i);
+      const bool positive = c < kBackgroundClasses
+                                ? labels[i] == c
+                                : structured_labels[i] == c - kBackgroundClasses;
+      (positive ? positives : negatives).push_back(i);
     }
-    CHECK(!positives.empty()) << "no training region of class "
-                              << SegmentClassName(BackgroundClassOf(c));
-    CHECK(!negatives.empty()) << "no negative training region";
+    const std::string name = c < kBackgroundClasses
+                                 ? SegmentClassName(BackgroundClassOf(c))
+                                 : structured_names[c - kBackgroundClasses];
+    CHECK(!positives.empty()) << "no training region of class " << name;
+    CHECK(!negatives.empty()) << "no negative training region for class " << name;
     if (options.max_negatives_per_positive > 0) {
       const size_t keep = static_cast<size_t>(
           std::ceil(options.max_negatives_per_positive * static_cast<double>(positives.size())));
@@ -119,12 +162,9 @@ BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
         ++row;
       }
     }
-    const cv::Ptr<cv::ml::Boost> boost =
-        TrainGentleBoost(samples, responses, sample_weights, options.weak_count, options.max_depth,
-                         options.weight_trim_rate);
-    classifier.boosts_[c] = boost;
-
-    const cv::Mat raw = BoostedSums(*boost, samples);
+    boosts[c] = TrainGentleBoost(samples, responses, sample_weights, options.weak_count,
+                                 options.max_depth, options.weight_trim_rate);
+    const cv::Mat raw = BoostedSums(*boosts[c], samples);
     int correct = 0;
     for (int r = 0; r < samples.rows; ++r) {
       correct += (raw.at<float>(r) > 0) == (responses.at<int>(r) == 1);
@@ -132,7 +172,20 @@ BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
     stats.positives[c] = static_cast<int>(positives.size());
     stats.negatives[c] = static_cast<int>(negatives.size());
     stats.training_accuracy[c] = static_cast<double>(correct) / samples.rows;
-  }
+  };
+  // Two workers (the machines this runs on have two cores); each classifier is independent.
+  std::atomic<int> next{0};
+  auto worker = [&] {
+    for (int c = next++; c < classes; c = next++) train_one(c);
+  };
+  std::thread helper(worker);
+  worker();
+  helper.join();
+
+  BackgroundClassifier classifier;
+  for (int c = 0; c < kBackgroundClasses; ++c) classifier.boosts_[c] = boosts[c];
+  classifier.structured_names_ = structured_names;
+  classifier.structured_.assign(boosts.begin() + kBackgroundClasses, boosts.end());
   stats.seconds = timer.ElapsedMs() / 1000.0;
   if (summary != nullptr) *summary = stats;
   return classifier;
@@ -154,19 +207,51 @@ cv::Mat BackgroundClassifier::Scores(const cv::Mat& features) const {
   return scores;
 }
 
-SegmentClass BackgroundClassifier::Decide(const float* scores, double threshold) {
+cv::Mat BackgroundClassifier::StructuredScores(const cv::Mat& features) const {
+  CHECK(!empty()) << "background classifiers not loaded";
+  CHECK_EQ(features.type(), CV_32F);
+  CHECK_GE(features.cols, feature_size());
+  cv::Mat scores(features.rows, structured_classes(), CV_32F);
+  if (features.rows == 0 || structured_.empty()) return scores;
+  const cv::Mat used =
+      features.cols == feature_size() ? features : features.colRange(0, feature_size()).clone();
+  for (int j = 0; j < structured_classes(); ++j) {
+    BoostedSums(*structured_[j], used).copyTo(scores.col(j));
+  }
+  return scores;
+}
+
+std::vector<float> BackgroundClassifier::RowMaxima(const cv::Mat& structured_scores) {
+  std::vector<float> maxima(static_cast<size_t>(structured_scores.rows),
+                            -std::numeric_limits<float>::infinity());
+  for (int r = 0; r < structured_scores.rows; ++r) {
+    const float* s = structured_scores.ptr<float>(r);
+    for (int j = 0; j < structured_scores.cols; ++j) maxima[r] = std::max(maxima[r], s[j]);
+  }
+  return maxima;
+}
+
+SegmentClass BackgroundClassifier::Decide(const float* scores, double threshold, float rival) {
   int best = 0;
   for (int c = 1; c < kBackgroundClasses; ++c) {
     if (scores[c] > scores[best]) best = c;
   }
-  return scores[best] > threshold ? BackgroundClassOf(best) : SegmentClass::kStructured;
+  return scores[best] > threshold && scores[best] > rival ? BackgroundClassOf(best)
+                                                           : SegmentClass::kStructured;
 }
 
 std::vector<SegmentClass> BackgroundClassifier::Classify(const cv::Mat& features,
-                                                         double threshold) const {
+                                                         double threshold,
+                                                         bool one_per_class) const {
   const cv::Mat scores = Scores(features);
+  const std::vector<float> rivals =
+      one_per_class ? RowMaxima(StructuredScores(features))
+                    : std::vector<float>(static_cast<size_t>(features.rows),
+                                         -std::numeric_limits<float>::infinity());
   std::vector<SegmentClass> classes(static_cast<size_t>(features.rows));
-  for (int r = 0; r < features.rows; ++r) classes[r] = Decide(scores.ptr<float>(r), threshold);
+  for (int r = 0; r < features.rows; ++r) {
+    classes[r] = Decide(scores.ptr<float>(r), threshold, rivals[r]);
+  }
   return classes;
 }
 
@@ -181,8 +266,19 @@ Status BackgroundClassifier::Save(const std::string& directory) const {
        << "[";
     for (int c = 0; c < kBackgroundClasses; ++c) fs << SegmentClassName(BackgroundClassOf(c));
     fs << "]";
+    fs << "structured_classes"
+       << "[";
+    for (const std::string& name : structured_names_) fs << name;
+    fs << "]";
     fs.release();
     for (int c = 0; c < kBackgroundClasses; ++c) boosts_[c]->save(ClassifierFile(directory, c));
+    for (int j = 0; j < structured_classes(); ++j) {
+      if (!SafeName(structured_names_[j])) {
+        return Status::InvalidArgument("structured class name '" + structured_names_[j] +
+                                       "' is not usable as a file name");
+      }
+      structured_[j]->save(ClassifierFile(directory, structured_names_[j]));
+    }
   } catch (const cv::Exception& e) {
     return Status::IoError("cannot write background classifiers to " + directory + ": " + e.what());
   }
@@ -199,9 +295,9 @@ StatusOr<BackgroundClassifier> BackgroundClassifier::Load(const std::string& dir
     int features = 0;
     fs["format_version"] >> version;
     fs["features"] >> features;
-    if (version != kFormatVersion) {
+    if (version != 1 && version != kFormatVersion) {
       return Status::InvalidArgument(index + ": format version " + std::to_string(version) +
-                                     ", expected " + std::to_string(kFormatVersion));
+                                     ", this build reads 1 and " + std::to_string(kFormatVersion));
     }
     std::vector<std::string> names;
     fs["classes"] >> names;
@@ -212,14 +308,20 @@ StatusOr<BackgroundClassifier> BackgroundClassifier::Load(const std::string& dir
       if (names[c] != SegmentClassName(BackgroundClassOf(c))) {
         return Status::InvalidArgument(index + ": class " + std::to_string(c) + " is " + names[c]);
       }
-      const std::string file = ClassifierFile(directory, c);
-      cv::Ptr<cv::ml::Boost> boost = cv::Algorithm::load<cv::ml::Boost>(file);
-      if (!boost || !boost->isTrained()) return Status::NotFound("cannot read " + file);
-      if (boost->getVarCount() != features) {
-        return Status::InvalidArgument(file + ": " + std::to_string(boost->getVarCount()) +
-                                       " features, expected " + std::to_string(features));
+      StatusOr<cv::Ptr<cv::ml::Boost>> boost = LoadBoost(ClassifierFile(directory, c), features);
+      if (!boost.ok()) return boost.status();
+      classifier.boosts_[c] = *boost;
+    }
+    std::vector<std::string> structured;
+    if (version >= 2 && !fs["structured_classes"].empty()) fs["structured_classes"] >> structured;
+    for (const std::string& name : structured) {
+      if (!SafeName(name)) {
+        return Status::InvalidArgument(index + ": bad structured class name '" + name + "'");
       }
-      classifier.boosts_[c] = boost;
+      StatusOr<cv::Ptr<cv::ml::Boost>> boost = LoadBoost(ClassifierFile(directory, name), features);
+      if (!boost.ok()) return boost.status();
+      classifier.structured_names_.push_back(name);
+      classifier.structured_.push_back(*boost);
     }
   } catch (const cv::Exception& e) {
     return Status::InvalidArgument("cannot load background classifiers from " + directory + ": " +

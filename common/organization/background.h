@@ -10,6 +10,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -42,10 +43,11 @@ struct BackgroundTrainingOptions {
 };
 
 // What training measured, per classifier on its own training samples.
+// Index c < kBackgroundClasses: background class c; kBackgroundClasses + j: structured class j.
 struct BackgroundTrainingSummary {
-  std::array<int, kBackgroundClasses> positives{};
-  std::array<int, kBackgroundClasses> negatives{};
-  std::array<double, kBackgroundClasses> training_accuracy{};  // binary, on the samples it saw
+  std::vector<int> positives;
+  std::vector<int> negatives;
+  std::vector<double> training_accuracy;  // binary, on the samples it saw
   double seconds = 0.0;
 };
 
@@ -61,18 +63,24 @@ cv::Mat BoostedSums(const cv::ml::Boost& boost, const cv::Mat& samples);
 
 class BackgroundClassifier {
  public:
-  static constexpr int kFormatVersion = 1;
+  // 1: the five background classes; 2 adds the structured classes (reads 1).
+  static constexpr int kFormatVersion = 2;
 
   BackgroundClassifier() = default;
 
   // Trains the five classifiers on `features` (n x d CV_32F, one region per row) with `labels`
   // (n values: a SegmentClass value 0..4 for background, 7 (or any other non-negative value)
   // for everything else, -1 to leave the row out) and optional per-row `weights` (the boosting's
-  // initial sample weights; empty: all equal). Deterministic for the same input.
+  // initial sample weights; empty: all equal). When `structured_names` is not empty, one more
+  // classifier per name learns the rows whose `structured_labels` value is its index (other
+  // rows with a label >= 0 are its negatives). Classifiers train two at a time; the result is
+  // deterministic for the same input.
   static BackgroundClassifier Train(const cv::Mat& features, const std::vector<int>& labels,
                                     const std::vector<float>& weights,
                                     const BackgroundTrainingOptions& options,
-                                    BackgroundTrainingSummary* summary);
+                                    BackgroundTrainingSummary* summary,
+                                    const std::vector<std::string>& structured_names = {},
+                                    const std::vector<int>& structured_labels = {});
 
   static StatusOr<BackgroundClassifier> Load(const std::string& directory);
   Status Save(const std::string& directory) const;
@@ -84,13 +92,27 @@ class BackgroundClassifier {
   // > 0 means "this class"): n x 5 CV_32F. `features` may have more columns than the
   // classifiers were trained on (RegionAppearance's extras); they read the leading ones.
   cv::Mat Scores(const cv::Mat& features) const;
-  // Per row: the class with the highest score when that score exceeds `threshold`, otherwise
+  // The structured classes' scores, n x structured_classes() CV_32F (n x 0 without them).
+  cv::Mat StructuredScores(const cv::Mat& features) const;
+  int structured_classes() const { return static_cast<int>(structured_.size()); }
+  const std::vector<std::string>& structured_names() const { return structured_names_; }
+  // Per row: the class with the highest score when that score exceeds `threshold` (and, with
+  // `one_per_class` and structured classifiers, every structured class's score), otherwise
   // kStructured.
-  std::vector<SegmentClass> Classify(const cv::Mat& features, double threshold = 0.0) const;
-  static SegmentClass Decide(const float* scores, double threshold);
+  std::vector<SegmentClass> Classify(const cv::Mat& features, double threshold = 0.0,
+                                     bool one_per_class = false) const;
+  // The decision on one row of Scores: the best background class when its score exceeds
+  // `threshold` and `rival` (the best structured score under one-per-class; otherwise leave
+  // it at its default), else kStructured.
+  static SegmentClass Decide(const float* scores, double threshold,
+                             float rival = -std::numeric_limits<float>::infinity());
+  // The largest value of each row of StructuredScores (-infinity when it has no columns).
+  static std::vector<float> RowMaxima(const cv::Mat& structured_scores);
 
  private:
   std::array<cv::Ptr<cv::ml::Boost>, kBackgroundClasses> boosts_;
+  std::vector<std::string> structured_names_;
+  std::vector<cv::Ptr<cv::ml::Boost>> structured_;
 };
 
 }  // namespace placerec

@@ -496,13 +496,18 @@ TEST(BackgroundModelTest, ShippedClassifiersReproduceTheirCheckSample) {
   fs["labels"] >> labels;
   fs["decisions"] >> decisions;
   fs["accuracy"] >> accuracy;
+  // The decision the sample was made with (older samples: threshold 0, five classes only).
+  double threshold = 0.0;
+  int one_per_class = 0;
+  if (!fs["threshold"].empty()) fs["threshold"] >> threshold;
+  if (!fs["one_per_class"].empty()) fs["one_per_class"] >> one_per_class;
   ASSERT_FALSE(features.empty());
   ASSERT_EQ(features.rows, static_cast<int>(labels.size()));
   ASSERT_EQ(features.rows, static_cast<int>(decisions.size()));
   ASSERT_EQ(features.cols, m.classifier.feature_size());
 
   const std::vector<SegmentClass> decided =
-      m.classifier.Classify(features, SceneOrganizerOptions().background_threshold);
+      m.classifier.Classify(features, threshold, one_per_class != 0);
   ASSERT_EQ(decided.size(), decisions.size());
   int correct = 0;
   for (size_t r = 0; r < decided.size(); ++r) {
@@ -543,6 +548,82 @@ TEST(BackgroundClassifierTest, DecideTakesTheBestScoreAboveTheThreshold) {
   EXPECT_EQ(BackgroundClassifier::Decide(scores, 2.5), SegmentClass::kStructured);
   const float none[kBackgroundClasses] = {-1.0f, -0.5f, -2.0f, -3.0f, -0.1f};
   EXPECT_EQ(BackgroundClassifier::Decide(none, 0.0), SegmentClass::kStructured);
+  // One-per-class: the best background class must also beat the best structured class.
+  EXPECT_EQ(BackgroundClassifier::Decide(scores, 0.0, 1.5f), SegmentClass::kRoad);
+  EXPECT_EQ(BackgroundClassifier::Decide(scores, 0.0, 2.5f), SegmentClass::kStructured);
+  EXPECT_EQ(BackgroundClassifier::Decide(none, -1.0, -2.0f), SegmentClass::kWater);
+}
+
+// Regions of three kinds told apart by which of three features is high: sky (feature 0),
+// building (1), foreground (2); labels 0 (sky) and 7 (structured).
+void StructuredScene(cv::Mat* features, std::vector<int>* labels, std::vector<int>* structured) {
+  cv::RNG rng(7);
+  for (int i = 0; i < 300; ++i) {
+    const int kind = i % 3;
+    cv::Mat row(1, 3, CV_32F);
+    for (int f = 0; f < 3; ++f) {
+      row.at<float>(f) = static_cast<float>(rng.uniform(0.0, 0.4) + (f == kind ? 1.0 : 0.0));
+    }
+    features->push_back(row);
+    labels->push_back(kind == 0 ? 0 : 7);
+    structured->push_back(kind == 0 ? -1 : kind - 1);
+  }
+}
+
+TEST(BackgroundClassifierTest, StructuredClassesTrainDecideAndRoundTrip) {
+  cv::Mat features;
+  std::vector<int> labels;
+  std::vector<int> structured;
+  StructuredScene(&features, &labels, &structured);
+  BackgroundTrainingOptions options;
+  options.weak_count = 10;
+  options.max_depth = 1;
+  // Every background class needs positives: give the other four one region each, far away.
+  for (int c = 1; c < kBackgroundClasses; ++c) {
+    cv::Mat row(1, 3, CV_32F, cv::Scalar(-5.0f * c));
+    features.push_back(row);
+    labels.push_back(c);
+    structured.push_back(-1);
+  }
+  BackgroundTrainingSummary summary;
+  const BackgroundClassifier classifier = BackgroundClassifier::Train(
+      features, labels, {}, options, &summary, {"building", "foreground"}, structured);
+  ASSERT_EQ(classifier.structured_classes(), 2);
+  ASSERT_EQ(summary.positives.size(), static_cast<size_t>(kBackgroundClasses + 2));
+  EXPECT_EQ(summary.positives[kBackgroundClasses], 100);
+  EXPECT_EQ(summary.positives[kBackgroundClasses + 1], 100);
+
+  const cv::Mat scores = classifier.StructuredScores(features);
+  ASSERT_EQ(scores.cols, 2);
+  const std::vector<SegmentClass> decided = classifier.Classify(features, -100.0, true);
+  for (int r = 0; r < 300; ++r) {
+    const int kind = r % 3;
+    if (kind > 0) {
+      EXPECT_GT(scores.at<float>(r, kind - 1), scores.at<float>(r, 2 - kind)) << r;
+    }
+    // With the threshold out of the way, only the structured rivals keep buildings and
+    // foreground out of the background classes.
+    EXPECT_EQ(decided[r], kind == 0 ? SegmentClass::kSky : SegmentClass::kStructured) << r;
+  }
+  const std::vector<SegmentClass> without = classifier.Classify(features, -100.0, false);
+  EXPECT_TRUE(std::all_of(without.begin(), without.end(), IsBackground));
+
+  const std::string dir =
+      (std::filesystem::temp_directory_path() / "placerec_structured_classifier").string();
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  ASSERT_TRUE(classifier.Save(dir).ok());
+  const StatusOr<BackgroundClassifier> loaded = BackgroundClassifier::Load(dir);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+  EXPECT_EQ(loaded->structured_names(), (std::vector<std::string>{"building", "foreground"}));
+  EXPECT_EQ(cv::norm(loaded->StructuredScores(features), scores, cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(loaded->Scores(features), classifier.Scores(features), cv::NORM_INF), 0.0);
+  // A missing structured classifier file is an error that names it.
+  std::filesystem::remove(dir + "/background_foreground.yml.gz");
+  const StatusOr<BackgroundClassifier> broken = BackgroundClassifier::Load(dir);
+  ASSERT_FALSE(broken.ok());
+  EXPECT_NE(broken.status().message().find("background_foreground"), std::string::npos);
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

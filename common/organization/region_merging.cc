@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <queue>
 #include <tuple>
 
@@ -38,11 +39,13 @@ bool RegionMergeOptions::Check(std::string* error) const {
 
 MergeState::MergeState(const cv::Mat& labels, int num_regions, const cv::Mat& lab,
                        const cv::Mat& appearance, int texton_stride, const cv::Mat& feature_inv_std,
-                       const BackgroundClassifier& classifier, double background_threshold)
+                       const BackgroundClassifier& classifier, double background_threshold,
+                       bool one_per_class)
     : labels_(labels.clone()),
       size_(labels.size()),
       classifier_(classifier),
-      background_threshold_(background_threshold) {
+      background_threshold_(background_threshold),
+      one_per_class_(one_per_class) {
   CHECK_EQ(labels.type(), CV_32S);
   CHECK_EQ(lab.type(), CV_32FC3);
   CHECK(lab.size() == labels.size());
@@ -132,10 +135,13 @@ MergeState::MergeState(const cv::Mat& labels, int num_regions, const cv::Mat& la
   }
   // Background scores of the initial regions in one batch.
   const cv::Mat scores = classifier_.Scores(appearance);
+  const cv::Mat structured = classifier_.StructuredScores(appearance);
   for (int i = 0; i < num_regions; ++i) {
     Region& r = regions_[i];
     std::copy(scores.ptr<float>(i), scores.ptr<float>(i) + kBackgroundClasses, r.scores.begin());
-    r.segment_class = BackgroundClassifier::Decide(r.scores.data(), background_threshold_);
+    r.structured_scores.assign(structured.ptr<float>(i),
+                               structured.ptr<float>(i) + structured.cols);
+    Decide(&r);
   }
 }
 
@@ -229,6 +235,24 @@ void MergeState::PairFeatures(int a, int b, float* out) const {
       std::min(s_region.max_y, l_region.max_y) - std::max(s_region.min_y, l_region.min_y) + 1;
   out[i++] = static_cast<float>(std::max(0, overlap)) / (s_region.max_y - s_region.min_y + 1);
   CHECK_EQ(i, kMergeRelationFeatures);
+  // Semantic features (zeros without structured classifiers).
+  const int structured = static_cast<int>(ra.structured_scores.size());
+  for (int j = 0; j < kMergeStructuredScores; ++j) {
+    const bool have = j < structured;
+    out[i++] = have ? std::min(ra.structured_scores[j], rb.structured_scores[j]) : 0.0f;
+    out[i++] = have ? std::max(ra.structured_scores[j], rb.structured_scores[j]) : 0.0f;
+  }
+  auto margin = [](const Region& r) {
+    const float background = *std::max_element(r.scores.begin(), r.scores.end());
+    return r.structured_scores.empty()
+               ? 0.0f
+               : background - *std::max_element(r.structured_scores.begin(),
+                                                r.structured_scores.end());
+  };
+  out[i++] = std::min(margin(ra), margin(rb));
+  out[i++] = std::max(margin(ra), margin(rb));
+  out[i++] = structured > 0 && ra.best_class == rb.best_class ? 1.0f : 0.0f;
+  CHECK_EQ(i, kMergeAppearanceOffset);
   for (int f = 0; f < kTextonFeatureSize; ++f) {
     const float ma = ra.appearance[k_ + 1 + f];
     const float mb = rb.appearance[k_ + 1 + f];
@@ -242,7 +266,32 @@ void MergeState::Describe(Region* r) const {
   const cv::Mat row(1, static_cast<int>(r->appearance.size()), CV_32F, r->appearance.data());
   const cv::Mat scores = classifier_.Scores(row);
   std::copy(scores.ptr<float>(0), scores.ptr<float>(0) + kBackgroundClasses, r->scores.begin());
-  r->segment_class = BackgroundClassifier::Decide(r->scores.data(), background_threshold_);
+  const cv::Mat structured = classifier_.StructuredScores(row);
+  r->structured_scores.assign(structured.ptr<float>(0), structured.ptr<float>(0) + structured.cols);
+  Decide(r);
+}
+
+void MergeState::Decide(Region* r) const {
+  r->best_class = 0;
+  float best = r->scores[0];
+  for (int c = 1; c < kBackgroundClasses; ++c) {
+    if (r->scores[c] > best) {
+      best = r->scores[c];
+      r->best_class = c;
+    }
+  }
+  float rival = -std::numeric_limits<float>::infinity();
+  for (size_t j = 0; j < r->structured_scores.size(); ++j) {
+    if (r->structured_scores[j] > rival) rival = r->structured_scores[j];
+    if (r->structured_scores[j] > best) {
+      best = r->structured_scores[j];
+      r->best_class = kBackgroundClasses + static_cast<int>(j);
+    }
+  }
+  r->segment_class =
+      one_per_class_
+          ? BackgroundClassifier::Decide(r->scores.data(), background_threshold_, rival)
+          : BackgroundClassifier::Decide(r->scores.data(), background_threshold_);
 }
 
 void MergeState::Merge(int a, int b) {
@@ -416,13 +465,17 @@ StatusOr<RegionMergeModel> RegionMergeModel::Load(const std::string& directory) 
     int members = 1;
     fs["format_version"] >> version;
     fs["features"] >> features;
-    if (version == 2) fs["members"] >> members;
-    if ((version != 1 && version != 2) || features < 1 || features > kMergeFeatures ||
+    if (version >= 2) fs["members"] >> members;
+    // Versions 1 and 2 put the appearance-space features right after the relational ones.
+    const int most = version == kFormatVersion ? kMergeFeatures : kMergeRelationFeatures;
+    if (version < 1 || version > kFormatVersion || features < 1 || features > most ||
         members < 1) {
       return Status::InvalidArgument(
           path + ": format version " + std::to_string(version) + " with " +
-          std::to_string(features) + " features; this build reads versions 1 and 2 with at most " +
-          std::to_string(kMergeFeatures) + " (retrain with placerec-train grouping)");
+          std::to_string(features) + " features; this build reads version " +
+          std::to_string(kFormatVersion) + " with at most " + std::to_string(kMergeFeatures) +
+          " and versions 1 and 2 with at most " + std::to_string(kMergeRelationFeatures) +
+          " (retrain with placerec-train grouping)");
     }
     for (int i = 0; i < members; ++i) {
       cv::Ptr<cv::ml::Boost> boost = cv::ml::Boost::create();

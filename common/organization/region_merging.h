@@ -30,11 +30,18 @@ namespace placerec {
 
 // Features of a region pair (MergeState::PairFeatures); the layout is part of the model format.
 // The first kMergeRelationFeatures compare the two regions (colour, texture, boundary, shape,
-// background scores); the rest place the pair in appearance space: for each of the 20
-// filter-bank features, the smaller and the larger of the two regions' means. A model reads
-// the leading columns it was trained on.
+// background scores). The next kMergeSemanticFeatures use the structured classes' classifiers
+// (background.h; zeros without them): for each of the first kMergeStructuredScores structured
+// classes the smaller and the larger of the two regions' scores, the smaller and the larger
+// margin of the best background score over the best structured one, and whether both regions
+// take the same class under the one-per-class decision. The rest place the pair in appearance
+// space: for each of the 20 filter-bank features, the smaller and the larger of the two
+// regions' means. A model reads the leading columns it was trained on.
 constexpr int kMergeRelationFeatures = 33;
-constexpr int kMergeFeatures = kMergeRelationFeatures + 2 * 20;
+constexpr int kMergeStructuredScores = 3;
+constexpr int kMergeSemanticFeatures = 2 * kMergeStructuredScores + 3;
+constexpr int kMergeAppearanceOffset = kMergeRelationFeatures + kMergeSemanticFeatures;
+constexpr int kMergeFeatures = kMergeAppearanceOffset + 2 * 20;
 
 struct RegionMergeOptions {
   // Regions merge while the most confident pair's boosted score (> 0: "one object") exceeds
@@ -50,10 +57,12 @@ class MergeState {
   // (CV_32FC3); `appearance` RegionAppearance rows of the regions (k + 1 + kAppearanceExtras
   // columns) computed on the texton grid of `texton_stride`; `feature_inv_std` the textons'
   // per-feature scale (TextonModel::inv_std, 1 x 20); `classifier` decides the background class
-  // of every (merged) region.
+  // of every (merged) region (with `one_per_class`, BackgroundClassifier::Decide's rival is
+  // the best structured score).
   MergeState(const cv::Mat& labels, int num_regions, const cv::Mat& lab, const cv::Mat& appearance,
              int texton_stride, const cv::Mat& feature_inv_std,
-             const BackgroundClassifier& classifier, double background_threshold);
+             const BackgroundClassifier& classifier, double background_threshold,
+             bool one_per_class = false);
 
   int capacity() const { return static_cast<int>(regions_.size()); }
   bool alive(int region) const { return regions_[region].alive; }
@@ -82,6 +91,8 @@ class MergeState {
     double samples = 0;
     std::vector<float> appearance;  // RegionAppearance row
     std::array<float, kBackgroundClasses> scores{};
+    std::vector<float> structured_scores;  // one per structured classifier
+    int best_class = 0;                    // one-per-class argmax: 0..4, 5 + structured index
     SegmentClass segment_class = SegmentClass::kStructured;
     std::map<int, int> neighbours;  // neighbour -> index into edges_
   };
@@ -94,6 +105,8 @@ class MergeState {
   };
 
   void Describe(Region* region) const;
+  // Sets segment_class and best_class from the scores.
+  void Decide(Region* region) const;
 
   cv::Mat labels_;
   cv::Size size_;
@@ -101,6 +114,7 @@ class MergeState {
   std::vector<float> inv_std_;
   const BackgroundClassifier& classifier_;
   double background_threshold_ = 0;
+  bool one_per_class_ = false;
   std::vector<Region> regions_;
   std::vector<Edge> edges_;
   mutable std::vector<int> parent_;
@@ -110,8 +124,10 @@ class MergeState {
 // model averages two training variants; models/README.md).
 class RegionMergeModel {
  public:
-  // 1: one classifier under "boost"; 2: "members" classifiers under "member_<i>".
-  static constexpr int kFormatVersion = 2;
+  // 1: one classifier under "boost"; 2: "members" classifiers under "member_<i>"; 3: as 2,
+  // with the semantic features before the appearance-space ones (versions 1 and 2 are read
+  // when they use the relational features only).
+  static constexpr int kFormatVersion = 3;
   static constexpr const char* kFileName = "grouping.yml.gz";
 
   struct TrainingOptions {

@@ -73,7 +73,8 @@ MergeState StateOf(const BackgroundModel& model, const cv::Mat& lab, const cv::M
                    int regions) {
   constexpr int kStride = 2;
   return MergeState(labels, regions, lab, AppearanceOf(model, lab, labels, regions, kStride),
-                    kStride, model.textons.inv_std, model.classifier, 0.0);
+                    kStride, model.textons.inv_std, model.classifier, 0.0,
+                    /*one_per_class=*/true);
 }
 
 TEST(MergeStateTest, PairFeaturesAreSymmetric) {
@@ -231,6 +232,42 @@ TEST(RegionMergeModelTest, MissingFileIsNotFoundAndForeignFileIsRejected) {
   const StatusOr<RegionMergeModel> foreign = RegionMergeModel::Load(dir);
   ASSERT_FALSE(foreign.ok());
   EXPECT_NE(foreign.status().message().find("placerec-train grouping"), std::string::npos);
+  // Version 2 put the appearance-space features where version 3 has the semantic ones: such a
+  // model cannot be read with the new layout.
+  {
+    cv::FileStorage fs(dir + "/" + RegionMergeModel::kFileName, cv::FileStorage::WRITE);
+    fs << "format_version" << 2 << "features" << kMergeRelationFeatures + 40 << "members" << 1;
+  }
+  const StatusOr<RegionMergeModel> old_layout = RegionMergeModel::Load(dir);
+  ASSERT_FALSE(old_layout.ok());
+  EXPECT_NE(old_layout.status().message().find("retrain"), std::string::npos);
+}
+
+// Without structured classifiers the semantic features are zeros; with them, the pair's
+// structured scores are ordered (smaller, larger).
+TEST(MergeStateTest, SemanticFeaturesFollowTheStructuredClassifiers) {
+  const std::shared_ptr<const BackgroundModel> model = ShippedModel();
+  if (!model) GTEST_SKIP() << "no trained models in " << PLACEREC_MODELS_DIR;
+  const Scene scene = MakeScene();
+  const MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions);
+  const int structured = model->classifier.structured_classes();
+  for (const auto& [a, b] : state.Pairs()) {
+    float f[kMergeFeatures];
+    state.PairFeatures(a, b, f);
+    const float* semantic = f + kMergeRelationFeatures;
+    for (int j = 0; j < kMergeStructuredScores; ++j) {
+      if (j < structured) {
+        EXPECT_LE(semantic[2 * j], semantic[2 * j + 1]);
+      } else {
+        EXPECT_EQ(semantic[2 * j], 0.0f);
+        EXPECT_EQ(semantic[2 * j + 1], 0.0f);
+      }
+    }
+    EXPECT_LE(semantic[2 * kMergeStructuredScores], semantic[2 * kMergeStructuredScores + 1]);
+    if (structured == 0) {
+      EXPECT_EQ(semantic[kMergeSemanticFeatures - 1], 0.0f);
+    }
+  }
 }
 
 TEST(MergeRegionsTest, ThresholdDecidesHowFarMergingGoes) {

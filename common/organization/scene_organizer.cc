@@ -1,5 +1,6 @@
 #include "common/organization/scene_organizer.h"
 
+#include <limits>
 #include <utility>
 
 #include <glog/logging.h>
@@ -155,10 +156,15 @@ SceneSegmentation SceneOrganizer::ClassifiedSuperpixels(const WorkingImage& imag
     }
     scores = smoothed;
   }
+  const std::vector<float> rivals =
+      options_.one_per_class
+          ? BackgroundClassifier::RowMaxima(model_->classifier.StructuredScores(appearance))
+          : std::vector<float>(static_cast<size_t>(scores.rows),
+                               -std::numeric_limits<float>::infinity());
   superpixels.classes.resize(static_cast<size_t>(scores.rows));
   for (int r = 0; r < scores.rows; ++r) {
-    superpixels.classes[r] =
-        BackgroundClassifier::Decide(scores.ptr<float>(r), options_.background_threshold);
+    superpixels.classes[r] = BackgroundClassifier::Decide(
+        scores.ptr<float>(r), options_.background_threshold, rivals[r]);
   }
   if (timings != nullptr) timings->emplace_back("classifiers", timer.ElapsedMs());
   if (features_out != nullptr) *features_out = features;
@@ -170,7 +176,8 @@ SceneSegmentation SceneOrganizer::MergeParts(const SceneSegmentation& parts,
                                              const cv::Mat& appearance, const cv::Mat& lab,
                                              int* merges) const {
   MergeState state(parts.labels, parts.size(), lab, appearance, options_.texton_stride,
-                   model_->textons.inv_std, model_->classifier, options_.background_threshold);
+                   model_->textons.inv_std, model_->classifier, options_.background_threshold,
+                   options_.one_per_class);
   const int count = MergeRegions(model_->grouping, options_.merge, &state);
   if (merges != nullptr) *merges = count;
   SceneSegmentation merged = state.Result();

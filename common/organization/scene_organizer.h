@@ -55,8 +55,15 @@ struct SceneOrganizerOptions {
   // those samples (1: every pixel).
   int texton_stride = 2;
   // A region is background when its best classifier's score exceeds this (0: the boosted
-  // decision).
-  double background_threshold = 0.0;
+  // decision) and, with one_per_class, every structured class's score. -1 with one_per_class:
+  // on the validation images (models/README.md) the five classes' mean recall on msrc_v2 was
+  // 77.1 %, against 74.7 at 0 and 75.8 for the five-way decision at 0, at the same object IoU.
+  // Recognition sets 0 and five-way (AnalyzerOptions).
+  double background_threshold = -1.0;
+  // The seed's one-per-class decision (§6.2.1): a region is background only when its best
+  // background score also beats every structured class's classifier (when the models have
+  // structured classifiers; background.h).
+  bool one_per_class = true;
   // Before the decision, each superpixel's five scores become
   // (1 - w) * own + w * (boundary-length-weighted mean of its neighbours' scores), w this value
   // (0: the seed's independent per-region decision). Background classes are spatially

@@ -70,6 +70,9 @@ void AddOrganizationFlags(FlagParser* p, SceneOrganizerOptions* o) {
   p->Add("background-threshold", &o->background_threshold,
          "a region is background when its best classifier score exceeds this (0: boosted "
          "decision)");
+  p->Add("one-per-class", &o->one_per_class,
+         "a region is background only when its best background classifier also beats every "
+         "structured class's (seed §6.2.1; models with structured classifiers)");
   p->Add("learned-merge", &o->learned_merge,
          "organization: merge the classified superpixels with the learned region-merge "
          "classifier (models/grouping.yml.gz) before Perceptual Organization");

@@ -76,6 +76,8 @@ struct AnalyzerOptions {
   SceneOrganizerOptions organization = [] {
     SceneOrganizerOptions o;
     o.learned_merge = false;
+    o.one_per_class = false;
+    o.background_threshold = 0.0;
     o.organization = OrganizationOptions();
     return o;
   }();
