@@ -66,14 +66,12 @@ void BackgroundAccuracy::Add(const cv::Mat& scores, const std::vector<float>& ri
                              const std::vector<int>& areas, const ClassTable& table,
                              double threshold) {
   CHECK_EQ(scores.rows, static_cast<int>(labels.size()));
-  CHECK(rivals.empty() || rivals.size() == labels.size());
+  CHECK_EQ(rivals.size(), labels.size());
   for (int r = 0; r < scores.rows; ++r) {
     const int label = labels[r];
     if (label < 0) continue;
     const float* s = scores.ptr<float>(r);
-    const SegmentClass decided =
-        rivals.empty() ? BackgroundClassifier::Decide(s, threshold)
-                       : BackgroundClassifier::Decide(s, threshold, rivals[r]);
+    const SegmentClass decided = BackgroundClassifier::Decide(s, threshold, rivals[r]);
     ++total;
     // Each binary classifier on its own: its boosted decision (> 0), whatever the threshold
     // of the five-way decision.
@@ -257,11 +255,11 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
   std::vector<int> region_labels;
   std::vector<int> region_structured;  // structured class index per sample, -1 none
   std::vector<float> region_weights;
-  cv::Mat gt_of_image;  // the current image's classes at the working size (read by append)
-  auto append = [&](const cv::Mat& appearance, const cv::Mat& regions, int n, double fraction) {
+  // Appends the labelled regions of one image (`gt`: its classes at the working size).
+  auto append = [&](const cv::Mat& appearance, const cv::Mat& regions, int n, const cv::Mat& gt,
+                    double fraction) {
     std::vector<int> majority;
-    const std::vector<int> labels = RegionLabels(regions, n, gt_of_image, *table, fraction,
-                                                 &majority);
+    const std::vector<int> labels = RegionLabels(regions, n, gt, *table, fraction, &majority);
     const std::vector<int> areas = RegionAreas(regions, n);
     for (int i = 0; i < n; ++i) {
       if (labels[i] < 0 || areas[i] < config.min_region_pixels) continue;
@@ -279,20 +277,20 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
     if (!image.ok()) return image.status();
     if (image->classes.empty()) continue;
     const WorkingImage working = MakeWorkingImage(image->bgr, working_width);
-    gt_of_image = LayerAtSize(image->classes, working.bgr.size());
+    const cv::Mat gt = LayerAtSize(image->classes, working.bgr.size());
     const cv::Mat features = ComputeFilterBank(working.lab);
     const TextonMap map = ComputeTextonMap(features, assigner, stride);
     const SceneSegmentation superpixels = ComputeSuperpixels(working, config.organizer.superpixels);
     const int before = region_samples.rows;
     if (config.superpixel_regions) {
       append(RegionAppearance(superpixels.labels, superpixels.size(), map, features, assigner),
-             superpixels.labels, superpixels.size(), config.min_labelled_fraction);
+             superpixels.labels, superpixels.size(), gt, config.min_labelled_fraction);
     }
     superpixel_regions += region_samples.rows - before;
     if (config.ground_truth_regions && !image->objects.empty()) {
       int n = 0;
       const cv::Mat objects = ObjectRegions(LayerAtSize(image->objects, working.bgr.size()), &n);
-      append(RegionAppearance(objects, n, map, features, assigner), objects, n, 0.5);
+      append(RegionAppearance(objects, n, map, features, assigner), objects, n, gt, 0.5);
     }
     Progress(config.progress, "regions", i + 1, ids->size());
   }
@@ -326,9 +324,7 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
     BackgroundAccuracy superpixel_accuracy;
     // The decision segmentation makes: one-per-class when its options ask for it.
     auto rivals_of = [&](const cv::Mat& appearance) {
-      return config.organizer.one_per_class
-                 ? BackgroundClassifier::RowMaxima(classifier.StructuredScores(appearance))
-                 : std::vector<float>();
+      return classifier.Rivals(appearance, config.organizer.one_per_class);
     };
     for (size_t i = 0; i < eval_ids->size(); ++i) {
       StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*eval_ids)[i]);

@@ -51,8 +51,8 @@ struct BackgroundAccuracy {
   // Dataset class name -> regions decided sky, tree, road, grass, water, structured.
   std::map<std::string, std::array<int, kBackgroundClasses + 1>> confusion;
 
-  // `scores`: BackgroundClassifier::Scores rows; `rivals`: each row's best structured score
-  // for the one-per-class decision (empty: threshold only); labels and majority class ids from
+  // `scores`: BackgroundClassifier::Scores rows; `rivals`: BackgroundClassifier::Rivals of the
+  // same rows; labels and majority class ids from
   // RegionLabels (-1 rows skipped); names from `table`.
   // `areas` (pixels per region) weighs the pixel counts.
   void Add(const cv::Mat& scores, const std::vector<float>& rivals, const std::vector<int>& labels,

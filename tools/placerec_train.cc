@@ -9,12 +9,13 @@
 #include <cstring>
 #include <fstream>
 #include <optional>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include <opencv2/core/utility.hpp>
 
+#include "common/organization/organizer_flags.h"
+#include "common/util/csv.h"
 #include "common/util/logging.h"
 #include "common/util/options.h"
 #include "common/util/paths.h"
@@ -77,11 +78,7 @@ int BackgroundCommand(int argc, char** argv) {
   parser.Add("structured-classes", &structured,
              "comma-separated dataset classes that get a classifier of their own for the "
              "one-per-class decision ('all': every labelled non-background class; 'none')");
-  parser.Add("one-per-class", &config.organizer.one_per_class,
-             "the reported accuracy uses the one-per-class decision (a background class must "
-             "beat every structured class)");
-  parser.Add("background-threshold", &config.organizer.background_threshold,
-             "the reported accuracy's decision threshold");
+  AddBackgroundDecisionFlags(&parser, &config.organizer);  // of the reported accuracy
   parser.AddSwitch("quiet", &quiet, "no progress lines");
   if (const std::optional<int> exit =
           parser.ParseOrExit(argc, argv, 2, "placerec-train background")) {
@@ -89,8 +86,7 @@ int BackgroundCommand(int argc, char** argv) {
   }
   config.structured_classes.clear();
   if (structured != "none") {
-    std::stringstream list(structured);
-    for (std::string name; std::getline(list, name, ',');) {
+    for (const std::string& name : SplitString(structured, ',')) {
       if (!name.empty()) config.structured_classes.push_back(name);
     }
   }
@@ -138,11 +134,9 @@ int GroupingCommand(int argc, char** argv) {
              "pair features the model reads: the 33 relational ones, 42 with the structured "
              "classes' scores (needs background classifiers trained with structured classes), "
              "82 with the pair's place in appearance space");
-  parser.Add("background-threshold", &config.organizer.background_threshold,
-             "background decision of the regions while pairs are described (the shipped model "
-             "was trained with 0)");
-  parser.Add("one-per-class", &config.organizer.one_per_class,
-             "background decision: a background class must also beat every structured class");
+  // The regions' background classes while pairs are described (the shipped model: threshold
+  // 0, one-per-class; models/README.md).
+  AddBackgroundDecisionFlags(&parser, &config.organizer);
   parser.Add("weak-count", &config.boost.weak_count, "boosted trees");
   parser.Add("max-depth", &config.boost.max_depth, "depth of each tree");
   parser.Add("seed", &config.seed, "random seed (order of the ground-truth merges)");
@@ -181,8 +175,7 @@ int GroupingEnsembleCommand(int argc, char** argv) {
   manifest["format_version"] = RegionMergeModel::kFormatVersion;
   manifest["file"] = RegionMergeModel::kFileName;
   manifest["command"] = "placerec-train grouping-ensemble --members " + members + " --out " + out;
-  std::stringstream list(members);
-  for (std::string dir; std::getline(list, dir, ',');) {
+  for (const std::string& dir : SplitString(members, ',')) {
     if (dir.empty()) continue;
     StatusOr<RegionMergeModel> model = RegionMergeModel::Load(dir);
     if (!model.ok()) {

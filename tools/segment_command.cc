@@ -12,6 +12,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "common/organization/organizer_flags.h"
 #include "common/organization/scene_organizer.h"
 #include "common/util/options.h"
 #include "common/util/paths.h"
@@ -306,19 +307,11 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   parser.Add("colour-merge-distance", &sp.colour_merge_distance,
              "initial partition: similar-colour merge distance (Delta E, §3.6)");
   parser.Add("texton-stride", &options.texton_stride, "textons on every N-th pixel in x and y");
-  parser.Add("background-threshold", &options.background_threshold,
-             "a region is background when its best classifier score exceeds this");
-  parser.Add("one-per-class", &options.one_per_class,
-             "a region is background only when its best background classifier also beats every "
-             "structured class's (seed §6.2.1; needs models with structured classifiers)");
+  AddBackgroundDecisionFlags(&parser, &options);
   parser.Add("background-smoothing", &options.background_smoothing,
              "weight of the neighbours' mean classifier scores in each superpixel's decision "
              "(0: independent decisions)");
-  parser.Add("learned-merge", &options.learned_merge,
-             "merge the classified superpixels with the learned region-merge classifier "
-             "(models/grouping.yml.gz) before Perceptual Organization");
-  parser.Add("merge-threshold", &options.merge.threshold,
-             "learned merging: merge while the best pair's boosted score exceeds this");
+  AddLearnedMergeFlags(&parser, &options);
   parser.Add("po-theta-complexity", &po.theta_complexity, "theta_B of eq. 3.6 (seed: 18)");
   parser.Add("po-theta-cohesion", &po.theta_cohesion, "theta_C of eq. 3.6 (seed: 3.5)");
   parser.Add("po-alpha", &po.alpha, "alpha of eq. 3.13 (seed: 20)");
@@ -550,11 +543,8 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
             regions, n, LayerAtSize(image->classes, working_size), *table, 0.5, &majority);
         const BackgroundClassifier& classifier = organizer->model().classifier;
         background.Add(classifier.Scores(appearance),
-                       options.one_per_class
-                           ? BackgroundClassifier::RowMaxima(classifier.StructuredScores(appearance))
-                           : std::vector<float>(),
-                       labels, majority, RegionAreas(regions, n), *table,
-                       options.background_threshold);
+                       classifier.Rivals(appearance, options.one_per_class), labels, majority,
+                       RegionAreas(regions, n), *table, options.background_threshold);
         pixels.Add(segments, segmentation.classes, gt_classes, *table);
       }
     }

@@ -193,14 +193,16 @@ BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
 
 int BackgroundClassifier::feature_size() const { return empty() ? 0 : boosts_[0]->getVarCount(); }
 
-cv::Mat BackgroundClassifier::Scores(const cv::Mat& features) const {
+cv::Mat BackgroundClassifier::LeadingColumns(const cv::Mat& features) const {
   CHECK(!empty()) << "background classifiers not loaded";
   CHECK_EQ(features.type(), CV_32F);
-  // Classifiers read the leading columns they were trained on (the seed's k + 1, or all of
-  // RegionAppearance's columns).
   CHECK_GE(features.cols, feature_size());
-  const cv::Mat used =
-      features.cols == feature_size() ? features : features.colRange(0, feature_size()).clone();
+  return features.cols == feature_size() ? features
+                                         : features.colRange(0, feature_size()).clone();
+}
+
+cv::Mat BackgroundClassifier::Scores(const cv::Mat& features) const {
+  const cv::Mat used = LeadingColumns(features);
   cv::Mat scores(features.rows, kBackgroundClasses, CV_32F);
   if (features.rows == 0) return scores;
   for (int c = 0; c < kBackgroundClasses; ++c) BoostedSums(*boosts_[c], used).copyTo(scores.col(c));
@@ -208,27 +210,25 @@ cv::Mat BackgroundClassifier::Scores(const cv::Mat& features) const {
 }
 
 cv::Mat BackgroundClassifier::StructuredScores(const cv::Mat& features) const {
-  CHECK(!empty()) << "background classifiers not loaded";
-  CHECK_EQ(features.type(), CV_32F);
-  CHECK_GE(features.cols, feature_size());
   cv::Mat scores(features.rows, structured_classes(), CV_32F);
   if (features.rows == 0 || structured_.empty()) return scores;
-  const cv::Mat used =
-      features.cols == feature_size() ? features : features.colRange(0, feature_size()).clone();
+  const cv::Mat used = LeadingColumns(features);
   for (int j = 0; j < structured_classes(); ++j) {
     BoostedSums(*structured_[j], used).copyTo(scores.col(j));
   }
   return scores;
 }
 
-std::vector<float> BackgroundClassifier::RowMaxima(const cv::Mat& structured_scores) {
-  std::vector<float> maxima(static_cast<size_t>(structured_scores.rows),
+std::vector<float> BackgroundClassifier::Rivals(const cv::Mat& features, bool one_per_class) const {
+  std::vector<float> rivals(static_cast<size_t>(features.rows),
                             -std::numeric_limits<float>::infinity());
-  for (int r = 0; r < structured_scores.rows; ++r) {
-    const float* s = structured_scores.ptr<float>(r);
-    for (int j = 0; j < structured_scores.cols; ++j) maxima[r] = std::max(maxima[r], s[j]);
+  if (!one_per_class || structured_.empty()) return rivals;
+  const cv::Mat structured = StructuredScores(features);
+  for (int r = 0; r < structured.rows; ++r) {
+    const float* s = structured.ptr<float>(r);
+    rivals[r] = *std::max_element(s, s + structured.cols);
   }
-  return maxima;
+  return rivals;
 }
 
 SegmentClass BackgroundClassifier::Decide(const float* scores, double threshold, float rival) {
@@ -244,10 +244,7 @@ std::vector<SegmentClass> BackgroundClassifier::Classify(const cv::Mat& features
                                                          double threshold,
                                                          bool one_per_class) const {
   const cv::Mat scores = Scores(features);
-  const std::vector<float> rivals =
-      one_per_class ? RowMaxima(StructuredScores(features))
-                    : std::vector<float>(static_cast<size_t>(features.rows),
-                                         -std::numeric_limits<float>::infinity());
+  const std::vector<float> rivals = Rivals(features, one_per_class);
   std::vector<SegmentClass> classes(static_cast<size_t>(features.rows));
   for (int r = 0; r < features.rows; ++r) {
     classes[r] = Decide(scores.ptr<float>(r), threshold, rivals[r]);

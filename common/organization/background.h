@@ -102,14 +102,19 @@ class BackgroundClassifier {
   std::vector<SegmentClass> Classify(const cv::Mat& features, double threshold = 0.0,
                                      bool one_per_class = false) const;
   // The decision on one row of Scores: the best background class when its score exceeds
-  // `threshold` and `rival` (the best structured score under one-per-class; otherwise leave
-  // it at its default), else kStructured.
+  // `threshold` and `rival` (the row's Rivals value), else kStructured.
   static SegmentClass Decide(const float* scores, double threshold,
                              float rival = -std::numeric_limits<float>::infinity());
-  // The largest value of each row of StructuredScores (-infinity when it has no columns).
-  static std::vector<float> RowMaxima(const cv::Mat& structured_scores);
+  // Per row, what a background class must beat besides the threshold: the best structured
+  // class's score under `one_per_class`, -infinity otherwise (and without structured
+  // classifiers).
+  std::vector<float> Rivals(const cv::Mat& features, bool one_per_class) const;
 
  private:
+  // The leading feature_size() columns of `features` (classifiers read the columns they were
+  // trained on: the seed's k + 1, or all of RegionAppearance's).
+  cv::Mat LeadingColumns(const cv::Mat& features) const;
+
   std::array<cv::Ptr<cv::ml::Boost>, kBackgroundClasses> boosts_;
   std::vector<std::string> structured_names_;
   std::vector<cv::Ptr<cv::ml::Boost>> structured_;

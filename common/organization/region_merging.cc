@@ -242,15 +242,8 @@ void MergeState::PairFeatures(int a, int b, float* out) const {
     out[i++] = have ? std::min(ra.structured_scores[j], rb.structured_scores[j]) : 0.0f;
     out[i++] = have ? std::max(ra.structured_scores[j], rb.structured_scores[j]) : 0.0f;
   }
-  auto margin = [](const Region& r) {
-    const float background = *std::max_element(r.scores.begin(), r.scores.end());
-    return r.structured_scores.empty()
-               ? 0.0f
-               : background - *std::max_element(r.structured_scores.begin(),
-                                                r.structured_scores.end());
-  };
-  out[i++] = std::min(margin(ra), margin(rb));
-  out[i++] = std::max(margin(ra), margin(rb));
+  out[i++] = std::min(ra.margin, rb.margin);
+  out[i++] = std::max(ra.margin, rb.margin);
   out[i++] = structured > 0 && ra.best_class == rb.best_class ? 1.0f : 0.0f;
   CHECK_EQ(i, kMergeAppearanceOffset);
   for (int f = 0; f < kTextonFeatureSize; ++f) {
@@ -272,26 +265,18 @@ void MergeState::Describe(Region* r) const {
 }
 
 void MergeState::Decide(Region* r) const {
-  r->best_class = 0;
-  float best = r->scores[0];
-  for (int c = 1; c < kBackgroundClasses; ++c) {
-    if (r->scores[c] > best) {
-      best = r->scores[c];
-      r->best_class = c;
-    }
-  }
-  float rival = -std::numeric_limits<float>::infinity();
-  for (size_t j = 0; j < r->structured_scores.size(); ++j) {
-    if (r->structured_scores[j] > rival) rival = r->structured_scores[j];
-    if (r->structured_scores[j] > best) {
-      best = r->structured_scores[j];
-      r->best_class = kBackgroundClasses + static_cast<int>(j);
-    }
-  }
-  r->segment_class =
-      one_per_class_
-          ? BackgroundClassifier::Decide(r->scores.data(), background_threshold_, rival)
-          : BackgroundClassifier::Decide(r->scores.data(), background_threshold_);
+  const auto background = std::max_element(r->scores.begin(), r->scores.end());
+  const auto structured =
+      std::max_element(r->structured_scores.begin(), r->structured_scores.end());
+  const bool has_structured = structured != r->structured_scores.end();
+  r->best_class = has_structured && *structured > *background
+                      ? kBackgroundClasses +
+                            static_cast<int>(structured - r->structured_scores.begin())
+                      : static_cast<int>(background - r->scores.begin());
+  r->margin = has_structured ? *background - *structured : 0.0f;
+  const float rival = one_per_class_ && has_structured ? *structured
+                                                       : -std::numeric_limits<float>::infinity();
+  r->segment_class = BackgroundClassifier::Decide(r->scores.data(), background_threshold_, rival);
 }
 
 void MergeState::Merge(int a, int b) {

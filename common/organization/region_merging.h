@@ -92,7 +92,10 @@ class MergeState {
     std::vector<float> appearance;  // RegionAppearance row
     std::array<float, kBackgroundClasses> scores{};
     std::vector<float> structured_scores;  // one per structured classifier
-    int best_class = 0;                    // one-per-class argmax: 0..4, 5 + structured index
+    // From the scores (Decide): the argmax over all classes (0..4 background, 5 + structured
+    // index) and the best background score minus the best structured one (0 without them).
+    int best_class = 0;
+    float margin = 0;
     SegmentClass segment_class = SegmentClass::kStructured;
     std::map<int, int> neighbours;  // neighbour -> index into edges_
   };
@@ -105,7 +108,7 @@ class MergeState {
   };
 
   void Describe(Region* region) const;
-  // Sets segment_class and best_class from the scores.
+  // Sets segment_class, best_class and margin from the scores.
   void Decide(Region* region) const;
 
   cv::Mat labels_;

@@ -243,30 +243,46 @@ TEST(RegionMergeModelTest, MissingFileIsNotFoundAndForeignFileIsRejected) {
   EXPECT_NE(old_layout.status().message().find("retrain"), std::string::npos);
 }
 
-// Without structured classifiers the semantic features are zeros; with them, the pair's
-// structured scores are ordered (smaller, larger).
+// The semantic features are the pair's structured scores, margins and argmax agreement as
+// the classifiers give them for each region (zeros for structured classes the models lack).
 TEST(MergeStateTest, SemanticFeaturesFollowTheStructuredClassifiers) {
   const std::shared_ptr<const BackgroundModel> model = ShippedModel();
   if (!model) GTEST_SKIP() << "no trained models in " << PLACEREC_MODELS_DIR;
   const Scene scene = MakeScene();
   const MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions);
-  const int structured = model->classifier.structured_classes();
+  const cv::Mat appearance = AppearanceOf(*model, scene.lab, scene.labels, scene.regions, 2);
+  const cv::Mat background = model->classifier.Scores(appearance);
+  const cv::Mat structured = model->classifier.StructuredScores(appearance);
+  const int m = structured.cols;
+  // Per region: best background minus best structured score, and the argmax over all classes.
+  std::vector<float> margin(scene.regions, 0.0f);
+  std::vector<int> best(scene.regions, 0);
+  for (int r = 0; r < scene.regions; ++r) {
+    double low = 0;
+    double high = 0;
+    cv::Point at;
+    cv::minMaxLoc(background.row(r), &low, &high, nullptr, &at);
+    best[r] = at.x;
+    if (m == 0) continue;
+    double structured_high = 0;
+    cv::Point structured_at;
+    cv::minMaxLoc(structured.row(r), &low, &structured_high, nullptr, &structured_at);
+    margin[r] = static_cast<float>(high - structured_high);
+    if (structured_high > high) best[r] = kBackgroundClasses + structured_at.x;
+  }
   for (const auto& [a, b] : state.Pairs()) {
     float f[kMergeFeatures];
     state.PairFeatures(a, b, f);
     const float* semantic = f + kMergeRelationFeatures;
     for (int j = 0; j < kMergeStructuredScores; ++j) {
-      if (j < structured) {
-        EXPECT_LE(semantic[2 * j], semantic[2 * j + 1]);
-      } else {
-        EXPECT_EQ(semantic[2 * j], 0.0f);
-        EXPECT_EQ(semantic[2 * j + 1], 0.0f);
-      }
+      const float sa = j < m ? structured.at<float>(a, j) : 0.0f;
+      const float sb = j < m ? structured.at<float>(b, j) : 0.0f;
+      EXPECT_FLOAT_EQ(semantic[2 * j], std::min(sa, sb)) << a << "," << b << " class " << j;
+      EXPECT_FLOAT_EQ(semantic[2 * j + 1], std::max(sa, sb)) << a << "," << b << " class " << j;
     }
-    EXPECT_LE(semantic[2 * kMergeStructuredScores], semantic[2 * kMergeStructuredScores + 1]);
-    if (structured == 0) {
-      EXPECT_EQ(semantic[kMergeSemanticFeatures - 1], 0.0f);
-    }
+    EXPECT_FLOAT_EQ(semantic[2 * kMergeStructuredScores], std::min(margin[a], margin[b]));
+    EXPECT_FLOAT_EQ(semantic[2 * kMergeStructuredScores + 1], std::max(margin[a], margin[b]));
+    EXPECT_EQ(semantic[kMergeSemanticFeatures - 1], m > 0 && best[a] == best[b] ? 1.0f : 0.0f);
   }
 }
 

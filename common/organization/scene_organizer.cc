@@ -1,6 +1,5 @@
 #include "common/organization/scene_organizer.h"
 
-#include <limits>
 #include <utility>
 
 #include <glog/logging.h>
@@ -157,10 +156,7 @@ SceneSegmentation SceneOrganizer::ClassifiedSuperpixels(const WorkingImage& imag
     scores = smoothed;
   }
   const std::vector<float> rivals =
-      options_.one_per_class
-          ? BackgroundClassifier::RowMaxima(model_->classifier.StructuredScores(appearance))
-          : std::vector<float>(static_cast<size_t>(scores.rows),
-                               -std::numeric_limits<float>::infinity());
+      model_->classifier.Rivals(appearance, options_.one_per_class);
   superpixels.classes.resize(static_cast<size_t>(scores.rows));
   for (int r = 0; r < scores.rows; ++r) {
     superpixels.classes[r] = BackgroundClassifier::Decide(

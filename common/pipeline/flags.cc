@@ -3,6 +3,8 @@
 #include <istream>
 #include <ostream>
 
+#include "common/organization/organizer_flags.h"
+
 namespace placerec {
 
 std::ostream& operator<<(std::ostream& os, QueryObjects value) {
@@ -67,17 +69,8 @@ void AddOrganizationFlags(FlagParser* p, SceneOrganizerOptions* o) {
          "organization: initial partition FH k at 640x480, scaled by area (§6.1.2: 300)");
   p->Add("po-fh-min-size", &o->superpixels.min_size,
          "organization: initial partition FH minimum component at 640x480 (§6.1.2: 20)");
-  p->Add("background-threshold", &o->background_threshold,
-         "a region is background when its best classifier score exceeds this (0: boosted "
-         "decision)");
-  p->Add("one-per-class", &o->one_per_class,
-         "a region is background only when its best background classifier also beats every "
-         "structured class's (seed §6.2.1; models with structured classifiers)");
-  p->Add("learned-merge", &o->learned_merge,
-         "organization: merge the classified superpixels with the learned region-merge "
-         "classifier (models/grouping.yml.gz) before Perceptual Organization");
-  p->Add("merge-threshold", &o->merge.threshold,
-         "organization: learned merging goes on while the best pair's score exceeds this");
+  AddBackgroundDecisionFlags(p, o);
+  AddLearnedMergeFlags(p, o);
   p->Add("po-theta-b", &o->organization.theta_complexity,
          "structure potential weight of boundary complexity (eq. 3.6: 18)");
   p->Add("po-theta-c", &o->organization.theta_cohesion,
