@@ -195,6 +195,16 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
                                    "), got " + std::to_string(config.holdout));
   }
   ids->erase(ids->begin(), ids->begin() + config.holdout);
+  if (!config.leave_out_fold.empty()) {
+    std::vector<std::string> kept;
+    for (size_t i = 0; i < ids->size(); ++i) {
+      if (FoldOf(i, ids->size(), config.leave_out_fold.count) != config.leave_out_fold.index) {
+        kept.push_back((*ids)[i]);
+      }
+    }
+    if (kept.empty()) return Status::InvalidArgument("the left-out fold leaves no image");
+    *ids = std::move(kept);
+  }
   // Structured classes by name -> dataset class ids.
   std::vector<std::string> structured_names;
   std::map<int, int> structured_index;  // dataset class id -> structured class index
@@ -415,10 +425,14 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
                         std::filesystem::path(config.dataset).filename().string() + " --split " +
                         config.split +
                         (config.holdout > 0 ? " --holdout " + std::to_string(config.holdout) : "") +
+                        (config.leave_out_fold.empty()
+                             ? ""
+                             : " --leave-out-fold " + config.leave_out_fold.ToString()) +
                         " --out models";
   manifest["data"] = {{"dataset", std::filesystem::path(config.dataset).filename().string()},
                       {"split", config.split},
                       {"holdout_first_images", config.holdout},
+                      {"left_out_fold", config.leave_out_fold.ToString()},
                       {"images", static_cast<int>(ids->size())}};
   manifest["textons"] = {{"file", "textons.yml"},
                          {"k", config.textons.k},

@@ -90,6 +90,9 @@ struct BackgroundTrainingConfig {
   std::vector<std::string> structured_classes = {"all"};
   // The first `holdout` images of `split` are left out of training (validation).
   int holdout = 0;
+  // When not empty, this fold of the images after the holdout is left out too (for the
+  // cross-fitted grouping training of grouping_training.h).
+  Fold leave_out_fold;
   // A training region's initial boosting weight is its area (working pixels) to this power:
   // 0 weighs every region alike, 1 weighs by pixels.
   double area_weight_power = 0.0;

@@ -71,6 +71,7 @@ void Record(const MergeState& state, const std::vector<Votes>& votes,
 
 // What the passes need of one training image.
 struct TrainingImage {
+  int fold = 0;  // which organizer describes it
   SceneSegmentation parts;
   cv::Mat lab;
   cv::Mat appearance;
@@ -142,6 +143,32 @@ StatusOr<TrainedModel> TrainOn(const PairSample& all, const GroupingTrainingConf
   return trained;
 }
 
+// Checks that `dir`'s background models left out fold `fold` of the images the grouping model
+// trains on (its manifest.json, written by placerec-train background).
+Status CheckCrossFitModels(const std::string& dir, const Fold& fold,
+                           const GroupingTrainingConfig& config) {
+  const std::string path = dir + "/manifest.json";
+  std::ifstream in(path);
+  if (!in) return Status::NotFound("cannot read " + path + " (a background training manifest)");
+  const nlohmann::json manifest = nlohmann::json::parse(in, nullptr, false);
+  if (manifest.is_discarded() || !manifest.contains("data")) {
+    return Status::InvalidArgument(path + " is not a background training manifest");
+  }
+  const nlohmann::json& data = manifest["data"];
+  const std::string dataset = std::filesystem::path(config.dataset).filename().string();
+  if (data.value("dataset", "") != dataset || data.value("split", "") != config.split ||
+      data.value("holdout_first_images", -1) != config.holdout ||
+      data.value("left_out_fold", "") != fold.ToString()) {
+    return Status::InvalidArgument(
+        "--cross-fit: " + dir + " holds other background models (its manifest's data: " +
+        data.dump() + "); train them with placerec-train background --dataset " +
+        config.dataset + " --split " + config.split + " --holdout " +
+        std::to_string(config.holdout) + " --leave-out-fold " + fold.ToString() + " --out " +
+        dir);
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config) {
@@ -160,20 +187,39 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
         "finite policy threshold, features in 1.." +
         std::to_string(kMergeFeatures));
   }
-  organizer_options.models_dir = config.out;
-  StatusOr<SceneOrganizer> organizer = SceneOrganizer::Create(organizer_options);
-  if (!organizer.ok()) return organizer.status();
+  if (config.cross_fit.size() == 1) {
+    return Status::InvalidArgument("--cross-fit needs at least two models directories");
+  }
   StatusOr<std::vector<std::string>> ids = ReadSplit(config.dataset, config.split);
   if (!ids.ok()) return ids.status();
   if (static_cast<int>(ids->size()) <= config.holdout) {
     return Status::InvalidArgument("the holdout leaves no training image");
   }
-  const BackgroundModel& background = organizer->model();
+  // One organizer per fold (cross-fitting), or `out`'s for every image.
+  std::vector<SceneOrganizer> organizers;
+  std::vector<std::string> model_dirs =
+      config.cross_fit.empty() ? std::vector<std::string>{config.out} : config.cross_fit;
+  for (size_t k = 0; k < config.cross_fit.size(); ++k) {
+    PLACEREC_RETURN_IF_ERROR(CheckCrossFitModels(
+        model_dirs[k], Fold{static_cast<int>(k), static_cast<int>(model_dirs.size())}, config));
+  }
+  for (size_t k = 0; k < model_dirs.size(); ++k) {
+    organizer_options.models_dir = model_dirs[k];
+    StatusOr<SceneOrganizer> organizer = SceneOrganizer::Create(organizer_options);
+    if (!organizer.ok()) return organizer.status();
+    if (!organizers.empty() && organizer->model().classifier.structured_names() !=
+                                   organizers[0].model().classifier.structured_names()) {
+      return Status::InvalidArgument("--cross-fit: " + model_dirs[k] +
+                                     " has other structured classes than " + model_dirs[0]);
+    }
+    organizers.push_back(std::move(*organizer));
+  }
+  const BackgroundModel& background = organizers[0].model();
   auto new_state = [&](const TrainingImage& t) {
+    const BackgroundModel& model = organizers[static_cast<size_t>(t.fold)].model();
     return MergeState(t.parts.labels, t.parts.size(), t.lab, t.appearance,
-                      organizer_options.texton_stride, background.textons.inv_std,
-                      background.classifier, organizer_options.background_threshold,
-                      organizer_options.one_per_class);
+                      organizer_options.texton_stride, model.textons.inv_std, model.classifier,
+                      organizer_options.background_threshold, organizer_options.one_per_class);
   };
 
   // Pass 1: superpixels and ground-truth merge levels.
@@ -192,7 +238,9 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
     const WorkingImage working =
         MakeWorkingImage(image->bgr, organizer_options.superpixels.working_width);
     TrainingImage t;
-    t.parts = organizer->ClassifiedSuperpixels(working, nullptr, nullptr, &t.appearance);
+    t.fold = FoldOf(i - static_cast<size_t>(config.holdout), total, static_cast<int>(organizers.size()));
+    t.parts = organizers[static_cast<size_t>(t.fold)].ClassifiedSuperpixels(working, nullptr, nullptr,
+                                                                   &t.appearance);
     t.lab = working.lab;
     const cv::Mat objects = LayerAtSize(image->objects, working.bgr.size());
     t.votes.resize(static_cast<size_t>(t.parts.size()));
@@ -288,10 +336,12 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
   manifest["command"] = "placerec-train grouping --dataset " +
                         std::filesystem::path(config.dataset).filename().string() + " --split " +
                         config.split + " --holdout " + std::to_string(config.holdout) +
-                        " --features " + std::to_string(config.features) + " --out models";
+                        " --features " + std::to_string(config.features) +
+                        (config.cross_fit.empty() ? "" : " --cross-fit DIR_0,...") + " --out models";
   manifest["data"] = {{"dataset", std::filesystem::path(config.dataset).filename().string()},
                       {"split", config.split},
                       {"holdout_first_images", config.holdout},
+                      {"cross_fit_folds", static_cast<int>(config.cross_fit.size())},
                       {"images", static_cast<int>(images.size())}};
   manifest["pairs"] = {{"levels", config.levels},         {"level_fraction", config.level_fraction},
                        {"min_purity", config.min_purity}, {"max_pairs", config.max_pairs},

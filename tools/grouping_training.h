@@ -13,6 +13,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -28,6 +29,13 @@ struct GroupingTrainingConfig {
   // The first `holdout` images of the split are not trained on (for choosing the merge
   // threshold on images the model has not seen).
   int holdout = 0;
+  // Cross-fitting: when not empty, K >= 2 models directories, the k-th trained by
+  // `placerec-train background --holdout <holdout> --leave-out-fold k/K` on the same dataset and
+  // split. The images after the holdout form K folds (labelled_dataset.h), and fold k is
+  // described with directory k's textons and classifiers, which never saw it; so the pairs'
+  // background scores are as good as they are on new images, not as good as on training ones.
+  // Empty: every image is described with `out`'s models.
+  std::vector<std::string> cross_fit;
   std::string out;  // models directory: reads textons and classifiers, writes grouping.yml.gz
   // Ground-truth merges between recorded states: each level merges this share of the
   // then-possible same-object pairs; states are recorded before the first level and after each.

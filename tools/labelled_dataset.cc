@@ -2,6 +2,7 @@
 
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -101,6 +102,37 @@ cv::Mat LayerAtSize(const cv::Mat& layer, cv::Size size) {
   layer.convertTo(out, CV_32S);
   if (out.size() != size) cv::resize(out, out, size, 0, 0, cv::INTER_NEAREST);
   return out;
+}
+
+std::string Fold::ToString() const {
+  return empty() ? std::string() : std::to_string(index) + "/" + std::to_string(count);
+}
+
+StatusOr<Fold> ParseFold(const std::string& text) {
+  Fold fold;
+  if (text.empty()) return fold;
+  const size_t slash = text.find('/');
+  const std::string help = "a fold is written I/K (0 <= I < K, K >= 2), e.g. 0/2; got '" + text + "'";
+  if (slash == std::string::npos) return Status::InvalidArgument(help);
+  try {
+    size_t used_index = 0;
+    size_t used_count = 0;
+    fold.index = std::stoi(text.substr(0, slash), &used_index);
+    fold.count = std::stoi(text.substr(slash + 1), &used_count);
+    if (used_index != slash || used_count != text.size() - slash - 1) {
+      return Status::InvalidArgument(help);
+    }
+  } catch (const std::exception&) {
+    return Status::InvalidArgument(help);
+  }
+  if (fold.count < 2 || fold.index < 0 || fold.index >= fold.count) {
+    return Status::InvalidArgument(help);
+  }
+  return fold;
+}
+
+int FoldOf(size_t position, size_t total, int count) {
+  return static_cast<int>(position * static_cast<size_t>(count) / total);
 }
 
 }  // namespace placerec

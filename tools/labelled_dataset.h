@@ -47,4 +47,22 @@ StatusOr<LabelledImage> ReadLabelledImage(const std::string& dir, const std::str
 // A ground-truth layer brought to the working resolution (nearest neighbour), as CV_32S.
 cv::Mat LayerAtSize(const cv::Mat& layer, cv::Size size);
 
+// Cross-fitting folds of placerec-train: the images of a split after its held-out first ones
+// form `count` contiguous chunks of near-equal size; fold `index` is one of them. Background
+// models trained without fold i describe fold i's images when the grouping model is trained,
+// so the grouping model learns from background scores as good as they are on unseen images.
+struct Fold {
+  int index = 0;
+  int count = 0;  // 0: no fold
+
+  bool empty() const { return count == 0; }
+  std::string ToString() const;  // "I/K", or "" when empty
+};
+
+// Parses "I/K" with 0 <= I < K and K >= 2; "" gives an empty fold.
+StatusOr<Fold> ParseFold(const std::string& text);
+
+// The fold (0..count-1) of the image at `position` among `total` (count >= 1, total >= 1).
+int FoldOf(size_t position, size_t total, int count);
+
 }  // namespace placerec

@@ -74,6 +74,10 @@ int BackgroundCommand(int argc, char** argv) {
   parser.Add("seed", &config.seed, "random seed (pixel sampling, negatives)");
   parser.Add("holdout", &config.holdout,
              "leave the first N images of --split out of training (validation)");
+  std::string leave_out_fold;
+  parser.Add("leave-out-fold", &leave_out_fold,
+             "I/K: also leave out fold I of the images after the holdout, cut into K contiguous "
+             "folds (models for placerec-train grouping --cross-fit)");
   std::string structured = "all";
   parser.Add("structured-classes", &structured,
              "comma-separated dataset classes that get a classifier of their own for the "
@@ -84,6 +88,13 @@ int BackgroundCommand(int argc, char** argv) {
           parser.ParseOrExit(argc, argv, 2, "placerec-train background")) {
     return *exit;
   }
+  StatusOr<Fold> fold = ParseFold(leave_out_fold);
+  if (!fold.ok()) {
+    std::fprintf(stderr, "placerec-train background: --leave-out-fold: %s\n",
+                 fold.status().ToString().c_str());
+    return 2;
+  }
+  config.leave_out_fold = *fold;
   config.structured_classes.clear();
   if (structured != "none") {
     for (const std::string& name : SplitString(structured, ',')) {
@@ -120,6 +131,12 @@ int GroupingCommand(int argc, char** argv) {
   parser.Add("split", &config.split, "split to train on");
   parser.Add("holdout", &config.holdout,
              "leave the first N images of the split out (to tune the threshold on them)");
+  std::string cross_fit;
+  parser.Add("cross-fit", &cross_fit,
+             "DIR_0,...,DIR_K-1: describe fold k of the images after the holdout with the "
+             "background models in DIR_k, trained with --holdout N --leave-out-fold k/K (so the "
+             "pairs' background scores are those of unseen images; --out then only receives "
+             "the model)");
   parser.Add("levels", &config.levels, "ground-truth merge levels recorded after the superpixels");
   parser.Add("level-fraction", &config.level_fraction,
              "share of the same-object pairs each level merges");
@@ -146,6 +163,9 @@ int GroupingCommand(int argc, char** argv) {
     return *exit;
   }
   config.progress = !quiet;
+  for (const std::string& dir : SplitString(cross_fit, ',')) {
+    if (!dir.empty()) config.cross_fit.push_back(dir);
+  }
   cv::setNumThreads(1);
   StatusOr<nlohmann::json> manifest = TrainGroupingModel(config);
   if (!manifest.ok()) {
