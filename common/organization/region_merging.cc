@@ -397,8 +397,8 @@ RegionMergeModel RegionMergeModel::Train(const cv::Mat& features, const std::vec
     if (!weights.empty()) sample_weights.at<float>(r) = weights[r];
   }
   RegionMergeModel model;
-  model.members_.push_back(TrainGentleBoost(features, responses, sample_weights, options.weak_count,
-                                            options.max_depth, options.weight_trim_rate));
+  model.AddMember(TrainGentleBoost(features, responses, sample_weights, options.weak_count,
+                                   options.max_depth, options.weight_trim_rate));
   return model;
 }
 
@@ -406,7 +406,7 @@ RegionMergeModel RegionMergeModel::Ensemble(const std::vector<RegionMergeModel>&
   RegionMergeModel ensemble;
   for (const RegionMergeModel& m : models) {
     CHECK(!m.empty()) << "an ensemble member is empty";
-    ensemble.members_.insert(ensemble.members_.end(), m.members_.begin(), m.members_.end());
+    for (const auto& member : m.members_) ensemble.AddMember(member);
   }
   return ensemble;
 }
@@ -469,7 +469,7 @@ StatusOr<RegionMergeModel> RegionMergeModel::Load(const std::string& directory) 
         return Status::InvalidArgument(path + ": member " + std::to_string(i) +
                                        " is not a trained grouping classifier");
       }
-      model.members_.push_back(boost);
+      model.AddMember(boost);
     }
     if (model.feature_size() != features) {
       return Status::InvalidArgument(path + ": members read " +
@@ -482,19 +482,23 @@ StatusOr<RegionMergeModel> RegionMergeModel::Load(const std::string& directory) 
   return model;
 }
 
+void RegionMergeModel::AddMember(cv::Ptr<cv::ml::Boost> boost) {
+  forests_.emplace_back(*boost);
+  members_.push_back(std::move(boost));
+}
+
 cv::Mat RegionMergeModel::Scores(const cv::Mat& features) const {
   CHECK(!empty()) << "grouping model not loaded";
   CHECK_EQ(features.type(), CV_32F);
   CHECK_GE(features.cols, feature_size());
-  cv::Mat scores = cv::Mat::zeros(features.rows, 1, CV_32F);
-  if (features.rows == 0) return scores;
-  for (const auto& member : members_) {
-    const int used_columns = member->getVarCount();
-    const cv::Mat used =
-        features.cols == used_columns ? features : features.colRange(0, used_columns).clone();
-    scores += BoostedSums(*member, used);
+  cv::Mat scores(features.rows, 1, CV_32F);
+  const double scale = 1.0 / members();
+  for (int r = 0; r < features.rows; ++r) {
+    const float* row = features.ptr<float>(r);
+    float sum = 0.0f;  // the members' sums rounded to float, as ml::Boost::predict returns them
+    for (const BoostedForest& forest : forests_) sum += static_cast<float>(forest.Sum(row));
+    scores.at<float>(r) = static_cast<float>(sum * scale);
   }
-  scores *= 1.0 / members();
   return scores;
 }
 

@@ -23,6 +23,7 @@
 #include <opencv2/ml.hpp>
 
 #include "common/organization/background.h"
+#include "common/organization/boosted_forest.h"
 #include "common/segmentation/segmentation.h"
 #include "common/util/status.h"
 
@@ -160,7 +161,11 @@ class RegionMergeModel {
   cv::Mat Scores(const cv::Mat& features) const;
 
  private:
+  // Keeps forests_ (what Scores evaluates) in step with members_ (what Save writes).
+  void AddMember(cv::Ptr<cv::ml::Boost> boost);
+
   std::vector<cv::Ptr<cv::ml::Boost>> members_;
+  std::vector<BoostedForest> forests_;
 };
 
 // Greedy agglomeration: merges the adjacent pair with the highest score while it exceeds

@@ -174,6 +174,63 @@ RegionMergeModel ColourRuleModel(float limit = 15.0f) {
   return RegionMergeModel::Train(features, labels, {}, options);
 }
 
+// The flattened trees give exactly ml::Boost::predict's sums: on a model with deep trees over
+// many features (splits on every side of every threshold), and on the shipped model.
+TEST(BoostedForestTest, SumsEqualOpenCvPredict) {
+  std::mt19937 rng(11);
+  std::normal_distribution<float> value(0.0f, 1.0f);
+  cv::Mat features(600, 12, CV_32F);
+  cv::Mat responses(features.rows, 1, CV_32S);
+  for (int r = 0; r < features.rows; ++r) {
+    for (int f = 0; f < features.cols; ++f) features.at<float>(r, f) = value(rng);
+    const float* x = features.ptr<float>(r);
+    responses.at<int>(r) = (x[0] * x[1] > 0.2f || x[5] < -1.0f) ? 1 : 0;
+  }
+  const cv::Mat weights(features.rows, 1, CV_32F, cv::Scalar(1.0f));
+  std::vector<cv::Ptr<cv::ml::Boost>> boosts = {
+      TrainGentleBoost(features, responses, weights, 40, 4, 0.95)};
+  const StatusOr<RegionMergeModel> shipped = RegionMergeModel::Load(DefaultModelsDir());
+  if (shipped.ok()) {
+    cv::FileStorage fs(DefaultModelsDir() + "/" + RegionMergeModel::kFileName,
+                       cv::FileStorage::READ);
+    cv::Ptr<cv::ml::Boost> member = cv::ml::Boost::create();
+    member->read(fs["member_0"]);
+    ASSERT_TRUE(member->isTrained());
+    boosts.push_back(member);
+  }
+  for (const cv::Ptr<cv::ml::Boost>& boost : boosts) {
+    const BoostedForest forest(*boost);
+    ASSERT_EQ(forest.var_count(), boost->getVarCount());
+    // Each variable's split thresholds: probes exactly on them decide which way ties go.
+    std::vector<std::vector<float>> thresholds(static_cast<size_t>(forest.var_count()));
+    for (const cv::ml::DTrees::Split& split : boost->getSplits()) {
+      thresholds[static_cast<size_t>(split.varIdx)].push_back(split.c);
+    }
+    cv::Mat probe(300, forest.var_count(), CV_32F);
+    for (int r = 0; r < probe.rows; ++r) {
+      for (int f = 0; f < probe.cols; ++f) {
+        const std::vector<float>& on = thresholds[static_cast<size_t>(f)];
+        // Training rows, rows on thresholds, and scaled random rows.
+        if (r < 100 && boost->getVarCount() == features.cols) {
+          probe.at<float>(r, f) = features.at<float>(r, f);
+        } else if (r < 200 && !on.empty()) {
+          probe.at<float>(r, f) = on[static_cast<size_t>(r) % on.size()];
+        } else {
+          probe.at<float>(r, f) = 3.0f * value(rng);
+        }
+      }
+    }
+    const cv::Mat expected = BoostedSums(*boost, probe);
+    int positive = 0;
+    for (int r = 0; r < probe.rows; ++r) {
+      EXPECT_EQ(static_cast<float>(forest.Sum(probe.ptr<float>(r))), expected.at<float>(r)) << r;
+      positive += expected.at<float>(r) > 0;
+    }
+    EXPECT_GT(positive, 0);
+    EXPECT_LT(positive, probe.rows);
+  }
+}
+
 TEST(RegionMergeModelTest, SaveLoadRoundTripGivesTheSameScores) {
   const RegionMergeModel model = ColourRuleModel();
   const std::string dir = ::testing::TempDir() + "/grouping_roundtrip";
