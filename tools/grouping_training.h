@@ -8,8 +8,9 @@
 // covers less than half of them are left out). A second pass (`on_policy`) then lets the first
 // model merge the superpixels greedily itself (down to `policy_threshold`) and adds the pairs it
 // meets after every merge, mistakes included, and trains again, so the final model also learns
-// from the impure regions its own merging produces. The shipped model averages one model trained
-// with that pass and one without it (placerec-train grouping-ensemble; models/README.md).
+// from the impure regions its own merging produces. The shipped model averages four: with and
+// without that pass, each plain and cross-fitted (`cross_fit`; placerec-train
+// grouping-ensemble; models/README.md).
 #pragma once
 
 #include <string>

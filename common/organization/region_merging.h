@@ -125,7 +125,7 @@ class MergeState {
 };
 
 // One boosted classifier, or an ensemble of several whose scores are averaged (the shipped
-// model averages two training variants; models/README.md).
+// model averages four training variants; models/README.md).
 class RegionMergeModel {
  public:
   // 1: one classifier under "boost"; 2: "members" classifiers under "member_<i>"; 3: as 2,
