@@ -186,6 +186,7 @@ BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
   for (int c = 0; c < kBackgroundClasses; ++c) classifier.boosts_[c] = boosts[c];
   classifier.structured_names_ = structured_names;
   classifier.structured_.assign(boosts.begin() + kBackgroundClasses, boosts.end());
+  classifier.Flatten();
   stats.seconds = timer.ElapsedMs() / 1000.0;
   if (summary != nullptr) *summary = stats;
   return classifier;
@@ -193,30 +194,34 @@ BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
 
 int BackgroundClassifier::feature_size() const { return empty() ? 0 : boosts_[0]->getVarCount(); }
 
-cv::Mat BackgroundClassifier::LeadingColumns(const cv::Mat& features) const {
+void BackgroundClassifier::Flatten() {
+  forests_.clear();
+  for (const auto& boost : boosts_) forests_.emplace_back(*boost);
+  for (const auto& boost : structured_) forests_.emplace_back(*boost);
+}
+
+cv::Mat BackgroundClassifier::ForestScores(const cv::Mat& features, int first, int count) const {
   CHECK(!empty()) << "background classifiers not loaded";
   CHECK_EQ(features.type(), CV_32F);
   CHECK_GE(features.cols, feature_size());
-  return features.cols == feature_size() ? features
-                                         : features.colRange(0, feature_size()).clone();
+  cv::Mat scores(features.rows, count, CV_32F);
+  for (int r = 0; r < features.rows; ++r) {
+    const float* row = features.ptr<float>(r);
+    float* out = scores.ptr<float>(r);
+    for (int c = 0; c < count; ++c) {
+      out[c] = static_cast<float>(forests_[static_cast<size_t>(first + c)].Sum(row));
+    }
+  }
+  return scores;
 }
 
 cv::Mat BackgroundClassifier::Scores(const cv::Mat& features) const {
-  const cv::Mat used = LeadingColumns(features);
-  cv::Mat scores(features.rows, kBackgroundClasses, CV_32F);
-  if (features.rows == 0) return scores;
-  for (int c = 0; c < kBackgroundClasses; ++c) BoostedSums(*boosts_[c], used).copyTo(scores.col(c));
-  return scores;
+  return ForestScores(features, 0, kBackgroundClasses);
 }
 
 cv::Mat BackgroundClassifier::StructuredScores(const cv::Mat& features) const {
-  cv::Mat scores(features.rows, structured_classes(), CV_32F);
-  if (features.rows == 0 || structured_.empty()) return scores;
-  const cv::Mat used = LeadingColumns(features);
-  for (int j = 0; j < structured_classes(); ++j) {
-    BoostedSums(*structured_[j], used).copyTo(scores.col(j));
-  }
-  return scores;
+  if (structured_.empty()) return cv::Mat(features.rows, 0, CV_32F);
+  return ForestScores(features, kBackgroundClasses, structured_classes());
 }
 
 std::vector<float> BackgroundClassifier::Rivals(const cv::Mat& features, bool one_per_class) const {
@@ -320,6 +325,7 @@ StatusOr<BackgroundClassifier> BackgroundClassifier::Load(const std::string& dir
       classifier.structured_names_.push_back(name);
       classifier.structured_.push_back(*boost);
     }
+    classifier.Flatten();
   } catch (const cv::Exception& e) {
     return Status::InvalidArgument("cannot load background classifiers from " + directory + ": " +
                                    e.what());

@@ -17,6 +17,7 @@
 #include <opencv2/core.hpp>
 #include <opencv2/ml.hpp>
 
+#include "common/organization/boosted_forest.h"
 #include "common/segmentation/segmentation.h"
 #include "common/util/status.h"
 
@@ -111,13 +112,20 @@ class BackgroundClassifier {
   std::vector<float> Rivals(const cv::Mat& features, bool one_per_class) const;
 
  private:
-  // The leading feature_size() columns of `features` (classifiers read the columns they were
-  // trained on: the seed's k + 1, or all of RegionAppearance's).
-  cv::Mat LeadingColumns(const cv::Mat& features) const;
+  // Rebuilds forests_ from boosts_ and structured_ (after training and loading).
+  void Flatten();
+  // The scores of `forests_[first, first + count)` on every row, n x count CV_32F; each
+  // classifier reads the leading columns it was trained on (the seed's k + 1, or all of
+  // RegionAppearance's).
+  cv::Mat ForestScores(const cv::Mat& features, int first, int count) const;
 
   std::array<cv::Ptr<cv::ml::Boost>, kBackgroundClasses> boosts_;
   std::vector<std::string> structured_names_;
   std::vector<cv::Ptr<cv::ml::Boost>> structured_;
+  // What Scores and StructuredScores evaluate: the five background classifiers, then the
+  // structured ones, flattened (boosted_forest.h; the same sums, without OpenCV's per-call cost
+  // on the single rows region merging classifies after every merge).
+  std::vector<BoostedForest> forests_;
 };
 
 }  // namespace placerec
