@@ -161,10 +161,9 @@ Status CheckCrossFitModels(const std::string& dir, const Fold& fold,
       data.value("left_out_fold", "") != fold.ToString()) {
     return Status::InvalidArgument(
         "--cross-fit: " + dir + " holds other background models (its manifest's data: " +
-        data.dump() + "); train them with placerec-train background --dataset " +
-        config.dataset + " --split " + config.split + " --holdout " +
-        std::to_string(config.holdout) + " --leave-out-fold " + fold.ToString() + " --out " +
-        dir);
+        data.dump() + "); train them with placerec-train background --dataset " + config.dataset +
+        " --split " + config.split + " --holdout " + std::to_string(config.holdout) +
+        " --leave-out-fold " + fold.ToString() + " --out " + dir);
   }
   return Status::Ok();
 }
@@ -238,9 +237,10 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
     const WorkingImage working =
         MakeWorkingImage(image->bgr, organizer_options.superpixels.working_width);
     TrainingImage t;
-    t.fold = FoldOf(i - static_cast<size_t>(config.holdout), total, static_cast<int>(organizers.size()));
-    t.parts = organizers[static_cast<size_t>(t.fold)].ClassifiedSuperpixels(working, nullptr, nullptr,
-                                                                   &t.appearance);
+    t.fold =
+        FoldOf(i - static_cast<size_t>(config.holdout), total, static_cast<int>(organizers.size()));
+    t.parts = organizers[static_cast<size_t>(t.fold)].ClassifiedSuperpixels(working, nullptr,
+                                                                            nullptr, &t.appearance);
     t.lab = working.lab;
     const cv::Mat objects = LayerAtSize(image->objects, working.bgr.size());
     t.votes.resize(static_cast<size_t>(t.parts.size()));
@@ -337,7 +337,8 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
                         std::filesystem::path(config.dataset).filename().string() + " --split " +
                         config.split + " --holdout " + std::to_string(config.holdout) +
                         " --features " + std::to_string(config.features) +
-                        (config.cross_fit.empty() ? "" : " --cross-fit DIR_0,...") + " --out models";
+                        (config.cross_fit.empty() ? "" : " --cross-fit DIR_0,...") +
+                        " --out models";
   manifest["data"] = {{"dataset", std::filesystem::path(config.dataset).filename().string()},
                       {"split", config.split},
                       {"holdout_first_images", config.holdout},

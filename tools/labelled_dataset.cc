@@ -112,7 +112,8 @@ StatusOr<Fold> ParseFold(const std::string& text) {
   Fold fold;
   if (text.empty()) return fold;
   const size_t slash = text.find('/');
-  const std::string help = "a fold is written I/K (0 <= I < K, K >= 2), e.g. 0/2; got '" + text + "'";
+  const std::string help =
+      "a fold is written I/K (0 <= I < K, K >= 2), e.g. 0/2; got '" + text + "'";
   if (slash == std::string::npos) return Status::InvalidArgument(help);
   try {
     size_t used_index = 0;
