@@ -343,6 +343,7 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
                       {"split", config.split},
                       {"holdout_first_images", config.holdout},
                       {"cross_fit_folds", static_cast<int>(config.cross_fit.size())},
+                      {"cross_fit_models", config.cross_fit},
                       {"images", static_cast<int>(images.size())}};
   manifest["pairs"] = {{"levels", config.levels},         {"level_fraction", config.level_fraction},
                        {"min_purity", config.min_purity}, {"max_pairs", config.max_pairs},
