@@ -215,6 +215,18 @@ cv::Mat BackgroundClassifier::ForestScores(const cv::Mat& features, int first, i
   return scores;
 }
 
+void BackgroundClassifier::RowScores(const float* features, float* background,
+                                     float* structured) const {
+  CHECK(!empty()) << "background classifiers not loaded";
+  for (int c = 0; c < kBackgroundClasses; ++c) {
+    background[c] = static_cast<float>(forests_[static_cast<size_t>(c)].Sum(features));
+  }
+  for (int j = 0; j < structured_classes(); ++j) {
+    structured[j] =
+        static_cast<float>(forests_[static_cast<size_t>(kBackgroundClasses + j)].Sum(features));
+  }
+}
+
 cv::Mat BackgroundClassifier::Scores(const cv::Mat& features) const {
   return ForestScores(features, 0, kBackgroundClasses);
 }

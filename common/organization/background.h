@@ -95,6 +95,10 @@ class BackgroundClassifier {
   cv::Mat Scores(const cv::Mat& features) const;
   // The structured classes' scores, n x structured_classes() CV_32F (n x 0 without them).
   cv::Mat StructuredScores(const cv::Mat& features) const;
+  // Both for one row of at least feature_size() values, without a matrix (region merging
+  // classifies every merged region): kBackgroundClasses scores into `background`,
+  // structured_classes() into `structured`.
+  void RowScores(const float* features, float* background, float* structured) const;
   int structured_classes() const { return static_cast<int>(structured_.size()); }
   const std::vector<std::string>& structured_names() const { return structured_names_; }
   // Per row: the class with the highest score when that score exceeds `threshold` (and, with

@@ -256,11 +256,9 @@ void MergeState::PairFeatures(int a, int b, float* out) const {
 }
 
 void MergeState::Describe(Region* r) const {
-  const cv::Mat row(1, static_cast<int>(r->appearance.size()), CV_32F, r->appearance.data());
-  const cv::Mat scores = classifier_.Scores(row);
-  std::copy(scores.ptr<float>(0), scores.ptr<float>(0) + kBackgroundClasses, r->scores.begin());
-  const cv::Mat structured = classifier_.StructuredScores(row);
-  r->structured_scores.assign(structured.ptr<float>(0), structured.ptr<float>(0) + structured.cols);
+  CHECK_GE(static_cast<int>(r->appearance.size()), classifier_.feature_size());
+  r->structured_scores.resize(static_cast<size_t>(classifier_.structured_classes()));
+  classifier_.RowScores(r->appearance.data(), r->scores.data(), r->structured_scores.data());
   Decide(r);
 }
 
