@@ -9,9 +9,11 @@
 
 #include <cerrno>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <deque>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <thread>
@@ -73,6 +75,17 @@ std::string MakeTempDir(const std::string& prefix) {
   buffer.push_back('\0');
   const char* made = mkdtemp(buffer.data());
   return made != nullptr ? std::string(made) : std::string();
+}
+
+void RemoveTempDir(const std::string& dir) {
+  if (dir.empty()) return;
+  if (::testing::Test::HasFailure()) {
+    std::fprintf(stderr, "kept %s for inspection\n", dir.c_str());
+    return;
+  }
+  std::error_code error;
+  std::filesystem::remove_all(dir, error);
+  if (error) std::fprintf(stderr, "cannot remove %s: %s\n", dir.c_str(), error.message().c_str());
 }
 
 std::string ReadTextFile(const std::string& path) {

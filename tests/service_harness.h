@@ -29,6 +29,9 @@ std::string BinaryPath(const std::string& name);
 
 // A fresh directory under the test temp dir.
 std::string MakeTempDir(const std::string& prefix);
+// Removes a MakeTempDir directory and everything in it, unless the current test has failed:
+// then it stays for inspection and its path is printed. Empty `dir`: nothing to do.
+void RemoveTempDir(const std::string& dir);
 
 std::string ReadTextFile(const std::string& path);
 // The last `lines` lines of a log, for failure messages.

@@ -40,6 +40,7 @@ namespace {
 using testing_service::BinaryPath;
 using testing_service::ChildProcess;
 using testing_service::MakeTempDir;
+using testing_service::RemoveTempDir;
 using testing_service::StartServer;
 using testing_service::StopServer;
 using testing_service::Tail;
@@ -137,6 +138,14 @@ class ServiceTest : public ::testing::Test {
       a.score = r.matches.front().score;
     }
     return a;
+  }
+
+  // The server stops first (its destructor kills a server a test left running); the map and
+  // the server log stay for a failed test, at the path printed here.
+  void TearDown() override {
+    server_.reset();
+    client_.reset();
+    RemoveTempDir(dir_);
   }
 
   std::string dir_;
@@ -772,6 +781,7 @@ TEST(ServiceCommandLineTest, HelpAndErrors) {
   auto [status_rc, status] = run({client, "status", "--lcm-url", "memq://", "--timeout", "0.3"});
   EXPECT_EQ(status_rc, 1);
   EXPECT_NE(status.find("no status"), std::string::npos) << status;
+  RemoveTempDir(dir);
 }
 
 }  // namespace
