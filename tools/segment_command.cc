@@ -280,7 +280,8 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
       "OUT/overlays/<id>.png; with ground truth in DIR (classes/, objects/, classes.txt) it also\n"
       "writes OUT/segmentation.json: object-level accuracy (seed eq. 6.2) for Perceptual\n"
       "Organization and for superpixels alone over a grid of FH settings, and background\n"
-      "classification accuracy (seed Table 6.4).");
+      "classification accuracy (seed Table 6.4). OUT/per_image.csv lists every image's\n"
+      "segments, time and (with ground truth) scored objects and mean IoU, to find the worst.");
   parser.AddRequired("dataset", &dataset,
                      "dataset directory, or its name under PLACEREC_DATA / ../shared/data");
   parser.AddRequired("out", &out, "output directory (created if missing)");
@@ -398,6 +399,8 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   std::map<std::string, double> stage_ms;
   int scored_images = 0;
   int64_t segments_total = 0;
+  // id,segments,ms,objects,mean_iou (the last two empty without ground truth)
+  std::string per_image = "id,segments,ms,objects,mean_iou\n";
   std::vector<size_t> overlay_at;
   for (int i = 0; i < overlays && !ids->empty(); ++i) {
     overlay_at.push_back(static_cast<size_t>(i) * ids->size() / static_cast<size_t>(overlays));
@@ -462,7 +465,8 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     } else {
       segmentation = organizer->Segment(working, &summary);
     }
-    stage_ms["total"] += timer.ElapsedMs();
+    const double image_ms = timer.ElapsedMs();
+    stage_ms["total"] += image_ms;
     for (const auto& [stage, ms] : summary.timings) stage_ms[stage] += ms;
     segments_total += segmentation.size();
     if (segmentation.size() > 65535) {
@@ -494,14 +498,28 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
       cv::imwrite(out + "/overlays/" + id + ".png",
                   DrawOverlay(image->bgr, segments, segmentation.classes, objects));
     }
-    if (!objects.empty()) {
+    if (objects.empty()) {
+      char row[160];
+      std::snprintf(row, sizeof(row), "%s,%d,%.1f,,\n", id.c_str(), segmentation.size(), image_ms);
+      per_image += row;
+    } else {
       ++scored_images;
       const std::vector<ObjectScore> scores =
           ScoreObjects(segments, objects, gt_classes, *table, min_object_fraction);
       po_score.Add(scores, *table);
+      double iou_sum = 0;
+      for (const ObjectScore& s : scores) iou_sum += s.iou;
+      char row[160];
+      std::snprintf(row, sizeof(row), "%s,%d,%.1f,%zu,", id.c_str(), segmentation.size(), image_ms,
+                    scores.size());
+      per_image += row;
+      if (!scores.empty()) {
+        std::snprintf(row, sizeof(row), "%.2f", 100.0 * iou_sum / scores.size());
+        per_image += row;
+      }
+      per_image += "\n";
       if (verbose) {
-        double sum = 0;
-        for (const ObjectScore& s : scores) sum += s.iou;
+        const double sum = iou_sum;
         std::string rounds;
         for (const int p : summary.organization.parts) rounds += " " + std::to_string(p);
         std::fprintf(stderr,
@@ -622,8 +640,12 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   report["seconds"] = total_timer.ElapsedMs() / 1000.0;
   std::ofstream file(out + "/segmentation.json");
   file << report.dump(2) << "\n";
-  if (!file) {
-    std::fprintf(stderr, "placerec-eval segment: cannot write %s/segmentation.json\n", out.c_str());
+  std::ofstream rows(out + "/per_image.csv");
+  rows << per_image;
+  if (!file || !rows) {
+    std::fprintf(stderr,
+                 "placerec-eval segment: cannot write %s/segmentation.json or per_image.csv\n",
+                 out.c_str());
     return 1;
   }
   std::printf("%s: %zu images, %.1f segments per image, %.1f ms per image\n", split.c_str(),
@@ -643,7 +665,8 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     if (report.contains("superpixels"))
       line("superpixels (best FH)", report["superpixels"]["best"]);
   }
-  std::printf("  wrote %s/segments, classes, overlays, segmentation.json\n", out.c_str());
+  std::printf("  wrote %s/segments, classes, overlays, segmentation.json, per_image.csv\n",
+              out.c_str());
   return 0;
 }
 
