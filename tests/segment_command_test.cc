@@ -5,6 +5,7 @@
 // dataset gets an error and no output. Three stanford_background test images are copied into a
 // temporary dataset; the test skips without ../shared/data.
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>

@@ -399,8 +399,26 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   std::map<std::string, double> stage_ms;
   int scored_images = 0;
   int64_t segments_total = 0;
-  // id,segments,ms,objects,mean_iou (the last two empty without ground truth)
+  // One row per image; objects and mean_iou stay empty without ground truth.
   std::string per_image = "id,segments,ms,objects,mean_iou\n";
+  auto add_row = [&per_image](const std::string& id, int segments, double ms,
+                              const std::vector<ObjectScore>* scores) {
+    char numbers[64];
+    std::snprintf(numbers, sizeof(numbers), ",%d,%.1f,", segments, ms);
+    per_image += id + numbers;
+    if (scores != nullptr) {
+      double sum = 0;
+      for (const ObjectScore& s : *scores) sum += s.iou;
+      per_image += std::to_string(scores->size()) + ",";
+      if (!scores->empty()) {
+        std::snprintf(numbers, sizeof(numbers), "%.2f", 100.0 * sum / scores->size());
+        per_image += numbers;
+      }
+    } else {
+      per_image += ",";
+    }
+    per_image += "\n";
+  };
   std::vector<size_t> overlay_at;
   for (int i = 0; i < overlays && !ids->empty(); ++i) {
     overlay_at.push_back(static_cast<size_t>(i) * ids->size() / static_cast<size_t>(overlays));
@@ -499,27 +517,16 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
                   DrawOverlay(image->bgr, segments, segmentation.classes, objects));
     }
     if (objects.empty()) {
-      char row[160];
-      std::snprintf(row, sizeof(row), "%s,%d,%.1f,,\n", id.c_str(), segmentation.size(), image_ms);
-      per_image += row;
+      add_row(id, segmentation.size(), image_ms, nullptr);
     } else {
       ++scored_images;
       const std::vector<ObjectScore> scores =
           ScoreObjects(segments, objects, gt_classes, *table, min_object_fraction);
       po_score.Add(scores, *table);
-      double iou_sum = 0;
-      for (const ObjectScore& s : scores) iou_sum += s.iou;
-      char row[160];
-      std::snprintf(row, sizeof(row), "%s,%d,%.1f,%zu,", id.c_str(), segmentation.size(), image_ms,
-                    scores.size());
-      per_image += row;
-      if (!scores.empty()) {
-        std::snprintf(row, sizeof(row), "%.2f", 100.0 * iou_sum / scores.size());
-        per_image += row;
-      }
-      per_image += "\n";
+      add_row(id, segmentation.size(), image_ms, &scores);
       if (verbose) {
-        const double sum = iou_sum;
+        double sum = 0;
+        for (const ObjectScore& s : scores) sum += s.iou;
         std::string rounds;
         for (const int p : summary.organization.parts) rounds += " " + std::to_string(p);
         std::fprintf(stderr,
