@@ -55,7 +55,7 @@ struct OrganizationOptions {
   int max_subset = 2;
   // Algorithm 2 stops after this many rounds, or earlier when a round groups nothing (seed §3.7:
   // "the result of two rounds grouping is good enough in most cases"). Two rather than three:
-  // on 100 held-out stanford_background training images (out/issue4_results.md) a third round
+  // on 100 held-out stanford_background training images a third round
   // joins neighbouring objects and loses 1-2 points of object IoU (with ground-truth
   // background classes 51.0 % at two rounds, 49.2 % at three; 50.4 % at one).
   int max_rounds = 2;
