@@ -401,21 +401,17 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   int64_t segments_total = 0;
   // One row per image; objects and mean_iou stay empty without ground truth.
   std::string per_image = "id,segments,ms,objects,mean_iou\n";
-  auto add_row = [&per_image](const std::string& id, int segments, double ms,
-                              const std::vector<ObjectScore>* scores) {
+  // `objects` < 0: not scored; `iou_sum` the scored objects' IoUs added up.
+  auto add_row = [&per_image](const std::string& id, int segments, double ms, int objects,
+                              double iou_sum) {
     char numbers[64];
     std::snprintf(numbers, sizeof(numbers), ",%d,%.1f,", segments, ms);
     per_image += id + numbers;
-    if (scores != nullptr) {
-      double sum = 0;
-      for (const ObjectScore& s : *scores) sum += s.iou;
-      per_image += std::to_string(scores->size()) + ",";
-      if (!scores->empty()) {
-        std::snprintf(numbers, sizeof(numbers), "%.2f", 100.0 * sum / scores->size());
-        per_image += numbers;
-      }
-    } else {
-      per_image += ",";
+    if (objects >= 0) per_image += std::to_string(objects);
+    per_image += ",";
+    if (objects > 0) {
+      std::snprintf(numbers, sizeof(numbers), "%.2f", 100.0 * iou_sum / objects);
+      per_image += numbers;
     }
     per_image += "\n";
   };
@@ -517,16 +513,16 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
                   DrawOverlay(image->bgr, segments, segmentation.classes, objects));
     }
     if (objects.empty()) {
-      add_row(id, segmentation.size(), image_ms, nullptr);
+      add_row(id, segmentation.size(), image_ms, -1, 0.0);
     } else {
       ++scored_images;
       const std::vector<ObjectScore> scores =
           ScoreObjects(segments, objects, gt_classes, *table, min_object_fraction);
       po_score.Add(scores, *table);
-      add_row(id, segmentation.size(), image_ms, &scores);
+      double sum = 0;
+      for (const ObjectScore& s : scores) sum += s.iou;
+      add_row(id, segmentation.size(), image_ms, static_cast<int>(scores.size()), sum);
       if (verbose) {
-        double sum = 0;
-        for (const ObjectScore& s : scores) sum += s.iou;
         std::string rounds;
         for (const int p : summary.organization.parts) rounds += " " + std::to_string(p);
         std::fprintf(stderr,

@@ -206,25 +206,22 @@ cv::Mat BackgroundClassifier::ForestScores(const cv::Mat& features, int first, i
   CHECK_GE(features.cols, feature_size());
   cv::Mat scores(features.rows, count, CV_32F);
   for (int r = 0; r < features.rows; ++r) {
-    const float* row = features.ptr<float>(r);
-    float* out = scores.ptr<float>(r);
-    for (int c = 0; c < count; ++c) {
-      out[c] = static_cast<float>(forests_[static_cast<size_t>(first + c)].Sum(row));
-    }
+    ForestSums(features.ptr<float>(r), first, count, scores.ptr<float>(r));
   }
   return scores;
+}
+
+void BackgroundClassifier::ForestSums(const float* row, int first, int count, float* out) const {
+  for (int c = 0; c < count; ++c) {
+    out[c] = static_cast<float>(forests_[static_cast<size_t>(first + c)].Sum(row));
+  }
 }
 
 void BackgroundClassifier::RowScores(const float* features, float* background,
                                      float* structured) const {
   CHECK(!empty()) << "background classifiers not loaded";
-  for (int c = 0; c < kBackgroundClasses; ++c) {
-    background[c] = static_cast<float>(forests_[static_cast<size_t>(c)].Sum(features));
-  }
-  for (int j = 0; j < structured_classes(); ++j) {
-    structured[j] =
-        static_cast<float>(forests_[static_cast<size_t>(kBackgroundClasses + j)].Sum(features));
-  }
+  ForestSums(features, 0, kBackgroundClasses, background);
+  ForestSums(features, kBackgroundClasses, structured_classes(), structured);
 }
 
 cv::Mat BackgroundClassifier::Scores(const cv::Mat& features) const {

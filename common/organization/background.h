@@ -122,6 +122,8 @@ class BackgroundClassifier {
   // classifier reads the leading columns it was trained on (the seed's k + 1, or all of
   // RegionAppearance's).
   cv::Mat ForestScores(const cv::Mat& features, int first, int count) const;
+  // The same for one row: `count` sums into `out`.
+  void ForestSums(const float* row, int first, int count, float* out) const;
 
   std::array<cv::Ptr<cv::ml::Boost>, kBackgroundClasses> boosts_;
   std::vector<std::string> structured_names_;
