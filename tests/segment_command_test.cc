@@ -192,6 +192,18 @@ TEST_F(SegmentCommandTest, ReportedIouIsWhatTheWrittenSegmentsScore) {
   const nlohmann::json& po = report.at("perceptual_organization");
   EXPECT_EQ(po.at("objects").get<int>(), objects);
   EXPECT_NEAR(po.at("mean_iou").get<double>(), 100.0 * sum / objects, 1e-6);
+  // Background accuracy on salient regions counts a subset of all regions, class by class, and
+  // no more regions than there are scored objects (each region is one ground-truth object).
+  const nlohmann::json& all = report.at("background").at("ground_truth_regions");
+  const nlohmann::json& salient = report.at("background").at("salient_ground_truth_regions");
+  EXPECT_GT(salient.at("regions").get<int>(), 0);
+  EXPECT_LE(salient.at("regions").get<int>(), all.at("regions").get<int>());
+  EXPECT_LE(salient.at("regions").get<int>(), objects);
+  for (const char* c : {"sky", "tree", "road", "grass", "water"}) {
+    EXPECT_LE(salient.at("classes").at(c).at("regions").get<int>(),
+              all.at("classes").at(c).at("regions").get<int>())
+        << c;
+  }
 
   std::ifstream rows(out + "/per_image.csv");
   std::string line;

@@ -280,8 +280,9 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
       "OUT/overlays/<id>.png; with ground truth in DIR (classes/, objects/, classes.txt) it also\n"
       "writes OUT/segmentation.json: object-level accuracy (seed eq. 6.2) for Perceptual\n"
       "Organization and for superpixels alone over a grid of FH settings, and background\n"
-      "classification accuracy (seed Table 6.4). OUT/per_image.csv lists every image's\n"
-      "segments, time and (with ground truth) scored objects and mean IoU, to find the worst.");
+      "classification accuracy (seed Table 6.4) on all ground-truth regions and on those the\n"
+      "object score counts. OUT/per_image.csv lists every image's segments, time and (with\n"
+      "ground truth) scored objects and mean IoU, to find the worst.");
   parser.AddRequired("dataset", &dataset,
                      "dataset directory, or its name under PLACEREC_DATA / ../shared/data");
   parser.AddRequired("out", &out, "output directory (created if missing)");
@@ -395,6 +396,8 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   }
   ObjectScoreSummary po_score;
   BackgroundAccuracy background;
+  // The same on the regions the object score counts (at least min_object_fraction of the image).
+  BackgroundAccuracy salient_background;
   PixelClassAccuracy pixels;
   std::map<std::string, double> stage_ms;
   int scored_images = 0;
@@ -563,9 +566,19 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
         const std::vector<int> labels = RegionLabels(
             regions, n, LayerAtSize(image->classes, working_size), *table, 0.5, &majority);
         const BackgroundClassifier& classifier = organizer->model().classifier;
-        background.Add(classifier.Scores(appearance),
-                       classifier.Rivals(appearance, options.one_per_class), labels, majority,
-                       RegionAreas(regions, n), *table, options.background_threshold);
+        const cv::Mat region_scores = classifier.Scores(appearance);
+        const std::vector<float> rivals = classifier.Rivals(appearance, options.one_per_class);
+        const std::vector<int> areas = RegionAreas(regions, n);
+        background.Add(region_scores, rivals, labels, majority, areas, *table,
+                       options.background_threshold);
+        std::vector<int> salient_labels = labels;
+        for (int r = 0; r < n; ++r) {
+          if (areas[r] < min_object_fraction * static_cast<double>(regions.total())) {
+            salient_labels[r] = -1;
+          }
+        }
+        salient_background.Add(region_scores, rivals, salient_labels, majority, areas, *table,
+                               options.background_threshold);
         pixels.Add(segments, segmentation.classes, gt_classes, *table);
       }
     }
@@ -635,6 +648,9 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     }
     if (background.total > 0) {
       report["background"]["ground_truth_regions"] = background.ToJson();
+      report["background"]["salient_ground_truth_regions"] = salient_background.ToJson();
+      report["background"]["salient_ground_truth_regions"]["min_region_fraction"] =
+          min_object_fraction;
       report["background"]["output_pixels"] = pixels.ToJson();
     }
   } else {
@@ -658,15 +674,30 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     auto line = [](const char* name, const nlohmann::json& j) {
       const nlohmann::json& classes = j["classes"];
       auto of = [&classes](const char* c) {
-        return classes.contains(c) ? classes[c]["mean_iou"].get<double>() : -1.0;
+        char text[32] = "none";  // the dataset has no object of the class
+        if (classes.contains(c)) {
+          std::snprintf(text, sizeof(text), "%.1f", classes[c]["mean_iou"].get<double>());
+        }
+        return std::string(text);
       };
-      std::printf("  %-24s mean %.1f %% over %d objects (building %.1f, foreground %.1f)\n", name,
-                  j["mean_iou"].get<double>(), j["objects"].get<int>(), of("building"),
-                  of("foreground"));
+      std::printf("  %-24s mean %.1f %% over %d objects (building %s, foreground %s)\n", name,
+                  j["mean_iou"].get<double>(), j["objects"].get<int>(), of("building").c_str(),
+                  of("foreground").c_str());
     };
     line("perceptual organization", report["perceptual_organization"]);
     if (report.contains("superpixels"))
       line("superpixels (best FH)", report["superpixels"]["best"]);
+    if (report.contains("background")) {
+      auto recall = [](const char* name, const nlohmann::json& j) {
+        std::printf("  %-24s", name);
+        for (const char* c : {"sky", "tree", "road", "grass", "water"}) {
+          std::printf(" %s %.1f", c, j["classes"][c]["accuracy"].get<double>());
+        }
+        std::printf(" (%d regions)\n", j["regions"].get<int>());
+      };
+      recall("background recall", report["background"]["ground_truth_regions"]);
+      recall("  on salient regions", report["background"]["salient_ground_truth_regions"]);
+    }
   }
   std::printf("  wrote %s/segments, classes, overlays, segmentation.json, per_image.csv\n",
               out.c_str());
