@@ -175,6 +175,27 @@ cv::Mat DrawOverlay(const cv::Mat& bgr, const cv::Mat& segments,
   }
   cv::Mat picture;
   cv::hconcat(left, right, picture);
+  // Legend strip: the tint of each background class, then what the two halves show.
+  constexpr int kStrip = 18;
+  cv::Mat legend(kStrip, picture.cols, CV_8UC3, cv::Scalar(255, 255, 255));
+  int x = 4;
+  auto text = [&](const std::string& words, int* at) {
+    int baseline = 0;
+    const cv::Size size = cv::getTextSize(words, cv::FONT_HERSHEY_SIMPLEX, 0.38, 1, &baseline);
+    cv::putText(legend, words, cv::Point(*at, kStrip - 5), cv::FONT_HERSHEY_SIMPLEX, 0.38,
+                cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+    *at += size.width + 8;
+  };
+  for (int c = 0; c < kBackgroundClasses; ++c) {
+    const SegmentClass background = BackgroundClassOf(c);
+    cv::rectangle(legend, cv::Rect(x, 4, 10, 10), ClassColour(background), cv::FILLED);
+    x += 13;
+    text(SegmentClassName(background), &x);
+  }
+  text("| outlined: objects", &x);
+  x = std::max(x, bgr.cols + 4);
+  text(objects.empty() ? "right: segments" : "right: ground-truth objects", &x);
+  cv::vconcat(picture, legend, picture);
   return picture;
 }
 
