@@ -233,5 +233,28 @@ TEST_F(SegmentCommandTest, MissingSplitIsAnErrorAndWritesNothing) {
   EXPECT_FALSE(fs::exists(out));
 }
 
+// A split whose last image does not decode, or does not exist, stops the run before anything is
+// written, with an error naming the image; the good images before it are not half-done.
+TEST_F(SegmentCommandTest, UnreadableOrMissingImageIsAnErrorAndWritesNothing) {
+  {
+    std::ofstream bad(root_ / "bare" / "images" / "broken.jpg");
+    bad << "not a jpeg";
+    std::ofstream split(root_ / "bare" / "test.txt", std::ios::app);
+    split << "broken\n";
+  }
+  const std::string out = (root_ / "out_broken").string();
+  const Command run = RunSegment((root_ / "bare").string(), out);
+  EXPECT_NE(run.code, 0);
+  EXPECT_NE(run.output.find("broken.jpg"), std::string::npos) << run.output;
+  EXPECT_FALSE(fs::exists(out));
+
+  fs::remove(root_ / "bare" / "images" / "broken.jpg");
+  const std::string out_missing = (root_ / "out_gone").string();
+  const Command missing = RunSegment((root_ / "bare").string(), out_missing);
+  EXPECT_NE(missing.code, 0);
+  EXPECT_NE(missing.output.find("broken.jpg"), std::string::npos) << missing.output;
+  EXPECT_FALSE(fs::exists(out_missing));
+}
+
 }  // namespace
 }  // namespace placerec

@@ -401,6 +401,19 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     std::fprintf(stderr, "placerec-eval segment: %s\n", organizer.status().ToString().c_str());
     return 1;
   }
+  // Every listed image and ground-truth layer must read before anything is written, so that a
+  // bad file stops the run with nothing half-written.
+  for (size_t i = 0; i < ids->size(); ++i) {
+    const StatusOr<LabelledImage> image = ReadLabelledImage(dataset, (*ids)[i]);
+    if (!image.ok()) {
+      std::fprintf(stderr,
+                   "placerec-eval segment: %s\n  %s/%s.txt lists '%s': fix the file or remove the "
+                   "id from the split. Nothing was written.\n",
+                   image.status().ToString().c_str(), dataset.c_str(), split.c_str(),
+                   (*ids)[i].c_str());
+      return 1;
+    }
+  }
   for (const char* sub : {"segments", "classes", "overlays"}) {
     if (!MakeDirectories(out + "/" + sub)) {
       std::fprintf(stderr, "placerec-eval segment: cannot create %s/%s\n", out.c_str(), sub);

@@ -6,6 +6,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "common/util/paths.h"
+
 namespace placerec {
 
 const char* ImageEncodingName(ImageEncoding encoding) {
@@ -121,8 +123,9 @@ StatusOr<cv::Mat> DecodeImage(const uint8_t* data, size_t size, ImageEncoding en
 }
 
 StatusOr<cv::Mat> ReadImageFile(const std::string& path) {
+  if (!PathExists(path)) return Status::NotFound("no image file " + path);
   cv::Mat bgr = cv::imread(path, cv::IMREAD_COLOR);
-  if (bgr.empty()) return Status::IoError("cannot read image " + path);
+  if (bgr.empty()) return Status::IoError("cannot read image " + path + " (not a decodable image)");
   return bgr;
 }
 
