@@ -140,6 +140,15 @@ TEST_F(SegmentCommandTest, ImagesAndSplitOnlyGiveValidSegmentsAndClasses) {
       EXPECT_TRUE(allowed_classes.count(*seen.begin())) << id << " class " << *seen.begin();
     }
   }
+  // --overlays 1 draws the first image: itself and its segments side by side, a legend below.
+  const cv::Mat first =
+      cv::imread((root_ / "bare" / "images" / (std::string(kIds[0]) + ".jpg")).string());
+  const cv::Mat overlay = cv::imread(out + "/overlays/" + kIds[0] + ".png");
+  ASSERT_FALSE(overlay.empty());
+  EXPECT_EQ(overlay.cols, 2 * first.cols);
+  EXPECT_GT(overlay.rows, first.rows);
+  EXPECT_LT(overlay.rows, first.rows + 40);
+  EXPECT_FALSE(fs::exists(out + "/overlays/" + kIds[1] + ".png"));
   std::ifstream json(out + "/segmentation.json");
   const nlohmann::json report = nlohmann::json::parse(json);
   EXPECT_TRUE(report.contains("note")) << report.dump();
