@@ -1,5 +1,7 @@
 #include "tools/background_training.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -174,7 +176,10 @@ int64_t FileSize(const std::string& path) {
 
 }  // namespace
 
-StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& config) {
+namespace {
+
+// The whole training, writing into config.out (a fresh staging directory).
+StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
   std::string error;
   if (!config.textons.Check(&error) || !config.boost.Check(&error) ||
       !config.organizer.Check(&error)) {
@@ -224,7 +229,19 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
                                      "/classes.txt");
     }
   }
-  if (!MakeDirectories(config.out)) return Status::IoError("cannot create " + config.out);
+  // The evaluation split is read only after hours of training: check it reads first.
+  if (!config.eval_split.empty() && PathExists(config.dataset + "/" + config.eval_split + ".txt")) {
+    StatusOr<std::vector<std::string>> eval_ids = ReadSplit(config.dataset, config.eval_split);
+    if (!eval_ids.ok()) return eval_ids.status();
+    for (const std::string& id : *eval_ids) {
+      const StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, id);
+      if (!image.ok()) {
+        return Status(image.status().code(),
+                      image.status().message() + " (listed in " + config.dataset + "/" +
+                          config.eval_split + ".txt, the --eval-split)");
+      }
+    }
+  }
   const int working_width = config.organizer.superpixels.working_width;
   Timer total_timer;
 
@@ -310,7 +327,30 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
                  superpixel_regions);
   }
 
-  // 3. Five binary Gentle AdaBoost classifiers.
+  // 3. Five binary Gentle AdaBoost classifiers. Each needs regions of its class and others.
+  {
+    const int classes = kBackgroundClasses + static_cast<int>(structured_names.size());
+    std::vector<int> positives(static_cast<size_t>(classes), 0);
+    int labelled = 0;
+    for (size_t i = 0; i < region_labels.size(); ++i) {
+      if (region_labels[i] < 0) continue;
+      ++labelled;
+      if (region_labels[i] < kBackgroundClasses) ++positives[region_labels[i]];
+      if (region_structured[i] >= 0) ++positives[kBackgroundClasses + region_structured[i]];
+    }
+    for (int c = 0; c < classes; ++c) {
+      const std::string name = c < kBackgroundClasses
+                                   ? SegmentClassName(BackgroundClassOf(c))
+                                   : structured_names[c - kBackgroundClasses];
+      if (positives[c] == 0 || positives[c] == labelled) {
+        return Status::InvalidArgument(
+            "the training images (" + config.dataset + "/" + config.split + ".txt) have " +
+            (positives[c] == 0 ? "no region" : "only regions") + " of class " + name +
+            ": its classifier needs regions of the class and of others; train on more images" +
+            (c >= kBackgroundClasses ? " or leave the class out (--structured-classes)" : ""));
+      }
+    }
+  }
   if (!config.appearance_extras) {
     region_samples = region_samples.colRange(0, config.textons.k + 1).clone();
   }
@@ -498,6 +538,41 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
   std::ofstream out(config.out + "/manifest.json");
   if (!out) return Status::IoError("cannot write " + config.out + "/manifest.json");
   out << manifest.dump(2) << "\n";
+  if (!out) return Status::IoError("cannot write " + config.out + "/manifest.json");
+  return manifest;
+}
+
+}  // namespace
+
+StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& config) {
+  namespace fs = std::filesystem;
+  if (!MakeDirectories(config.out)) return Status::IoError("cannot create " + config.out);
+  // Everything is written to a staging directory inside `out` and moved into place only when
+  // the whole training has succeeded, so that a failed or interrupted run leaves the models
+  // directory as it was (new textons beside old classifiers would load and be silently wrong).
+  BackgroundTrainingConfig staged = config;
+  staged.out = config.out + "/.training-" + std::to_string(getpid());
+  std::error_code ec;
+  fs::remove_all(staged.out, ec);
+  if (!MakeDirectories(staged.out)) return Status::IoError("cannot create " + staged.out);
+  StatusOr<nlohmann::json> manifest = TrainInto(staged);
+  if (manifest.ok()) {
+    // The manifest last: it describes the files beside it.
+    std::vector<fs::path> files;
+    for (const auto& entry : fs::directory_iterator(staged.out)) {
+      if (entry.path().filename() != "manifest.json") files.push_back(entry.path());
+    }
+    files.push_back(fs::path(staged.out) / "manifest.json");
+    for (const fs::path& file : files) {
+      fs::rename(file, fs::path(config.out) / file.filename(), ec);
+      if (ec) {
+        manifest = Status::IoError("cannot move " + file.string() + " into " + config.out + ": " +
+                                   ec.message());
+        break;
+      }
+    }
+  }
+  fs::remove_all(staged.out, ec);
   return manifest;
 }
 

@@ -104,7 +104,11 @@ struct BackgroundTrainingConfig {
 };
 
 // Runs the whole training and writes OUT/textons.yml, OUT/background*.yml*,
-// OUT/check_sample.yml.gz and OUT/manifest.json; returns the manifest.
+// OUT/check_sample.yml.gz and OUT/manifest.json; returns the manifest. The files are written
+// to OUT/.training-<pid>/ and moved into OUT only when everything succeeded, so a failed run
+// leaves OUT as it was (an interrupted one leaves only that hidden directory, safe to delete).
+// The evaluation split's images are read first, and training images that lack a class's
+// regions (or have nothing else) are an error, not a crash.
 StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& config);
 
 }  // namespace placerec
