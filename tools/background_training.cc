@@ -174,10 +174,6 @@ int64_t FileSize(const std::string& path) {
   return ec ? -1 : static_cast<int64_t>(size);
 }
 
-}  // namespace
-
-namespace {
-
 // The whole training, writing into config.out (a fresh staging directory).
 StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
   std::string error;
@@ -229,7 +225,7 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
                                      "/classes.txt");
     }
   }
-  // The evaluation split is read only after hours of training: check it reads first.
+  // The evaluation split is otherwise read only after the whole training: check it first.
   if (!config.eval_split.empty() && PathExists(config.dataset + "/" + config.eval_split + ".txt")) {
     StatusOr<std::vector<std::string>> eval_ids = ReadSplit(config.dataset, config.eval_split);
     if (!eval_ids.ok()) return eval_ids.status();
