@@ -323,37 +323,21 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
                  superpixel_regions);
   }
 
-  // 3. Five binary Gentle AdaBoost classifiers. Each needs regions of its class and others.
-  {
-    const int classes = kBackgroundClasses + static_cast<int>(structured_names.size());
-    std::vector<int> positives(static_cast<size_t>(classes), 0);
-    int labelled = 0;
-    for (size_t i = 0; i < region_labels.size(); ++i) {
-      if (region_labels[i] < 0) continue;
-      ++labelled;
-      if (region_labels[i] < kBackgroundClasses) ++positives[region_labels[i]];
-      if (region_structured[i] >= 0) ++positives[kBackgroundClasses + region_structured[i]];
-    }
-    for (int c = 0; c < classes; ++c) {
-      const std::string name = c < kBackgroundClasses
-                                   ? SegmentClassName(BackgroundClassOf(c))
-                                   : structured_names[c - kBackgroundClasses];
-      if (positives[c] == 0 || positives[c] == labelled) {
-        return Status::InvalidArgument(
-            "the training images (" + config.dataset + "/" + config.split + ".txt) have " +
-            (positives[c] == 0 ? "no region" : "only regions") + " of class " + name +
-            ": its classifier needs regions of the class and of others; train on more images" +
-            (c >= kBackgroundClasses ? " or leave the class out (--structured-classes)" : ""));
-      }
-    }
-  }
+  // 3. Five binary Gentle AdaBoost classifiers.
   if (!config.appearance_extras) {
     region_samples = region_samples.colRange(0, config.textons.k + 1).clone();
   }
   BackgroundTrainingSummary boost_summary;
-  const BackgroundClassifier classifier =
+  StatusOr<BackgroundClassifier> trained =
       BackgroundClassifier::Train(region_samples, region_labels, region_weights, config.boost,
                                   &boost_summary, structured_names, region_structured);
+  if (!trained.ok()) {
+    return Status::InvalidArgument(
+        "the training images (" + config.dataset + "/" + config.split +
+        ".txt): " + trained.status().message() +
+        "; train on more images, or leave a structured class out (--structured-classes)");
+  }
+  const BackgroundClassifier& classifier = *trained;
   PLACEREC_RETURN_IF_ERROR(classifier.Save(config.out));
 
   // 4. Accuracy on the evaluation split's ground-truth objects (seed Table 6.4 protocol) and

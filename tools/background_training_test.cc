@@ -39,7 +39,9 @@ class BackgroundTrainingTest : public ::testing::Test {
     root_ = fs::path(::testing::TempDir()) / ("placerec_bgtrain_" + std::to_string(getpid()));
     fs::remove_all(root_);
     data_ = root_ / "data";
-    for (const char* layer : {"images", "classes", "objects"}) fs::create_directories(data_ / layer);
+    for (const char* layer : {"images", "classes", "objects"}) {
+      fs::create_directories(data_ / layer);
+    }
     fs::copy_file(source + "/classes.txt", data_ / "classes.txt");
     auto copy = [&](const std::string& id) {
       fs::copy_file(source + "/images/" + id + ".jpg", data_ / "images" / (id + ".jpg"));
@@ -131,7 +133,7 @@ TEST_F(BackgroundTrainingTest, TrainingImagesWithoutAClassAreAnErrorAndChangeNot
   StatusOr<nlohmann::json> manifest = TrainBackgroundModels(config_);
   ASSERT_FALSE(manifest.ok());
   const std::string message = manifest.status().ToString();
-  EXPECT_NE(message.find("no region of class grass"), std::string::npos) << message;
+  EXPECT_NE(message.find("no training regions of class grass"), std::string::npos) << message;
   ExpectOldModelsUntouched();
 }
 

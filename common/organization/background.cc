@@ -103,7 +103,7 @@ bool BackgroundTrainingOptions::Check(std::string* error) const {
   return true;
 }
 
-BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
+StatusOr<BackgroundClassifier> BackgroundClassifier::Train(const cv::Mat& features,
                                                  const std::vector<int>& labels,
                                                  const std::vector<float>& weights,
                                                  const BackgroundTrainingOptions& options,
@@ -124,22 +124,31 @@ BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
   stats.training_accuracy.assign(classes, 0.0);
   std::vector<cv::Ptr<cv::ml::Boost>> boosts(static_cast<size_t>(classes));
 
-  // Classifier c: background class c, or structured class c - kBackgroundClasses.
-  auto train_one = [&](int c) {
-    std::vector<int> positives;
-    std::vector<int> negatives;
+  // Classifier c: background class c, or structured class c - kBackgroundClasses. Its rows
+  // split into positives and negatives before any training, so that a class that cannot be
+  // learned is an error before any time is spent on the others.
+  std::vector<std::vector<int>> positives_of(static_cast<size_t>(classes));
+  std::vector<std::vector<int>> negatives_of(static_cast<size_t>(classes));
+  for (int c = 0; c < classes; ++c) {
     for (int i = 0; i < features.rows; ++i) {
       if (labels[i] < 0) continue;
       const bool positive = c < kBackgroundClasses
                                 ? labels[i] == c
                                 : structured_labels[i] == c - kBackgroundClasses;
-      (positive ? positives : negatives).push_back(i);
+      (positive ? positives_of[c] : negatives_of[c]).push_back(i);
     }
     const std::string name = c < kBackgroundClasses
                                  ? SegmentClassName(BackgroundClassOf(c))
                                  : structured_names[c - kBackgroundClasses];
-    CHECK(!positives.empty()) << "no training region of class " << name;
-    CHECK(!negatives.empty()) << "no negative training region for class " << name;
+    if (positives_of[c].empty() || negatives_of[c].empty()) {
+      const std::string what = positives_of[c].empty() ? "no" : "only";
+      return Status::InvalidArgument(what + " training regions of class " + name +
+                                     ": its classifier needs regions of the class and of others");
+    }
+  }
+  auto train_one = [&](int c) {
+    const std::vector<int>& positives = positives_of[c];
+    std::vector<int>& negatives = negatives_of[c];
     if (options.max_negatives_per_positive > 0) {
       const size_t keep = static_cast<size_t>(
           std::ceil(options.max_negatives_per_positive * static_cast<double>(positives.size())));
@@ -154,7 +163,8 @@ BackgroundClassifier BackgroundClassifier::Train(const cv::Mat& features,
     cv::Mat responses(samples.rows, 1, CV_32S);
     cv::Mat sample_weights(samples.rows, 1, CV_32F, cv::Scalar(1.0f));
     int row = 0;
-    for (const std::vector<int>* rows : {&positives, &negatives}) {
+    const std::vector<int>& kept_negatives = negatives;
+    for (const std::vector<int>* rows : {&positives, &kept_negatives}) {
       for (const int i : *rows) {
         features.row(i).copyTo(samples.row(row));
         responses.at<int>(row) = rows == &positives ? 1 : 0;

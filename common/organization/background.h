@@ -75,8 +75,9 @@ class BackgroundClassifier {
   // initial sample weights; empty: all equal). When `structured_names` is not empty, one more
   // classifier per name learns the rows whose `structured_labels` value is its index (other
   // rows with a label >= 0 are its negatives). Classifiers train two at a time; the result is
-  // deterministic for the same input.
-  static BackgroundClassifier Train(const cv::Mat& features, const std::vector<int>& labels,
+  // deterministic for the same input. A class without rows of its own, or with every labelled
+  // row, is InvalidArgument naming it (its classifier would have nothing to separate).
+  static StatusOr<BackgroundClassifier> Train(const cv::Mat& features, const std::vector<int>& labels,
                                     const std::vector<float>& weights,
                                     const BackgroundTrainingOptions& options,
                                     BackgroundTrainingSummary* summary,

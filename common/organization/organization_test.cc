@@ -586,8 +586,10 @@ TEST(BackgroundClassifierTest, StructuredClassesTrainDecideAndRoundTrip) {
     structured.push_back(-1);
   }
   BackgroundTrainingSummary summary;
-  const BackgroundClassifier classifier = BackgroundClassifier::Train(
+  StatusOr<BackgroundClassifier> trained = BackgroundClassifier::Train(
       features, labels, {}, options, &summary, {"building", "foreground"}, structured);
+  ASSERT_TRUE(trained.ok()) << trained.status().ToString();
+  const BackgroundClassifier& classifier = *trained;
   ASSERT_EQ(classifier.structured_classes(), 2);
   ASSERT_EQ(summary.positives.size(), static_cast<size_t>(kBackgroundClasses + 2));
   EXPECT_EQ(summary.positives[kBackgroundClasses], 100);
