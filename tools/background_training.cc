@@ -441,14 +441,7 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
   nlohmann::json manifest;
   manifest["format_version"] = 1;
   manifest["created"] = TodayUtc();
-  manifest["command"] = "placerec-train background --dataset " +
-                        std::filesystem::path(config.dataset).filename().string() + " --split " +
-                        config.split +
-                        (config.holdout > 0 ? " --holdout " + std::to_string(config.holdout) : "") +
-                        (config.leave_out_fold.empty()
-                             ? ""
-                             : " --leave-out-fold " + config.leave_out_fold.ToString()) +
-                        " --out models";
+  if (!config.command_line.empty()) manifest["command"] = config.command_line;
   manifest["data"] = {{"dataset", std::filesystem::path(config.dataset).filename().string()},
                       {"split", config.split},
                       {"holdout_first_images", config.holdout},

@@ -101,6 +101,9 @@ struct BackgroundTrainingConfig {
   // check sample (check_sample.yml.gz) with the accuracy they had at training time.
   int check_images = 8;
   bool progress = true;
+  // The invocation (CommandLine of util/options.h), recorded in the manifest so the models
+  // can be retrained with exactly these options; empty when not run from the command line.
+  std::string command_line;
 };
 
 // Runs the whole training and writes OUT/textons.yml, OUT/background*.yml*,

@@ -333,12 +333,7 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
   manifest["format_version"] = RegionMergeModel::kFormatVersion;
   manifest["created"] = TodayUtc();
   manifest["file"] = RegionMergeModel::kFileName;
-  manifest["command"] = "placerec-train grouping --dataset " +
-                        std::filesystem::path(config.dataset).filename().string() + " --split " +
-                        config.split + " --holdout " + std::to_string(config.holdout) +
-                        " --features " + std::to_string(config.features) +
-                        (config.cross_fit.empty() ? "" : " --cross-fit DIR_0,...") +
-                        " --out models";
+  if (!config.command_line.empty()) manifest["command"] = config.command_line;
   manifest["data"] = {{"dataset", std::filesystem::path(config.dataset).filename().string()},
                       {"split", config.split},
                       {"holdout_first_images", config.holdout},

@@ -55,6 +55,9 @@ struct GroupingTrainingConfig {
   SceneOrganizerOptions organizer;  // working width, initial partition, texton stride
   uint64_t seed = 2009;
   bool progress = true;
+  // The invocation (CommandLine of util/options.h), recorded in the manifest; empty when not
+  // run from the command line.
+  std::string command_line;
 };
 
 // Trains and writes OUT/grouping.yml.gz and OUT/grouping.json (the manifest); returns the

@@ -104,6 +104,7 @@ int BackgroundCommand(int argc, char** argv) {
   config.textons.seed = config.seed;
   config.boost.seed = config.seed;
   config.progress = !quiet;
+  config.command_line = CommandLine(argc, argv);
   cv::setNumThreads(1);  // deterministic k-means, and a fair share of a shared machine
   StatusOr<nlohmann::json> manifest = TrainBackgroundModels(config);
   if (!manifest.ok()) {
@@ -163,6 +164,7 @@ int GroupingCommand(int argc, char** argv) {
     return *exit;
   }
   config.progress = !quiet;
+  config.command_line = CommandLine(argc, argv);
   for (const std::string& dir : SplitString(cross_fit, ',')) {
     if (!dir.empty()) config.cross_fit.push_back(dir);
   }
@@ -194,7 +196,7 @@ int GroupingEnsembleCommand(int argc, char** argv) {
   nlohmann::json manifest;
   manifest["format_version"] = RegionMergeModel::kFormatVersion;
   manifest["file"] = RegionMergeModel::kFileName;
-  manifest["command"] = "placerec-train grouping-ensemble --members " + members + " --out " + out;
+  manifest["command"] = CommandLine(argc, argv);
   for (const std::string& dir : SplitString(members, ',')) {
     if (dir.empty()) continue;
     StatusOr<RegionMergeModel> model = RegionMergeModel::Load(dir);

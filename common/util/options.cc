@@ -1,7 +1,9 @@
 #include "common/util/options.h"
 
+#include <algorithm>
+#include <cctype>
 #include <cstdio>
-
+#include <cstring>
 #include <sstream>
 
 namespace po = boost::program_options;
@@ -59,6 +61,30 @@ std::string FlagParser::Help() const {
   std::ostringstream out;
   out << "Usage: " << usage_ << "\n\n" << options_;
   return out.str();
+}
+
+std::string CommandLine(int argc, const char* const* argv) {
+  auto quoted = [](const std::string& arg) {
+    const bool plain = !arg.empty() && std::all_of(arg.begin(), arg.end(), [](char c) {
+      return std::isalnum(static_cast<unsigned char>(c)) || std::strchr("-_./,:=+@%", c);
+    });
+    if (plain) return arg;
+    std::string out = "'";
+    for (char c : arg) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return out + "'";
+  };
+  std::string line;
+  for (int i = 0; i < argc; ++i) {
+    std::string arg = argv[i];
+    if (i == 0) {
+      const size_t slash = arg.find_last_of('/');
+      if (slash != std::string::npos) arg = arg.substr(slash + 1);
+    } else {
+      line += ' ';
+    }
+    line += quoted(arg);
+  }
+  return line;
 }
 
 }  // namespace placerec

@@ -55,4 +55,9 @@ class FlagParser {
   std::string positional_name_;
 };
 
+// The invocation as a shell would take it back: the program's file name (no directory) and
+// every argument, single-quoted when it holds anything but letters, digits and -_./,:=+@%.
+// Manifests record it so a model can be retrained with exactly the options it was trained with.
+std::string CommandLine(int argc, const char* const* argv);
+
 }  // namespace placerec

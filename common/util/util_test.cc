@@ -105,5 +105,17 @@ TEST(FlagParserTest, ReportsUnknownFlagsAndHelp) {
   EXPECT_TRUE(help);
 }
 
+TEST(CommandLineTest, DropsTheDirectoryAndQuotesWhatAShellWouldSplit) {
+  const char* argv[] = {"/work/build/bin/placerec-train", "background",   "--dataset",
+                        "../data/msrc_v2",               "--out",        "my models",
+                        "--structured-classes",          "a,b",          "it's",
+                        ""};
+  EXPECT_EQ(CommandLine(10, argv),
+            "placerec-train background --dataset ../data/msrc_v2 --out 'my models' "
+            "--structured-classes a,b 'it'\\''s' ''");
+  const char* bare[] = {"placerec-eval"};
+  EXPECT_EQ(CommandLine(1, bare), "placerec-eval");
+}
+
 }  // namespace
 }  // namespace placerec
