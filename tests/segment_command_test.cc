@@ -153,6 +153,7 @@ TEST_F(SegmentCommandTest, ImagesAndSplitOnlyGiveValidSegmentsAndClasses) {
   const nlohmann::json report = nlohmann::json::parse(json);
   EXPECT_TRUE(report.contains("note")) << report.dump();
   EXPECT_FALSE(report.contains("perceptual_organization"));
+  EXPECT_FALSE(fs::exists(out + "/summary.png"));  // nothing scored, nothing to chart
   std::ifstream rows(out + "/per_image.csv");
   std::string line;
   std::getline(rows, line);
@@ -201,6 +202,11 @@ TEST_F(SegmentCommandTest, ReportedIouIsWhatTheWrittenSegmentsScore) {
   const nlohmann::json& po = report.at("perceptual_organization");
   EXPECT_EQ(po.at("objects").get<int>(), objects);
   EXPECT_NEAR(po.at("mean_iou").get<double>(), 100.0 * sum / objects, 1e-6);
+  // The summary chart: the mean and every class as bars (drawn in common/eval's plots_test).
+  const cv::Mat chart = cv::imread(out + "/summary.png");
+  ASSERT_FALSE(chart.empty());
+  EXPECT_EQ(chart.rows, 520);
+  EXPECT_GE(chart.cols, 960);
   // Background accuracy counts every ground-truth object with at least half its pixels
   // labelled (class 255 is "unknown"), and on salient regions only those covering at least
   // 0.5 % of the image; recounted here from the PNGs (the three images are 320 pixels wide, the

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <opencv2/core.hpp>
@@ -249,28 +250,67 @@ Status WritePng(const std::string& path, const cv::Mat& image) {
   return Status::Ok();
 }
 
+// Sizes that grow with the picture: `base` is the picture size drawn at scale 1.
+struct Scale {
+  Scale(int width, int height, cv::Size base)
+      : k(std::clamp(std::min(static_cast<double>(width) / base.width,
+                              static_cast<double>(height) / base.height),
+                     0.4, 4.0)),
+        pad(std::max(4, cvRound(10 * k))),
+        tick(std::max(3, cvRound(5 * k))) {}
+
+  // The title's font, `size` at scale 1, shrunk until the title fits across the picture.
+  Font TitleFont(const std::string& title, double size, int width) const {
+    Font font{size * k, std::max(1, cvRound(2 * k))};
+    while (font.scale > 0.3 && font.Measure(title).width > width - 2 * pad) font.scale *= 0.9;
+    return font;
+  }
+
+  Font TickFont() const { return {0.45 * k, 1}; }
+
+  double k;
+  int pad;
+  int tick;
+};
+
+// Draws `text` turned to read bottom to top, its left edge at x and centred on centre_y
+// (skipped when it would not fit in the picture).
+void DrawTurnedLabel(cv::Mat& image, const std::string& text, const Font& font, int x,
+                     int centre_y) {
+  const cv::Size size = font.Measure(text);
+  cv::Mat strip(size.height, size.width, CV_8UC3, kWhite);
+  font.Draw(strip, text, {0, 0}, kText);
+  cv::Mat turned;
+  cv::rotate(strip, turned, cv::ROTATE_90_COUNTERCLOCKWISE);
+  const cv::Rect at(x, centre_y - turned.rows / 2, turned.cols, turned.rows);
+  if ((at & cv::Rect(0, 0, image.cols, image.rows)) == at) turned.copyTo(image(at));
+}
+
+Status CheckPicture(const std::string& what, const std::string& path, int width, int height) {
+  if (width < kMinWidth || height < kMinHeight || width > kMaxSide || height > kMaxSide) {
+    return Status::InvalidArgument(
+        what + " size " + std::to_string(width) + "x" + std::to_string(height) + " is outside " +
+        std::to_string(kMinWidth) + "x" + std::to_string(kMinHeight) + " .. " +
+        std::to_string(kMaxSide) + "x" + std::to_string(kMaxSide));
+  }
+  if (path.empty()) return Status::InvalidArgument(what + " path is empty");
+  return Status::Ok();
+}
+
 }  // namespace
 
 Status WritePrCurvePng(const std::string& path, const std::string& title,
                        const std::vector<PrCurve>& curves, int width, int height) {
-  if (width < kMinWidth || height < kMinHeight || width > kMaxSide || height > kMaxSide) {
-    return Status::InvalidArgument(
-        "PR plot size " + std::to_string(width) + "x" + std::to_string(height) + " is outside " +
-        std::to_string(kMinWidth) + "x" + std::to_string(kMinHeight) + " .. " +
-        std::to_string(kMaxSide) + "x" + std::to_string(kMaxSide));
-  }
-  if (path.empty()) return Status::InvalidArgument("PR plot path is empty");
+  PLACEREC_RETURN_IF_ERROR(CheckPicture("PR plot", path, width, height));
 
   // Everything scales with the picture; 800x600 is scale 1.
-  const double k = std::clamp(std::min(width / 800.0, height / 600.0), 0.4, 4.0);
-  const int pad = std::max(4, cvRound(10 * k));
-  const int tick = std::max(3, cvRound(5 * k));
-  Font title_font{0.75 * k, std::max(1, cvRound(2 * k))};
-  const Font tick_font{0.45 * k, 1};
+  const Scale scale(width, height, cv::Size(800, 600));
+  const double k = scale.k;
+  const int pad = scale.pad;
+  const int tick = scale.tick;
+  const Font title_font = scale.TitleFont(title, 0.75, width);
+  const Font tick_font = scale.TickFont();
   const Font label_font{0.6 * k, 1};
-  while (title_font.scale > 0.3 && title_font.Measure(title).width > width - 2 * pad) {
-    title_font.scale *= 0.9;
-  }
 
   const cv::Size title_size = title_font.Measure(title);
   const cv::Size tick_size = tick_font.Measure("0.0");
@@ -334,12 +374,7 @@ Status WritePrCurvePng(const std::string& path, const std::string& title,
                   {box.x + box.width / 2 - label_font.Measure("recall").width / 2,
                    box.br().y + tick + pad / 2 + tick_size.height + pad},
                   kText);
-  cv::Mat strip(label_size.height, label_size.width, CV_8UC3, kWhite);
-  label_font.Draw(strip, "precision", {0, 0}, kText);
-  cv::Mat turned;
-  cv::rotate(strip, turned, cv::ROTATE_90_COUNTERCLOCKWISE);
-  const cv::Rect strip_at(pad, box.y + box.height / 2 - turned.rows / 2, turned.cols, turned.rows);
-  if ((strip_at & cv::Rect(0, 0, width, height)) == strip_at) turned.copyTo(image(strip_at));
+  DrawTurnedLabel(image, "precision", label_font, pad, box.y + box.height / 2);
 
   if (!title.empty()) {
     title_font.Draw(image, title, {width / 2 - title_size.width / 2, pad}, kText);
@@ -364,6 +399,128 @@ Status WritePrCurvePng(const std::string& path, const std::string& title,
   }
   if (!legend.empty()) DrawLegend(image, legend, legend_at, k);
 
+  return WritePng(path, image);
+}
+
+Status WriteBarChartPng(const std::string& path, const std::string& title,
+                        const std::string& y_label, const std::vector<std::string>& groups,
+                        const std::vector<BarSeries>& series, int width, int height) {
+  PLACEREC_RETURN_IF_ERROR(CheckPicture("bar chart", path, width, height));
+  if (groups.empty() || series.empty()) {
+    return Status::InvalidArgument("bar chart needs at least one group and one series");
+  }
+  for (const BarSeries& s : series) {
+    if (s.values.size() != groups.size()) {
+      return Status::InvalidArgument("bar chart series '" + s.label + "' has " +
+                                     std::to_string(s.values.size()) + " values for " +
+                                     std::to_string(groups.size()) + " groups");
+    }
+    for (const double v : s.values) {
+      if (!std::isnan(v) && (v < 0 || v > 100)) {
+        return Status::InvalidArgument("bar chart value " + std::to_string(v) + " of '" +
+                                       s.label + "' is outside 0..100");
+      }
+    }
+  }
+
+  // Everything scales with the picture; 800x500 is scale 1.
+  const Scale scale(width, height, cv::Size(800, 500));
+  const int pad = scale.pad;
+  const int tick = scale.tick;
+  const Font title_font = scale.TitleFont(title, 0.7, width);
+  const Font tick_font = scale.TickFont();
+  const Font label_font{0.55 * scale.k, 1};
+  Font group_font{0.45 * scale.k, 1};
+  Font value_font{0.38 * scale.k, 1};
+
+  // The legend row: a colour box and the label per series.
+  const int swatch = label_font.Ascent();
+  int legend_width = 0;
+  for (const BarSeries& s : series) {
+    legend_width += swatch + pad / 2 + label_font.Measure(s.label).width + 2 * pad;
+  }
+  const cv::Size tick_size = tick_font.Measure("100");
+  const cv::Size y_label_size = label_font.Measure(y_label.empty() ? "A" : y_label);
+  const int top = pad + (title.empty() ? 0 : title_font.Measure(title).height + pad) +
+                  label_font.Measure("Ag").height + pad;
+  const int left = pad + (y_label.empty() ? 0 : y_label_size.height + pad) + tick_size.width +
+                   tick + pad / 2;
+  const int bottom = tick + pad / 2 + group_font.Measure("Ag").height + pad;
+  const cv::Rect box(left, top, width - left - 2 * pad, height - top - bottom);
+  if (box.width < 10 || box.height < 10) {
+    return Status::InvalidArgument("bar chart of " + std::to_string(width) + "x" +
+                                   std::to_string(height) + " has no room for its plot");
+  }
+  auto y_of = [&box](double value) {
+    return box.br().y - 1 - cvRound(value / 100.0 * (box.height - 1));
+  };
+
+  cv::Mat image(height, width, CV_8UC3, kWhite);
+  for (int v = 0; v <= 100; v += 10) {
+    const int y = y_of(v);
+    cv::line(image, {box.x + 1, y}, {box.br().x - 2, y}, kGrid, 1, cv::LINE_AA);
+    cv::line(image, {box.x - tick, y}, {box.x, y}, kAxis, 1, cv::LINE_AA);
+    const std::string text = std::to_string(v);
+    tick_font.Draw(image, text,
+                   {box.x - tick - pad / 2 - tick_font.Measure(text).width,
+                    y - tick_font.Ascent() / 2},
+                   kText);
+  }
+
+  // Bars: each group gets an equal slot, its bars fill the middle 80 % of it.
+  const double slot = static_cast<double>(box.width) / groups.size();
+  const double bar = 0.8 * slot / series.size();
+  const int label_room = std::max(1, cvRound(slot) - 2);
+  while (group_font.scale > 0.25) {
+    int widest = 0;
+    for (const std::string& g : groups) widest = std::max(widest, group_font.Measure(g).width);
+    if (widest <= label_room) break;
+    group_font.scale *= 0.9;
+  }
+  while (value_font.scale > 0.25 && value_font.Measure("100.0").width > bar) {
+    value_font.scale *= 0.9;
+  }
+  const bool show_values = value_font.Measure("100.0").width <= bar + 2 * pad / 3;
+  for (size_t g = 0; g < groups.size(); ++g) {
+    const double x0 = box.x + g * slot + 0.1 * slot;
+    for (size_t s = 0; s < series.size(); ++s) {
+      const double v = series[s].values[g];
+      if (std::isnan(v)) continue;
+      const int xa = cvRound(x0 + s * bar);
+      const int xb = std::max(xa + 1, cvRound(x0 + (s + 1) * bar) - 1);
+      const int y = y_of(v);
+      cv::rectangle(image, cv::Rect(cv::Point(xa, y), cv::Point(xb, box.br().y)),
+                    kPalette[s % kPaletteSize], cv::FILLED);
+      if (show_values) {
+        char text[16];
+        std::snprintf(text, sizeof(text), "%.1f", v);
+        const cv::Size size = value_font.Measure(text);
+        value_font.Draw(image, text, {(xa + xb) / 2 - size.width / 2, y - size.height - 2},
+                        kText);
+      }
+    }
+    const std::string label = Fit(groups[g], group_font, label_room);
+    group_font.Draw(image, label,
+                    {cvRound(box.x + (g + 0.5) * slot) - group_font.Measure(label).width / 2,
+                     box.br().y + tick + pad / 2},
+                    kText);
+  }
+  cv::rectangle(image, box, kAxis, 1, cv::LINE_AA);
+
+  if (!y_label.empty()) DrawTurnedLabel(image, y_label, label_font, pad, box.y + box.height / 2);
+  int y = pad;
+  if (!title.empty()) {
+    title_font.Draw(image, title, {width / 2 - title_font.Measure(title).width / 2, y}, kText);
+    y += title_font.Measure(title).height + pad;
+  }
+  int x = std::max(pad, width / 2 - legend_width / 2);
+  for (size_t s = 0; s < series.size(); ++s) {
+    cv::rectangle(image, cv::Rect(x, y, swatch, swatch), kPalette[s % kPaletteSize], cv::FILLED);
+    x += swatch + pad / 2;
+    const std::string label = Fit(series[s].label, label_font, std::max(1, width - pad - x));
+    label_font.Draw(image, label, {x, y}, kText);
+    x += label_font.Measure(label).width + 2 * pad;
+  }
   return WritePng(path, image);
 }
 

@@ -1,4 +1,5 @@
-// Pictures people would rather look at than read: precision-recall curves.
+// Pictures people would rather look at than read: precision-recall curves and grouped bar
+// charts of percentages.
 #pragma once
 
 #include <string>
@@ -22,5 +23,21 @@ struct PrCurve {
 // cannot be written.
 Status WritePrCurvePng(const std::string& path, const std::string& title,
                        const std::vector<PrCurve>& curves, int width = 800, int height = 600);
+
+// One series of a bar chart: a value per group, in percent (0..100; NaN: no bar).
+struct BarSeries {
+  std::string label;  // legend text
+  std::vector<double> values;
+};
+
+// Draws a grouped bar chart of percentages into a PNG of width x height pixels (200x150 to
+// 8000x8000): for each group (label below the axis, e.g. "building (394)") one bar per series
+// in the series' own colour, its value printed above it, a y axis from 0 to 100 with a grid
+// every 10, and the legend in a row under the title. InvalidArgument for a bad size, an empty
+// path, no groups or series, a series whose value count differs from the group count, or a
+// value outside 0..100; IoError when the file cannot be written.
+Status WriteBarChartPng(const std::string& path, const std::string& title,
+                        const std::string& y_label, const std::vector<std::string>& groups,
+                        const std::vector<BarSeries>& series, int width = 800, int height = 500);
 
 }  // namespace placerec

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
@@ -53,6 +54,53 @@ TEST(PlotsTest, FailsOnAnUnwritablePathOrABadSize) {
             StatusCode::kIoError);
   EXPECT_EQ(WritePrCurvePng(::testing::TempDir() + "/pr.png", "t", curves, 10, 10).code(),
             StatusCode::kInvalidArgument);
+}
+
+// Pixels of exactly `colour` (BGR): bars are filled without anti-aliasing.
+int PixelsOf(const cv::Mat& image, const cv::Vec3b& colour) {
+  int n = 0;
+  for (int y = 0; y < image.rows; ++y) {
+    for (int x = 0; x < image.cols; ++x) n += image.at<cv::Vec3b>(y, x) == colour;
+  }
+  return n;
+}
+
+TEST(PlotsTest, BarsAreAsTallAsTheirValues) {
+  const std::string path = ::testing::TempDir() + "/placerec_bars_test.png";
+  std::remove(path.c_str());
+  // The first two palette colours (tab10 blue and orange, BGR).
+  const cv::Vec3b first(180, 119, 31);
+  const cv::Vec3b second(14, 127, 255);
+  ASSERT_TRUE(WriteBarChartPng(path, "object IoU", "mean IoU (%)", {"all (10)", "tree (4)"},
+                               {{"default", {20.0, 60.0}}, {"baseline", {80.0, NAN}}}, 800, 500)
+                  .ok());
+  const cv::Mat image = cv::imread(path, cv::IMREAD_COLOR);
+  ASSERT_EQ(image.size(), cv::Size(800, 500));
+  // Equal widths, so areas go as heights: default's 20 + 60 against baseline's 80 (its second
+  // value is missing), plus one legend swatch each.
+  const int a = PixelsOf(image, first);
+  const int b = PixelsOf(image, second);
+  ASSERT_GT(b, 1000);
+  EXPECT_NEAR(static_cast<double>(a) / b, 1.0, 0.05);
+  ASSERT_TRUE(WriteBarChartPng(path, "", "", {"one"}, {{"a", {20.0}}, {"b", {80.0}}}).ok());
+  const cv::Mat two = cv::imread(path, cv::IMREAD_COLOR);
+  EXPECT_NEAR(static_cast<double>(PixelsOf(two, second)) / PixelsOf(two, first), 4.0, 0.3);
+  std::remove(path.c_str());
+}
+
+TEST(PlotsTest, BarChartRefusesWhatItCannotDraw) {
+  const std::string path = ::testing::TempDir() + "/placerec_bars_bad.png";
+  EXPECT_EQ(WriteBarChartPng(path, "t", "y", {"a", "b"}, {{"s", {1.0}}}).code(),
+            StatusCode::kInvalidArgument);
+  EXPECT_EQ(WriteBarChartPng(path, "t", "y", {"a"}, {{"s", {101.0}}}).code(),
+            StatusCode::kInvalidArgument);
+  EXPECT_EQ(WriteBarChartPng(path, "t", "y", {}, {}).code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(WriteBarChartPng(path, "t", "y", {"a"}, {{"s", {1.0}}}, 100, 100).code(),
+            StatusCode::kInvalidArgument);
+  EXPECT_EQ(WriteBarChartPng(::testing::TempDir() + "/no_such_dir/b.png", "t", "y", {"a"},
+                             {{"s", {1.0}}})
+                .code(),
+            StatusCode::kIoError);
 }
 
 }  // namespace
