@@ -95,12 +95,14 @@ class BackgroundTrainingTest : public ::testing::Test {
 
 TEST_F(BackgroundTrainingTest, SuccessReplacesTheModelsAndLeavesNoStaging) {
   PlantOldModels();
+  config_.command_line = "placerec-train background --textons 8 --weak-count 5";
   StatusOr<nlohmann::json> manifest = TrainBackgroundModels(config_);
   ASSERT_TRUE(manifest.ok()) << manifest.status().ToString();
   const fs::path out(config_.out);
   EXPECT_NE(ReadText(out / "textons.yml"), "old textons\n");
   const nlohmann::json written = nlohmann::json::parse(ReadText(out / "manifest.json"));
   EXPECT_EQ(written, *manifest);
+  EXPECT_EQ(written.value("command", ""), config_.command_line);  // as typed, to retrain
   for (const char* file : {"background.yml", "background_sky.yml.gz", "background_water.yml.gz",
                            "check_sample.yml.gz"}) {
     EXPECT_TRUE(fs::exists(out / file)) << file;
