@@ -308,11 +308,12 @@ Status WriteSummaryChart(const nlohmann::json& report, const std::string& method
                   best["k_320x240"].get<double>(), best["min_size_320x240"].get<int>());
     series.push_back({label, values(best)});
   }
-  const std::string title = std::filesystem::path(report["dataset"].get<std::string>())
-                                .filename()
-                                .string() +
-                            " " + report["split"].get<std::string>() +
-                            ": object IoU (seed eq. 6.2), objects per class in brackets";
+  std::string dataset = report["dataset"].get<std::string>();
+  while (dataset.size() > 1 && dataset.back() == '/') dataset.pop_back();
+  const std::string title = std::filesystem::path(dataset).filename().string() + " " +
+                            report["split"].get<std::string>() + ", " +
+                            std::to_string(report["scored_images"].get<int>()) +
+                            " images: object IoU (seed eq. 6.2), objects in brackets";
   // Wide enough for every group's label ("building (394)") at a readable size.
   const int width = std::clamp(100 + 95 * static_cast<int>(groups.size()), 960, 4000);
   return WriteBarChartPng(path, title, "mean IoU (%)", groups, series, width, 520);
