@@ -191,6 +191,141 @@ cv::Mat ToOriginal(const cv::Mat& labels, cv::Size size) {
   return out;
 }
 
+
+// --oracle-classes: the classified superpixels take the background class of their ground-truth
+// majority class (`true_classes`, dataset ids at any size), then the seed's Perceptual
+// Organization groups them.
+SceneSegmentation OrganizeOnTrueClasses(const SceneOrganizer& organizer,
+                                        const WorkingImage& working, const cv::Mat& true_classes,
+                                        const ClassTable& table,
+                                        const OrganizationOptions& organization,
+                                        OrganizationSummary* summary) {
+  SceneSegmentation parts = organizer.ClassifiedSuperpixels(working);
+  const cv::Mat gt = LayerAtSize(true_classes, working.bgr.size());
+  const std::vector<int> labels = RegionLabels(parts.labels, parts.size(), gt, table, 0.0);
+  for (int r = 0; r < parts.size(); ++r) {
+    parts.classes[r] = labels[r] >= 0 && labels[r] < kBackgroundClasses
+                           ? static_cast<SegmentClass>(labels[r])
+                           : SegmentClass::kStructured;
+  }
+  SceneSegmentation segmentation =
+      OrganizeScene(parts.labels, parts.classes, working.lab, organization, summary);
+  segmentation.scale = working.scale;
+  return segmentation;
+}
+
+// --oracle-grouping: the regions of `parts` grouped by their majority ground-truth object
+// (`objects` CV_32S at the size of parts.labels, 0 = none); regions mostly outside every object
+// stay apart. Every group is "structured".
+SceneSegmentation GroupByTrueObjects(SceneSegmentation parts, const cv::Mat& objects) {
+  std::vector<std::map<int, int>> votes(static_cast<size_t>(parts.size()));
+  for (int y = 0; y < objects.rows; ++y) {
+    const int* g = objects.ptr<int>(y);
+    const int* l = parts.labels.ptr<int>(y);
+    for (int x = 0; x < objects.cols; ++x) ++votes[l[x]][g[x]];
+  }
+  std::map<int, int> group_of_object;
+  std::vector<int> group(votes.size());
+  for (size_t r = 0; r < votes.size(); ++r) {
+    int best = 0;
+    int best_votes = -1;
+    for (const auto& [object, count] : votes[r]) {
+      if (object > 0 && count > best_votes) {
+        best = object;
+        best_votes = count;
+      }
+    }
+    const int next_group = static_cast<int>(group_of_object.size());
+    group[r] = best > 0 ? group_of_object.emplace(best, next_group).first->second : -1;
+  }
+  int next = static_cast<int>(group_of_object.size());
+  for (int& g : group) {
+    if (g < 0) g = next++;
+  }
+  for (int y = 0; y < objects.rows; ++y) {
+    int* l = parts.labels.ptr<int>(y);
+    for (int x = 0; x < objects.cols; ++x) l[x] = group[l[x]];
+  }
+  parts.classes.assign(static_cast<size_t>(next), SegmentClass::kStructured);
+  return parts;
+}
+
+// Seed Table 6.4 protocol: every ground-truth object region of `image` (which has objects and
+// classes) is described and classified as a whole, and tallied into `all`, and into `salient`
+// when it covers at least `min_object_fraction` of the image.
+void TallyTrueRegions(const SceneOrganizer& organizer, const WorkingImage& working,
+                      const LabelledImage& image, const ClassTable& table,
+                      const SceneOrganizerOptions& options, double min_object_fraction,
+                      BackgroundAccuracy* all, BackgroundAccuracy* salient) {
+  const cv::Size working_size = working.bgr.size();
+  const cv::Mat working_objects = LayerAtSize(image.objects, working_size);
+  cv::Mat regions(working_size, CV_32S);
+  std::map<int, int> compact;
+  for (int y = 0; y < regions.rows; ++y) {
+    const int* o = working_objects.ptr<int>(y);
+    int* r = regions.ptr<int>(y);
+    for (int x = 0; x < regions.cols; ++x) {
+      r[x] = o[x] <= 0 ? -1
+                       : compact.emplace(o[x], static_cast<int>(compact.size())).first->second;
+    }
+  }
+  const int n = static_cast<int>(compact.size());
+  const cv::Mat appearance = organizer.Appearance(organizer.Features(working), regions, n);
+  std::vector<int> majority;
+  const std::vector<int> labels = RegionLabels(
+      regions, n, LayerAtSize(image.classes, working_size), table, 0.5, &majority);
+  const BackgroundClassifier& classifier = organizer.model().classifier;
+  const cv::Mat region_scores = classifier.Scores(appearance);
+  const std::vector<float> rivals = classifier.Rivals(appearance, options.one_per_class);
+  const std::vector<int> areas = RegionAreas(regions, n);
+  all->Add(region_scores, rivals, labels, majority, areas, table, options.background_threshold);
+  std::vector<int> salient_labels = labels;
+  for (int r = 0; r < n; ++r) {
+    if (areas[r] < min_object_fraction * static_cast<double>(regions.total())) {
+      salient_labels[r] = -1;
+    }
+  }
+  salient->Add(region_scores, rivals, salient_labels, majority, areas, table,
+               options.background_threshold);
+}
+
+// The segmentation options of a run, for segmentation.json.
+nlohmann::json OptionsJson(const SceneOrganizerOptions& options,
+                           const std::vector<std::string>& structured_classes) {
+  const SuperpixelOptions& sp = options.superpixels;
+  const OrganizationOptions& po = options.organization;
+  nlohmann::json opts;
+  opts["models_dir"] = options.models_dir.empty() ? DefaultModelsDir() : options.models_dir;
+  opts["working_width"] = sp.working_width;
+  opts["fh"] = {{"sigma", sp.sigma},
+                {"k_640x480", sp.k},
+                {"min_size_640x480", sp.min_size},
+                {"min_region_fraction", sp.min_region_fraction},
+                {"colour_merge_distance", sp.colour_merge_distance}};
+  opts["texton_stride"] = options.texton_stride;
+  opts["background_threshold"] = options.background_threshold;
+  opts["background_smoothing"] = options.background_smoothing;
+  opts["one_per_class"] = options.one_per_class;
+  opts["structured_classes"] = structured_classes;
+  opts["learned_merge"] = {{"enabled", options.learned_merge},
+                           {"threshold", options.merge.threshold}};
+  opts["organization"] = {{"theta", {po.theta_complexity, po.theta_cohesion}},
+                          {"alpha", po.alpha},
+                          {"beta", po.beta},
+                          {"complexity_step", po.complexity_step},
+                          {"complexity_window", po.complexity_window},
+                          {"symmetry_tolerance", po.symmetry_tolerance},
+                          {"alignment_extension", po.alignment_extension},
+                          {"alignment_tolerance", po.alignment_tolerance},
+                          {"enclosed_fraction", po.enclosed_fraction},
+                          {"max_subset", po.max_subset},
+                          {"max_rounds", po.max_rounds},
+                          {"round_colour_merge_distance", po.round_colour_merge_distance},
+                          {"background_merge_colour_distance", po.background_merge_colour_distance},
+                          {"merge_background", po.merge_background}};
+  return opts;
+}
+
 }  // namespace
 
 int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
@@ -388,49 +523,11 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     SceneOrganizerSummary summary;
     SceneSegmentation segmentation;
     if (oracle_classes && !image->classes.empty()) {
-      SceneSegmentation parts = organizer->ClassifiedSuperpixels(working);
-      const cv::Mat gt = LayerAtSize(image->classes, working.bgr.size());
-      const std::vector<int> labels = RegionLabels(parts.labels, parts.size(), gt, *table, 0.0);
-      for (int r = 0; r < parts.size(); ++r) {
-        parts.classes[r] = labels[r] >= 0 && labels[r] < kBackgroundClasses
-                               ? static_cast<SegmentClass>(labels[r])
-                               : SegmentClass::kStructured;
-      }
-      segmentation = OrganizeScene(parts.labels, parts.classes, working.lab, options.organization,
-                                   &summary.organization);
-      segmentation.scale = working.scale;
+      segmentation = OrganizeOnTrueClasses(*organizer, working, image->classes, *table,
+                                           options.organization, &summary.organization);
     } else if (oracle_grouping && !image->objects.empty()) {
-      segmentation = organizer->ClassifiedSuperpixels(working);
-      const cv::Mat gt = LayerAtSize(image->objects, working.bgr.size());
-      std::vector<std::map<int, int>> votes(static_cast<size_t>(segmentation.size()));
-      for (int y = 0; y < gt.rows; ++y) {
-        const int* g = gt.ptr<int>(y);
-        const int* l = segmentation.labels.ptr<int>(y);
-        for (int x = 0; x < gt.cols; ++x) ++votes[l[x]][g[x]];
-      }
-      std::map<int, int> group_of_object;
-      std::vector<int> group(votes.size());
-      for (size_t r = 0; r < votes.size(); ++r) {
-        int best = 0;
-        int best_votes = -1;
-        for (const auto& [object, count] : votes[r]) {
-          if (object > 0 && count > best_votes) {
-            best = object;
-            best_votes = count;
-          }
-        }
-        const int next_group = static_cast<int>(group_of_object.size());
-        group[r] = best > 0 ? group_of_object.emplace(best, next_group).first->second : -1;
-      }
-      int next = static_cast<int>(group_of_object.size());
-      for (int& g : group) {
-        if (g < 0) g = next++;
-      }
-      for (int y = 0; y < gt.rows; ++y) {
-        int* l = segmentation.labels.ptr<int>(y);
-        for (int x = 0; x < gt.cols; ++x) l[x] = group[l[x]];
-      }
-      segmentation.classes.assign(static_cast<size_t>(next), SegmentClass::kStructured);
+      segmentation = GroupByTrueObjects(organizer->ClassifiedSuperpixels(working),
+                                        LayerAtSize(image->objects, working.bgr.size()));
       segmentation.scale = working.scale;
     } else {
       segmentation = organizer->Segment(working, &summary);
@@ -499,39 +596,8 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
                           *table);
       }
       if (!gt_classes.empty() && !table->empty()) {
-        // Seed Table 6.4 protocol: ground-truth regions, described and classified.
-        const cv::Size working_size = working.bgr.size();
-        const cv::Mat working_objects = LayerAtSize(image->objects, working_size);
-        cv::Mat regions(working_size, CV_32S);
-        std::map<int, int> compact;
-        for (int y = 0; y < regions.rows; ++y) {
-          const int* o = working_objects.ptr<int>(y);
-          int* r = regions.ptr<int>(y);
-          for (int x = 0; x < regions.cols; ++x) {
-            r[x] = o[x] <= 0
-                       ? -1
-                       : compact.emplace(o[x], static_cast<int>(compact.size())).first->second;
-          }
-        }
-        const int n = static_cast<int>(compact.size());
-        const cv::Mat appearance = organizer->Appearance(organizer->Features(working), regions, n);
-        std::vector<int> majority;
-        const std::vector<int> labels = RegionLabels(
-            regions, n, LayerAtSize(image->classes, working_size), *table, 0.5, &majority);
-        const BackgroundClassifier& classifier = organizer->model().classifier;
-        const cv::Mat region_scores = classifier.Scores(appearance);
-        const std::vector<float> rivals = classifier.Rivals(appearance, options.one_per_class);
-        const std::vector<int> areas = RegionAreas(regions, n);
-        background.Add(region_scores, rivals, labels, majority, areas, *table,
-                       options.background_threshold);
-        std::vector<int> salient_labels = labels;
-        for (int r = 0; r < n; ++r) {
-          if (areas[r] < min_object_fraction * static_cast<double>(regions.total())) {
-            salient_labels[r] = -1;
-          }
-        }
-        salient_background.Add(region_scores, rivals, salient_labels, majority, areas, *table,
-                               options.background_threshold);
+        TallyTrueRegions(*organizer, working, *image, *table, options, min_object_fraction,
+                         &background, &salient_background);
         pixels.Add(segments, segmentation.classes, gt_classes, *table);
       }
     }
@@ -549,37 +615,9 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   report["mean_segments_per_image"] =
       ids->empty() ? 0.0 : static_cast<double>(segments_total) / static_cast<double>(ids->size());
   report["min_object_fraction"] = min_object_fraction;
-  nlohmann::json& opts = report["options"];
-  opts["models_dir"] = options.models_dir.empty() ? DefaultModelsDir() : options.models_dir;
-  opts["working_width"] = sp.working_width;
-  opts["fh"] = {{"sigma", sp.sigma},
-                {"k_640x480", sp.k},
-                {"min_size_640x480", sp.min_size},
-                {"min_region_fraction", sp.min_region_fraction},
-                {"colour_merge_distance", sp.colour_merge_distance}};
-  opts["texton_stride"] = options.texton_stride;
-  opts["oracle_classes"] = oracle_classes;
-  opts["oracle_grouping"] = oracle_grouping;
-  opts["background_threshold"] = options.background_threshold;
-  opts["background_smoothing"] = options.background_smoothing;
-  opts["one_per_class"] = options.one_per_class;
-  opts["structured_classes"] = organizer->model().classifier.structured_names();
-  opts["learned_merge"] = {{"enabled", options.learned_merge},
-                           {"threshold", options.merge.threshold}};
-  opts["organization"] = {{"theta", {po.theta_complexity, po.theta_cohesion}},
-                          {"alpha", po.alpha},
-                          {"beta", po.beta},
-                          {"complexity_step", po.complexity_step},
-                          {"complexity_window", po.complexity_window},
-                          {"symmetry_tolerance", po.symmetry_tolerance},
-                          {"alignment_extension", po.alignment_extension},
-                          {"alignment_tolerance", po.alignment_tolerance},
-                          {"enclosed_fraction", po.enclosed_fraction},
-                          {"max_subset", po.max_subset},
-                          {"max_rounds", po.max_rounds},
-                          {"round_colour_merge_distance", po.round_colour_merge_distance},
-                          {"background_merge_colour_distance", po.background_merge_colour_distance},
-                          {"merge_background", po.merge_background}};
+  report["options"] = OptionsJson(options, organizer->model().classifier.structured_names());
+  report["options"]["oracle_classes"] = oracle_classes;
+  report["options"]["oracle_grouping"] = oracle_grouping;
   for (const auto& [stage, ms] : stage_ms) {
     report["mean_ms"][stage] = ids->empty() ? 0.0 : ms / static_cast<double>(ids->size());
   }
