@@ -191,7 +191,6 @@ cv::Mat ToOriginal(const cv::Mat& labels, cv::Size size) {
   return out;
 }
 
-
 // --oracle-classes: the classified superpixels take the background class of their ground-truth
 // majority class (`true_classes`, dataset ids at any size), then the seed's Perceptual
 // Organization groups them.
@@ -216,7 +215,7 @@ SceneSegmentation OrganizeOnTrueClasses(const SceneOrganizer& organizer,
 
 // --oracle-grouping: the regions of `parts` grouped by their majority ground-truth object
 // (`objects` CV_32S at the size of parts.labels, 0 = none); regions mostly outside every object
-// stay apart. Every group is "structured".
+// stay apart. Every group is "structured"; the scale stays that of `parts`.
 SceneSegmentation GroupByTrueObjects(SceneSegmentation parts, const cv::Mat& objects) {
   std::vector<std::map<int, int>> votes(static_cast<size_t>(parts.size()));
   for (int y = 0; y < objects.rows; ++y) {
@@ -528,7 +527,6 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     } else if (oracle_grouping && !image->objects.empty()) {
       segmentation = GroupByTrueObjects(organizer->ClassifiedSuperpixels(working),
                                         LayerAtSize(image->objects, working.bgr.size()));
-      segmentation.scale = working.scale;
     } else {
       segmentation = organizer->Segment(working, &summary);
     }

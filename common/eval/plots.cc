@@ -440,11 +440,10 @@ Status WriteBarChartPng(const std::string& path, const std::string& title,
     legend_width += swatch + pad / 2 + label_font.Measure(s.label).width + 2 * pad;
   }
   const cv::Size tick_size = tick_font.Measure("100");
-  const cv::Size y_label_size = label_font.Measure(y_label.empty() ? "A" : y_label);
   const int top = pad + (title.empty() ? 0 : title_font.Measure(title).height + pad) +
                   label_font.Measure("Ag").height + pad;
-  const int left = pad + (y_label.empty() ? 0 : y_label_size.height + pad) + tick_size.width +
-                   tick + pad / 2;
+  const int left = pad + (y_label.empty() ? 0 : label_font.Measure(y_label).height + pad) +
+                   tick_size.width + tick + pad / 2;
   const int bottom = tick + pad / 2 + group_font.Measure("Ag").height + pad;
   const cv::Rect box(left, top, width - left - 2 * pad, height - top - bottom);
   if (box.width < 10 || box.height < 10) {

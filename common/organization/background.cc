@@ -103,13 +103,10 @@ bool BackgroundTrainingOptions::Check(std::string* error) const {
   return true;
 }
 
-StatusOr<BackgroundClassifier> BackgroundClassifier::Train(const cv::Mat& features,
-                                                 const std::vector<int>& labels,
-                                                 const std::vector<float>& weights,
-                                                 const BackgroundTrainingOptions& options,
-                                                 BackgroundTrainingSummary* summary,
-                                                 const std::vector<std::string>& structured_names,
-                                                 const std::vector<int>& structured_labels) {
+StatusOr<BackgroundClassifier> BackgroundClassifier::Train(
+    const cv::Mat& features, const std::vector<int>& labels, const std::vector<float>& weights,
+    const BackgroundTrainingOptions& options, BackgroundTrainingSummary* summary,
+    const std::vector<std::string>& structured_names, const std::vector<int>& structured_labels) {
   std::string error;
   CHECK(options.Check(&error)) << error;
   CHECK_EQ(features.type(), CV_32F);
@@ -163,8 +160,7 @@ StatusOr<BackgroundClassifier> BackgroundClassifier::Train(const cv::Mat& featur
     cv::Mat responses(samples.rows, 1, CV_32S);
     cv::Mat sample_weights(samples.rows, 1, CV_32F, cv::Scalar(1.0f));
     int row = 0;
-    const std::vector<int>& kept_negatives = negatives;
-    for (const std::vector<int>* rows : {&positives, &kept_negatives}) {
+    for (const std::vector<int>* rows : {&positives_of[c], &negatives_of[c]}) {
       for (const int i : *rows) {
         features.row(i).copyTo(samples.row(row));
         responses.at<int>(row) = rows == &positives ? 1 : 0;
