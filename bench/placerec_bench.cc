@@ -316,6 +316,7 @@ struct OrganizationFixture {
     assigner = std::make_unique<TextonAssigner>(organizer->model().textons);
     map = ComputeTextonMap(features, *assigner, options.texton_stride);
     appearance = RegionAppearance(parts.labels, parts.size(), map, features, *assigner);
+    boundary = organizer->BoundaryScores(parts, features);
   }
   std::string error;
   std::unique_ptr<SceneOrganizer> organizer;
@@ -324,6 +325,7 @@ struct OrganizationFixture {
   cv::Mat features;
   TextonMap map;
   cv::Mat appearance;
+  cv::Mat boundary;         // learned boundary scores on the superpixels' cracks (or empty)
   SceneSegmentation parts;  // classified superpixels
 };
 
@@ -389,13 +391,31 @@ void BM_OrgClassifiers(benchmark::State& state) {
 }
 BENCHMARK(BM_OrgClassifiers)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
+// The learned boundary classifier (boundary.h) on every pixel along a superpixel boundary, when
+// the grouping model reads it.
+void BM_OrgBoundary(benchmark::State& state) {
+  OrganizationFixture* o = Organization(state);
+  if (o == nullptr) return;
+  if (o->boundary.empty()) {
+    state.SkipWithError("the grouping model does not read learned boundary scores");
+    return;
+  }
+  for (auto _ : state) {
+    cv::Mat scores = o->organizer->BoundaryScores(o->parts, o->features);
+    benchmark::DoNotOptimize(scores.data);
+  }
+  state.counters["crack_pixels"] = cv::countNonZero(CrackPixels(o->parts.labels));
+}
+BENCHMARK(BM_OrgBoundary)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
 // The learned region merging of the classified superpixels (region_merging.h).
 void BM_OrgLearnedMerge(benchmark::State& state) {
   OrganizationFixture* o = Organization(state);
   if (o == nullptr) return;
   int regions = 0;
   for (auto _ : state) {
-    SceneSegmentation merged = o->organizer->MergeParts(o->parts, o->appearance, o->working.lab);
+    SceneSegmentation merged =
+        o->organizer->MergeParts(o->parts, o->appearance, o->working.lab, o->boundary);
     regions = merged.size();
     benchmark::DoNotOptimize(merged.labels.data);
   }
@@ -483,11 +503,11 @@ int main(int argc, char** argv) {
     std::printf(
         "\nRatios to OpenCV SIFT in this run (stages: frame Image120; pipeline: the same "
         "40 frames as the SIFT reference):\n");
-    for (const char* name :
-         {"BM_StageFeatures", "BM_StageSegmentation", "BM_StageAnalyze", "BM_StageLandmarks",
-          "BM_Pipeline", "BM_OrgSuperpixels", "BM_OrgFilterBank", "BM_OrgTextons",
-          "BM_OrgClassifiers", "BM_OrgLearnedMerge", "BM_OrgPerceptualOrganization",
-          "BM_OrgWholeSegmentation", "BM_OrgWholeSegmentationSeed"}) {
+    for (const char* name : {"BM_StageFeatures", "BM_StageSegmentation", "BM_StageAnalyze",
+                             "BM_StageLandmarks", "BM_Pipeline", "BM_OrgSuperpixels",
+                             "BM_OrgFilterBank", "BM_OrgTextons", "BM_OrgClassifiers",
+                             "BM_OrgBoundary", "BM_OrgLearnedMerge", "BM_OrgPerceptualOrganization",
+                             "BM_OrgWholeSegmentation", "BM_OrgWholeSegmentationSeed"}) {
       const auto it = t.find(name);
       if (it != t.end()) std::printf("  %-30s %6.2f\n", name, it->second / sift->second);
     }

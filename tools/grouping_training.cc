@@ -75,6 +75,7 @@ struct TrainingImage {
   SceneSegmentation parts;
   cv::Mat lab;
   cv::Mat appearance;
+  cv::Mat boundary;  // learned boundary scores on the cracks of parts (empty when not read)
   std::vector<Votes> votes;
 };
 
@@ -145,14 +146,19 @@ StatusOr<TrainedModel> TrainOn(const PairSample& all, const GroupingTrainingConf
 
 // Checks that `dir`'s background models left out fold `fold` of the images the grouping model
 // trains on (its manifest.json, written by placerec-train background).
-Status CheckCrossFitModels(const std::string& dir, const Fold& fold,
-                           const GroupingTrainingConfig& config) {
-  const std::string path = dir + "/manifest.json";
+// Checks that the training manifest at `path` (background or boundary) left out fold `fold` of
+// the images the grouping model trains on.
+Status CheckCrossFitManifest(const std::string& path, const Fold& fold,
+                             const GroupingTrainingConfig& config) {
+  const std::string dir = std::filesystem::path(path).parent_path().string();
+  const std::string command =
+      std::filesystem::path(path).filename() == "boundary.json" ? "boundary" : "background";
   std::ifstream in(path);
-  if (!in) return Status::NotFound("cannot read " + path + " (a background training manifest)");
+  if (!in)
+    return Status::NotFound("cannot read " + path + " (a " + command + " training manifest)");
   const nlohmann::json manifest = nlohmann::json::parse(in, nullptr, false);
   if (manifest.is_discarded() || !manifest.contains("data")) {
-    return Status::InvalidArgument(path + " is not a background training manifest");
+    return Status::InvalidArgument(path + " is not a " + command + " training manifest");
   }
   const nlohmann::json& data = manifest["data"];
   const std::string dataset = std::filesystem::path(config.dataset).filename().string();
@@ -160,10 +166,10 @@ Status CheckCrossFitModels(const std::string& dir, const Fold& fold,
       data.value("holdout_first_images", -1) != config.holdout ||
       data.value("left_out_fold", "") != fold.ToString()) {
     return Status::InvalidArgument(
-        "--cross-fit: " + dir + " holds other background models (its manifest's data: " +
-        data.dump() + "); train them with placerec-train background --dataset " + config.dataset +
-        " --split " + config.split + " --holdout " + std::to_string(config.holdout) +
-        " --leave-out-fold " + fold.ToString() + " --out " + dir);
+        "--cross-fit: " + dir + " holds other " + command +
+        " models (its manifest's data: " + data.dump() + "); train them with placerec-train " +
+        command + " --dataset " + config.dataset + " --split " + config.split + " --holdout " +
+        std::to_string(config.holdout) + " --leave-out-fold " + fold.ToString() + " --out " + dir);
   }
   return Status::Ok();
 }
@@ -199,8 +205,9 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
   std::vector<std::string> model_dirs =
       config.cross_fit.empty() ? std::vector<std::string>{config.out} : config.cross_fit;
   for (size_t k = 0; k < config.cross_fit.size(); ++k) {
-    PLACEREC_RETURN_IF_ERROR(CheckCrossFitModels(
-        model_dirs[k], Fold{static_cast<int>(k), static_cast<int>(model_dirs.size())}, config));
+    PLACEREC_RETURN_IF_ERROR(CheckCrossFitManifest(
+        model_dirs[k] + "/manifest.json",
+        Fold{static_cast<int>(k), static_cast<int>(model_dirs.size())}, config));
   }
   for (size_t k = 0; k < model_dirs.size(); ++k) {
     organizer_options.models_dir = model_dirs[k];
@@ -214,11 +221,44 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
     organizers.push_back(std::move(*organizer));
   }
   const BackgroundModel& background = organizers[0].model();
+  // The boundary classifier of each fold: from the fold's cross-fit directory when it has one
+  // (trained without the fold), otherwise from --out.
+  const bool reads_boundary = config.features > kMergeBoundaryOffset;
+  std::vector<BoundaryModel> boundary_models(organizers.size());
+  std::vector<std::string> boundary_sources(organizers.size());
+  if (reads_boundary) {
+    StatusOr<BoundaryModel> shared = BoundaryModel::Load(config.out);
+    if (!shared.ok() && shared.status().code() != StatusCode::kNotFound) return shared.status();
+    for (size_t k = 0; k < organizers.size(); ++k) {
+      const Fold fold{static_cast<int>(k), static_cast<int>(config.cross_fit.size())};
+      StatusOr<BoundaryModel> own = config.cross_fit.empty()
+                                        ? StatusOr<BoundaryModel>(Status::NotFound(""))
+                                        : BoundaryModel::Load(model_dirs[k]);
+      if (own.ok()) {
+        PLACEREC_RETURN_IF_ERROR(
+            CheckCrossFitManifest(model_dirs[k] + "/boundary.json", fold, config));
+        boundary_models[k] = std::move(*own);
+        boundary_sources[k] = model_dirs[k];
+      } else if (own.status().code() != StatusCode::kNotFound) {
+        return own.status();
+      } else if (shared.ok()) {
+        boundary_models[k] = *shared;
+        boundary_sources[k] = config.out;
+      } else {
+        return Status::NotFound("--features " + std::to_string(config.features) +
+                                " reads learned boundary scores but " + config.out + " has no " +
+                                BoundaryModel::kFileName +
+                                ": train it first with placerec-train boundary --dataset " +
+                                config.dataset + " --out " + config.out);
+      }
+    }
+  }
   auto new_state = [&](const TrainingImage& t) {
     const BackgroundModel& model = organizers[static_cast<size_t>(t.fold)].model();
     return MergeState(t.parts.labels, t.parts.size(), t.lab, t.appearance,
                       organizer_options.texton_stride, model.textons.inv_std, model.classifier,
-                      organizer_options.background_threshold, organizer_options.one_per_class);
+                      organizer_options.background_threshold, organizer_options.one_per_class,
+                      t.boundary);
   };
 
   // Pass 1: superpixels and ground-truth merge levels.
@@ -239,9 +279,14 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
     TrainingImage t;
     t.fold =
         FoldOf(i - static_cast<size_t>(config.holdout), total, static_cast<int>(organizers.size()));
-    t.parts = organizers[static_cast<size_t>(t.fold)].ClassifiedSuperpixels(working, nullptr,
-                                                                            nullptr, &t.appearance);
+    cv::Mat bank;
+    t.parts = organizers[static_cast<size_t>(t.fold)].ClassifiedSuperpixels(working, &bank, nullptr,
+                                                                            &t.appearance);
     t.lab = working.lab;
+    if (reads_boundary) {
+      t.boundary =
+          boundary_models[static_cast<size_t>(t.fold)].ScoreMap(bank, CrackPixels(t.parts.labels));
+    }
     const cv::Mat objects = LayerAtSize(image->objects, working.bgr.size());
     t.votes.resize(static_cast<size_t>(t.parts.size()));
     for (int y = 0; y < objects.rows; ++y) {
@@ -354,6 +399,15 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
       {"one_per_class", organizer_options.one_per_class},
       {"structured_classes", background.classifier.structured_names()}};
   manifest["seed"] = config.seed;
+  if (reads_boundary) {
+    // The boundary model that describes the pairs of each fold, with its manifest.
+    for (const std::string& dir : boundary_sources) {
+      std::ifstream in(dir + "/boundary.json");
+      manifest["boundary_models"].push_back(
+          {{"directory", dir},
+           {"manifest", in ? nlohmann::json::parse(in, nullptr, false) : nlohmann::json()}});
+    }
+  }
   std::ofstream out(config.out + "/grouping.json");
   if (!out) return Status::IoError("cannot write " + config.out + "/grouping.json");
   out << manifest.dump(2) << "\n";

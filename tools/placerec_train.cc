@@ -5,6 +5,8 @@
 //   placerec-train grouping --dataset DIR --out models/
 // learns the region-merge classifier (region_merging.h) from DIR's object ground truth with the
 // textons and classifiers already in --out, and writes grouping.yml.gz and grouping.json.
+//   placerec-train boundary --dataset DIR --out models/
+// learns the boundary classifier (boundary.h) the grouping model's boundary features read.
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -20,6 +22,7 @@
 #include "common/util/options.h"
 #include "common/util/paths.h"
 #include "tools/background_training.h"
+#include "tools/boundary_training.h"
 #include "tools/grouping_training.h"
 
 namespace placerec {
@@ -29,6 +32,7 @@ constexpr char kUsage[] =
     "placerec-train COMMAND [options]\n\n"
     "Commands:\n"
     "  background   textons and background classifiers (seed §3.4) from a labelled dataset\n"
+    "  boundary     the learned object-boundary classifier the grouping reads\n"
     "  grouping     the learned region-merge classifier, from a dataset's object ground truth\n"
     "  grouping-ensemble\n"
     "               one grouping model that averages the scores of trained ones\n\n"
@@ -115,6 +119,62 @@ int BackgroundCommand(int argc, char** argv) {
   return 0;
 }
 
+int BoundaryCommand(int argc, char** argv) {
+  BoundaryTrainingConfig config;
+  bool quiet = false;
+  FlagParser parser(
+      "placerec-train boundary --dataset DIR --out DIR [options]\n\n"
+      "Learns the object-boundary classifier (common/organization/boundary.h): the pixels on\n"
+      "the superpixel boundaries of DIR's training images, labelled by whether a ground-truth\n"
+      "object boundary runs there, described by filter-bank differences across them in four\n"
+      "directions at three distances, and a Gentle AdaBoost classifier on them. Writes\n"
+      "boundary.yml.gz and boundary.json (data, options, accuracy) into --out. Grouping models\n"
+      "trained with --features 48 read it.");
+  parser.AddRequired("dataset", &config.dataset,
+                     "labelled dataset with objects/ (layout of shared/data/README.md)");
+  parser.AddRequired("out", &config.out, "models directory to write (created if missing)");
+  parser.Add("split", &config.split, "split to train on");
+  parser.Add("eval-split", &config.eval_split,
+             "split whose accuracy goes into the manifest ('' to skip)");
+  parser.Add("holdout", &config.holdout,
+             "leave the first N images of --split out of training (their accuracy is reported)");
+  std::string boundary_fold;
+  parser.Add("leave-out-fold", &boundary_fold,
+             "I/K: also leave out fold I of the images after the holdout (a boundary model for "
+             "the fold's directory of placerec-train grouping --cross-fit)");
+  parser.Add("samples-per-image", &config.samples_per_image,
+             "pixels drawn per image on object boundaries, and as many off them");
+  parser.Add("positive-distance", &config.positive_distance,
+             "a pixel this close (working pixels) to an object boundary is on it");
+  parser.Add("negative-distance", &config.negative_distance,
+             "a pixel at least this far from every object boundary is off them");
+  parser.Add("weak-count", &config.boost.weak_count, "boosted trees");
+  parser.Add("max-depth", &config.boost.max_depth, "depth of each tree");
+  parser.Add("seed", &config.seed, "random seed (pixel sampling)");
+  parser.AddSwitch("quiet", &quiet, "no progress lines");
+  if (const std::optional<int> exit =
+          parser.ParseOrExit(argc, argv, 2, "placerec-train boundary")) {
+    return *exit;
+  }
+  StatusOr<Fold> fold = ParseFold(boundary_fold);
+  if (!fold.ok()) {
+    std::fprintf(stderr, "placerec-train boundary: --leave-out-fold: %s\n",
+                 fold.status().ToString().c_str());
+    return 2;
+  }
+  config.leave_out_fold = *fold;
+  config.progress = !quiet;
+  config.command_line = CommandLine(argc, argv);
+  cv::setNumThreads(1);
+  StatusOr<nlohmann::json> manifest = TrainBoundaryModel(config);
+  if (!manifest.ok()) {
+    std::fprintf(stderr, "placerec-train boundary: %s\n", manifest.status().ToString().c_str());
+    return 1;
+  }
+  std::printf("%s\n", manifest->dump(2).c_str());
+  return 0;
+}
+
 int GroupingCommand(int argc, char** argv) {
   GroupingTrainingConfig config;
   bool quiet = false;
@@ -137,7 +197,8 @@ int GroupingCommand(int argc, char** argv) {
              "DIR_0,...,DIR_K-1: describe fold k of the images after the holdout with the "
              "background models in DIR_k, trained with --holdout N --leave-out-fold k/K (so the "
              "pairs' background scores are those of unseen images; --out then only receives "
-             "the model)");
+             "the model; a DIR_k with boundary.yml.gz, trained with the same --holdout and "
+             "--leave-out-fold, also gives fold k's boundary scores)");
   parser.Add("levels", &config.levels, "ground-truth merge levels recorded after the superpixels");
   parser.Add("level-fraction", &config.level_fraction,
              "share of the same-object pairs each level merges");
@@ -151,7 +212,8 @@ int GroupingCommand(int argc, char** argv) {
   parser.Add("features", &config.features,
              "pair features the model reads: the 33 relational ones, 42 with the structured "
              "classes' scores (needs background classifiers trained with structured classes), "
-             "82 with the pair's place in appearance space");
+             "48 with the learned boundary scores (needs boundary.yml.gz in --out: "
+             "placerec-train boundary), 88 with the pair's place in appearance space");
   // The regions' background classes while pairs are described (the shipped model: threshold
   // 0, one-per-class; models/README.md).
   AddBackgroundDecisionFlags(&parser, &config.organizer);
@@ -246,6 +308,7 @@ int main(int argc, char** argv) {
     return argc < 2 ? 2 : 0;
   }
   if (std::strcmp(argv[1], "background") == 0) return placerec::BackgroundCommand(argc, argv);
+  if (std::strcmp(argv[1], "boundary") == 0) return placerec::BoundaryCommand(argc, argv);
   if (std::strcmp(argv[1], "grouping") == 0) return placerec::GroupingCommand(argc, argv);
   if (std::strcmp(argv[1], "grouping-ensemble") == 0) {
     return placerec::GroupingEnsembleCommand(argc, argv);

@@ -40,7 +40,7 @@ bool RegionMergeOptions::Check(std::string* error) const {
 MergeState::MergeState(const cv::Mat& labels, int num_regions, const cv::Mat& lab,
                        const cv::Mat& appearance, int texton_stride, const cv::Mat& feature_inv_std,
                        const BackgroundClassifier& classifier, double background_threshold,
-                       bool one_per_class)
+                       bool one_per_class, const cv::Mat& boundary_scores)
     : labels_(labels.clone()),
       size_(labels.size()),
       classifier_(classifier),
@@ -52,6 +52,12 @@ MergeState::MergeState(const cv::Mat& labels, int num_regions, const cv::Mat& la
   CHECK_EQ(appearance.rows, num_regions);
   CHECK_EQ(appearance.type(), CV_32F);
   CHECK_GE(texton_stride, 1);
+  const bool have_boundary = !boundary_scores.empty();
+  have_boundary_ = have_boundary;
+  if (have_boundary) {
+    CHECK_EQ(boundary_scores.type(), CV_32F);
+    CHECK(boundary_scores.size() == labels.size());
+  }
   k_ = appearance.cols - 1 - kAppearanceExtras;
   CHECK_GT(k_, 0);
   CHECK_EQ(feature_inv_std.total(), static_cast<size_t>(kTextonFeatureSize));
@@ -79,7 +85,8 @@ MergeState::MergeState(const cv::Mat& labels, int num_regions, const cv::Mat& la
     return DeltaE(smooth.at<cv::Vec3f>(ya, xa), smooth.at<cv::Vec3f>(yb, xb));
   };
   std::map<std::pair<int, int>, int> edge_of;
-  auto crack = [&](int a, int b, double contrast, double wide_contrast, bool horizontal) {
+  auto crack = [&](int a, int b, double contrast, double wide_contrast, bool horizontal,
+                   double boundary) {
     const std::pair<int, int> key(std::min(a, b), std::max(a, b));
     auto it = edge_of.find(key);
     if (it == edge_of.end()) {
@@ -94,12 +101,19 @@ MergeState::MergeState(const cv::Mat& labels, int num_regions, const cv::Mat& la
     e.strong += contrast > kStrongContrast;
     e.wide_sum += wide_contrast;
     e.horizontal += horizontal;
+    e.boundary_sum += boundary;
+    e.boundary_positive += boundary > 0;
+    e.boundary_strong += boundary > kStrongBoundary;
+    e.boundary_weak += boundary < kWeakBoundary;
   };
   for (int y = 0; y < size_.height; ++y) {
     const int* row = labels.ptr<int>(y);
     const int* below = y + 1 < size_.height ? labels.ptr<int>(y + 1) : nullptr;
     const cv::Vec3f* lab_row = lab.ptr<cv::Vec3f>(y);
     const cv::Vec3f* lab_below = below != nullptr ? lab.ptr<cv::Vec3f>(y + 1) : nullptr;
+    const float* boundary_row = have_boundary ? boundary_scores.ptr<float>(y) : nullptr;
+    const float* boundary_below =
+        have_boundary && below != nullptr ? boundary_scores.ptr<float>(y + 1) : nullptr;
     for (int x = 0; x < size_.width; ++x) {
       const int l = row[x];
       CHECK(l >= 0 && l < num_regions) << "label " << l << " outside 0.." << num_regions - 1;
@@ -119,12 +133,14 @@ MergeState::MergeState(const cv::Mat& labels, int num_regions, const cv::Mat& la
       if (x + 1 < size_.width && row[x + 1] != l) {
         r.perimeter += 1;
         regions_[row[x + 1]].perimeter += 1;
-        crack(l, row[x + 1], DeltaE(lab_row[x], lab_row[x + 1]), wide(x, y, x + 1, y), false);
+        crack(l, row[x + 1], DeltaE(lab_row[x], lab_row[x + 1]), wide(x, y, x + 1, y), false,
+              have_boundary ? 0.5 * (boundary_row[x] + boundary_row[x + 1]) : 0.0);
       }
       if (below != nullptr && below[x] != l) {
         r.perimeter += 1;
         regions_[below[x]].perimeter += 1;
-        crack(l, below[x], DeltaE(lab_row[x], lab_below[x]), wide(x, y, x, y + 1), true);
+        crack(l, below[x], DeltaE(lab_row[x], lab_below[x]), wide(x, y, x, y + 1), true,
+              have_boundary ? 0.5 * (boundary_row[x] + boundary_below[x]) : 0.0);
       }
       if (y % texton_stride == 0 && x % texton_stride == 0) r.samples += 1;
     }
@@ -245,6 +261,21 @@ void MergeState::PairFeatures(int a, int b, float* out) const {
   out[i++] = std::min(ra.margin, rb.margin);
   out[i++] = std::max(ra.margin, rb.margin);
   out[i++] = structured > 0 && ra.best_class == rb.best_class ? 1.0f : 0.0f;
+  CHECK_EQ(i, kMergeBoundaryOffset);
+  if (have_boundary_) {
+    out[i++] = static_cast<float>(e.boundary_sum / shared);
+    out[i++] = static_cast<float>(e.boundary_positive / shared);
+    out[i++] = static_cast<float>(e.boundary_strong / shared);
+    out[i++] = static_cast<float>(e.boundary_weak / shared);
+    auto internal = [](const Region& r) {
+      return r.internal_cracks > 0 ? static_cast<float>(r.internal_boundary_sum / r.internal_cracks)
+                                   : kNoInternalBoundary;
+    };
+    out[i++] = std::min(internal(ra), internal(rb));
+    out[i++] = std::max(internal(ra), internal(rb));
+  } else {
+    for (int f = 0; f < kMergeBoundaryFeatures; ++f) out[i++] = 0.0f;
+  }
   CHECK_EQ(i, kMergeAppearanceOffset);
   for (int f = 0; f < kTextonFeatureSize; ++f) {
     const float ma = ra.appearance[k_ + 1 + f];
@@ -285,6 +316,9 @@ void MergeState::Merge(int a, int b) {
   const auto ab = ra.neighbours.find(b);
   CHECK(ab != ra.neighbours.end()) << "merging regions that are not adjacent";
   const double shared = edges_[ab->second].shared;
+  // The common boundary's cracks are inside the union from now on.
+  ra.internal_boundary_sum += rb.internal_boundary_sum + edges_[ab->second].boundary_sum;
+  ra.internal_cracks += rb.internal_cracks + shared;
   // Appearance: sample-weighted histograms and feature moments; height from the pixels.
   const double wa = ra.samples / (ra.samples + rb.samples);
   const double wb = 1.0 - wa;
@@ -329,6 +363,10 @@ void MergeState::Merge(int a, int b) {
       target.strong += source.strong;
       target.wide_sum += source.wide_sum;
       target.horizontal += source.horizontal;
+      target.boundary_sum += source.boundary_sum;
+      target.boundary_positive += source.boundary_positive;
+      target.boundary_strong += source.boundary_strong;
+      target.boundary_weak += source.boundary_weak;
     } else {
       ra.neighbours[n] = edge;
       rn.neighbours[a] = edge;
@@ -449,14 +487,18 @@ StatusOr<RegionMergeModel> RegionMergeModel::Load(const std::string& directory) 
     fs["format_version"] >> version;
     fs["features"] >> features;
     if (version >= 2) fs["members"] >> members;
-    // Versions 1 and 2 put the appearance-space features right after the relational ones.
-    const int most = version == kFormatVersion ? kMergeFeatures : kMergeRelationFeatures;
+    // Versions 1 and 2 put the appearance-space features right after the relational ones,
+    // version 3 right after the semantic ones.
+    const int most = version == kFormatVersion ? kMergeFeatures
+                     : version == 3            ? kMergeBoundaryOffset
+                                               : kMergeRelationFeatures;
     if (version < 1 || version > kFormatVersion || features < 1 || features > most ||
         members < 1) {
       return Status::InvalidArgument(
           path + ": format version " + std::to_string(version) + " with " +
           std::to_string(features) + " features; this build reads version " +
           std::to_string(kFormatVersion) + " with at most " + std::to_string(kMergeFeatures) +
+          ", version 3 with at most " + std::to_string(kMergeBoundaryOffset) +
           " and versions 1 and 2 with at most " + std::to_string(kMergeRelationFeatures) +
           " (retrain with placerec-train grouping)");
     }

@@ -35,13 +35,25 @@ namespace placerec {
 // (background.h; zeros without them): for each of the first kMergeStructuredScores structured
 // classes the smaller and the larger of the two regions' scores, the smaller and the larger
 // margin of the best background score over the best structured one, and whether both regions
-// take the same class under the one-per-class decision. The rest place the pair in appearance
-// space: for each of the 20 filter-bank features, the smaller and the larger of the two
-// regions' means. A model reads the leading columns it was trained on.
+// take the same class under the one-per-class decision. The next kMergeBoundaryFeatures read the
+// learned boundary scores (boundary.h; zeros without them), each crack's score being the mean of
+// its two pixels': along the common boundary, the mean crack score and the shares of cracks
+// scoring above 0 ("object boundary"), above kStrongBoundary and below kWeakBoundary; inside the
+// two regions (the cracks earlier merges removed), the smaller and the larger mean crack score
+// (kNoInternalBoundary for a region no merge has formed), so that a boundary can be judged
+// against the edges each side already holds. The rest place the pair in appearance space: for
+// each of the 20 filter-bank features, the smaller and the larger of the two regions' means. A
+// model reads the leading columns it was trained on.
 constexpr int kMergeRelationFeatures = 33;
 constexpr int kMergeStructuredScores = 3;
 constexpr int kMergeSemanticFeatures = 2 * kMergeStructuredScores + 3;
-constexpr int kMergeAppearanceOffset = kMergeRelationFeatures + kMergeSemanticFeatures;
+constexpr int kMergeBoundaryOffset = kMergeRelationFeatures + kMergeSemanticFeatures;
+constexpr int kMergeBoundaryFeatures = 6;
+constexpr float kStrongBoundary = 1.0f;
+constexpr float kWeakBoundary = -1.0f;
+constexpr float kNoInternalBoundary = -4.0f;
+constexpr int kMergeInternalBoundary = kMergeBoundaryOffset + 4;  // the smaller, then the larger
+constexpr int kMergeAppearanceOffset = kMergeBoundaryOffset + kMergeBoundaryFeatures;
 constexpr int kMergeFeatures = kMergeAppearanceOffset + 2 * 20;
 
 struct RegionMergeOptions {
@@ -59,11 +71,12 @@ class MergeState {
   // columns) computed on the texton grid of `texton_stride`; `feature_inv_std` the textons'
   // per-feature scale (TextonModel::inv_std, 1 x 20); `classifier` decides the background class
   // of every (merged) region (with `one_per_class`, BackgroundClassifier::Decide's rival is
-  // the best structured score).
+  // the best structured score); `boundary_scores`, when not empty, the learned boundary scores
+  // of the pixels on the cracks of `labels` (BoundaryModel::ScoreMap, CV_32F, labels' size).
   MergeState(const cv::Mat& labels, int num_regions, const cv::Mat& lab, const cv::Mat& appearance,
              int texton_stride, const cv::Mat& feature_inv_std,
              const BackgroundClassifier& classifier, double background_threshold,
-             bool one_per_class = false);
+             bool one_per_class = false, const cv::Mat& boundary_scores = cv::Mat());
 
   int capacity() const { return static_cast<int>(regions_.size()); }
   bool alive(int region) const { return regions_[region].alive; }
@@ -93,6 +106,9 @@ class MergeState {
     std::vector<float> appearance;  // RegionAppearance row
     std::array<float, kBackgroundClasses> scores{};
     std::vector<float> structured_scores;  // one per structured classifier
+    // Learned boundary scores of the cracks inside the region (those of the edges merged away).
+    double internal_boundary_sum = 0;
+    double internal_cracks = 0;
     // From the scores (Decide): the argmax over all classes (0..4 background, 5 + structured
     // index) and the best background score minus the best structured one (0 without them).
     int best_class = 0;
@@ -106,6 +122,12 @@ class MergeState {
     double strong = 0;        // cracks with Delta E above kStrongContrast
     double wide_sum = 0;      // Delta E of the smoothed image one pixel beyond each side
     double horizontal = 0;    // cracks between vertically adjacent pixels
+    // Learned boundary scores (0 without them): their sum over the cracks, and the cracks
+    // scoring above 0, above kStrongBoundary and below kWeakBoundary.
+    double boundary_sum = 0;
+    double boundary_positive = 0;
+    double boundary_strong = 0;
+    double boundary_weak = 0;
   };
 
   void Describe(Region* region) const;
@@ -119,6 +141,7 @@ class MergeState {
   const BackgroundClassifier& classifier_;
   double background_threshold_ = 0;
   bool one_per_class_ = false;
+  bool have_boundary_ = false;
   std::vector<Region> regions_;
   std::vector<Edge> edges_;
   mutable std::vector<int> parent_;
@@ -129,9 +152,10 @@ class MergeState {
 class RegionMergeModel {
  public:
   // 1: one classifier under "boost"; 2: "members" classifiers under "member_<i>"; 3: as 2,
-  // with the semantic features before the appearance-space ones (versions 1 and 2 are read
-  // when they use the relational features only).
-  static constexpr int kFormatVersion = 3;
+  // with the semantic features before the appearance-space ones; 4: as 3, with the boundary
+  // features between them (versions 1 and 2 are read when they use the relational features
+  // only, version 3 when it reads no appearance-space feature).
+  static constexpr int kFormatVersion = 4;
   static constexpr const char* kFileName = "grouping.yml.gz";
 
   struct TrainingOptions {

@@ -70,11 +70,22 @@ cv::Mat AppearanceOf(const BackgroundModel& model, const cv::Mat& lab, const cv:
 }
 
 MergeState StateOf(const BackgroundModel& model, const cv::Mat& lab, const cv::Mat& labels,
-                   int regions) {
+                   int regions, const cv::Mat& boundary = cv::Mat()) {
   constexpr int kStride = 2;
   return MergeState(labels, regions, lab, AppearanceOf(model, lab, labels, regions, kStride),
                     kStride, model.textons.inv_std, model.classifier, 0.0,
-                    /*one_per_class=*/true);
+                    /*one_per_class=*/true, boundary);
+}
+
+// A made-up learned boundary score for every pixel, varying in x and y and of both signs.
+cv::Mat BoundaryField(cv::Size size) {
+  cv::Mat field(size, CV_32F);
+  for (int y = 0; y < size.height; ++y) {
+    for (int x = 0; x < size.width; ++x) {
+      field.at<float>(y, x) = static_cast<float>(std::sin(0.3 * x) + 0.5 * std::cos(0.2 * y));
+    }
+  }
+  return field;
 }
 
 TEST(MergeStateTest, PairFeaturesAreSymmetric) {
@@ -102,7 +113,8 @@ TEST(MergeStateTest, MergedStateEqualsStateBuiltFromMergedLabels) {
   const std::shared_ptr<const BackgroundModel> model = ShippedModel();
   if (!model) GTEST_SKIP() << "no trained models in " << PLACEREC_MODELS_DIR;
   const Scene scene = MakeScene();
-  MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions);
+  const cv::Mat boundary = BoundaryField(scene.labels.size());
+  MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions, boundary);
   // Join the halves of the top-left block, then that block with the top-right block's left
   // half, then the bottom blocks' inner halves.
   state.Merge(0, 1);
@@ -110,7 +122,7 @@ TEST(MergeStateTest, MergedStateEqualsStateBuiltFromMergedLabels) {
   state.Merge(5, 6);
   const SceneSegmentation merged = state.Result();
   ASSERT_EQ(merged.size(), 5);
-  const MergeState fresh = StateOf(*model, scene.lab, merged.labels, merged.size());
+  const MergeState fresh = StateOf(*model, scene.lab, merged.labels, merged.size(), boundary);
   // Map the incremental state's live ids to the compact ids of Result().
   std::vector<int> compact_of(static_cast<size_t>(state.capacity()), -1);
   for (int y = 0; y < scene.labels.rows; ++y) {
@@ -126,6 +138,8 @@ TEST(MergeStateTest, MergedStateEqualsStateBuiltFromMergedLabels) {
     state.PairFeatures(a, b, incremental);
     fresh.PairFeatures(compact_of[a], compact_of[b], scratch);
     for (int f = 0; f < kMergeFeatures; ++f) {
+      // The cracks inside a region are those merges removed: a fresh state has none.
+      if (f == kMergeInternalBoundary || f == kMergeInternalBoundary + 1) continue;
       EXPECT_NEAR(incremental[f], scratch[f], 1e-3 * (1.0 + std::abs(scratch[f])))
           << "pair " << a << "," << b << " feature " << f;
     }
@@ -135,6 +149,39 @@ TEST(MergeStateTest, MergedStateEqualsStateBuiltFromMergedLabels) {
       EXPECT_EQ(state.ClassOf(r), fresh.ClassOf(compact_of[r]));
     }
   }
+}
+
+// The boundary features are the mean learned score of the common boundary's cracks (each the
+// mean of its two pixels) and the share of cracks scoring above 0; zeros without scores.
+TEST(MergeStateTest, BoundaryFeaturesReadTheCrackScores) {
+  const std::shared_ptr<const BackgroundModel> model = ShippedModel();
+  if (!model) GTEST_SKIP() << "no trained models in " << PLACEREC_MODELS_DIR;
+  const Scene scene = MakeScene();
+  // Regions 0 and 1 (the top-left block's halves) meet along the vertical crack between
+  // columns 15 and 16, rows 0..23.
+  cv::Mat boundary(scene.labels.size(), CV_32F, cv::Scalar(-1.0f));
+  for (int y = 0; y < 12; ++y) {
+    boundary.at<float>(y, 15) = 2.0f;
+    boundary.at<float>(y, 16) = 4.0f;
+  }
+  float f[kMergeFeatures];
+  StateOf(*model, scene.lab, scene.labels, scene.regions, boundary).PairFeatures(0, 1, f);
+  // 12 cracks score (2 + 4) / 2 = 3, the other 12 score -1.
+  EXPECT_FLOAT_EQ(f[kMergeBoundaryOffset], 1.0f);
+  EXPECT_FLOAT_EQ(f[kMergeBoundaryOffset + 1], 0.5f);         // above 0
+  EXPECT_FLOAT_EQ(f[kMergeBoundaryOffset + 2], 0.5f);         // above kStrongBoundary (1)
+  EXPECT_FLOAT_EQ(f[kMergeBoundaryOffset + 3], 0.0f);         // below kWeakBoundary (-1)
+  EXPECT_EQ(f[kMergeInternalBoundary], kNoInternalBoundary);  // superpixels hold no cracks
+  EXPECT_EQ(f[kMergeInternalBoundary + 1], kNoInternalBoundary);
+  // Once 0 and 1 are merged, their common boundary is inside the union: against region 2 (the
+  // top-right block's left half, no merge yet) it is the larger internal mean.
+  MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions, boundary);
+  state.Merge(0, 1);
+  state.PairFeatures(0, 2, f);
+  EXPECT_FLOAT_EQ(f[kMergeInternalBoundary], kNoInternalBoundary);
+  EXPECT_FLOAT_EQ(f[kMergeInternalBoundary + 1], 1.0f);
+  StateOf(*model, scene.lab, scene.labels, scene.regions).PairFeatures(0, 1, f);
+  for (int k = 0; k < kMergeBoundaryFeatures; ++k) EXPECT_EQ(f[kMergeBoundaryOffset + k], 0.0f);
 }
 
 TEST(MergeStateTest, ResultCoversEveryPixelAndFollowsMerges) {
@@ -298,6 +345,55 @@ TEST(RegionMergeModelTest, MissingFileIsNotFoundAndForeignFileIsRejected) {
   const StatusOr<RegionMergeModel> old_layout = RegionMergeModel::Load(dir);
   ASSERT_FALSE(old_layout.ok());
   EXPECT_NE(old_layout.status().message().find("retrain"), std::string::npos);
+  // Version 3 put them where version 4 has the boundary features.
+  {
+    cv::FileStorage fs(dir + "/" + RegionMergeModel::kFileName, cv::FileStorage::WRITE);
+    fs << "format_version" << 3 << "features" << kMergeBoundaryOffset + 1 << "members" << 1;
+  }
+  const StatusOr<RegionMergeModel> version3 = RegionMergeModel::Load(dir);
+  ASSERT_FALSE(version3.ok());
+  EXPECT_NE(version3.status().message().find("retrain"), std::string::npos);
+}
+
+// A version-3 model on the relational and semantic features (the layout models shipped in
+// until the boundary features came) still loads and scores as it did.
+TEST(RegionMergeModelTest, Version3ModelsOnTheLeadingFeaturesStillLoad) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> value(0.0f, 1.0f);
+  cv::Mat features(300, kMergeBoundaryOffset, CV_32F);
+  std::vector<int> labels;
+  for (int r = 0; r < features.rows; ++r) {
+    for (int f = 0; f < features.cols; ++f) features.at<float>(r, f) = value(rng);
+    labels.push_back(features.at<float>(r, 0) < 0.5f ? 1 : 0);
+  }
+  RegionMergeModel::TrainingOptions options;
+  options.weak_count = 10;
+  const RegionMergeModel model = RegionMergeModel::Train(features, labels, {}, options);
+  const std::string dir = ::testing::TempDir() + "/grouping_version3";
+  std::filesystem::create_directories(dir);
+  ASSERT_TRUE(model.Save(dir).ok());
+  // Rewrite the saved file's version to 3, as such a model was written.
+  const std::string path = dir + "/" + RegionMergeModel::kFileName;
+  {
+    cv::FileStorage in(path, cv::FileStorage::READ);
+    cv::Ptr<cv::ml::Boost> boost = cv::ml::Boost::create();
+    boost->read(in["member_0"]);
+    in.release();
+    cv::FileStorage out(path, cv::FileStorage::WRITE);
+    out << "format_version" << 3 << "features" << kMergeBoundaryOffset << "members" << 1;
+    out << "member_0"
+        << "{";
+    boost->write(out);
+    out << "}";
+  }
+  const StatusOr<RegionMergeModel> loaded = RegionMergeModel::Load(dir);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+  cv::Mat probe(features.rowRange(0, 20).clone());
+  cv::Mat wide(probe.rows, kMergeFeatures, CV_32F, cv::Scalar(0.0f));
+  probe.copyTo(wide.colRange(0, kMergeBoundaryOffset));
+  const cv::Mat expected = model.Scores(wide);
+  const cv::Mat again = loaded->Scores(wide);
+  for (int r = 0; r < probe.rows; ++r) EXPECT_FLOAT_EQ(again.at<float>(r), expected.at<float>(r));
 }
 
 // The semantic features are the pair's structured scores, margins and argmax agreement as

@@ -30,11 +30,22 @@ StatusOr<std::shared_ptr<const BackgroundModel>> LoadBackgroundModel(const std::
   auto model = std::make_shared<BackgroundModel>();
   model->textons = std::move(*textons);
   model->classifier = std::move(*classifier);
+  StatusOr<BoundaryModel> boundary = BoundaryModel::Load(dir);
+  if (boundary.ok()) {
+    model->boundary = std::move(*boundary);
+  } else if (boundary.status().code() != StatusCode::kNotFound) {
+    return boundary.status();
+  }
   StatusOr<RegionMergeModel> grouping = RegionMergeModel::Load(dir);
   if (grouping.ok()) {
     model->grouping = std::move(*grouping);
   } else if (grouping.status().code() != StatusCode::kNotFound) {
     return grouping.status();
+  }
+  if (model->GroupingReadsBoundary() && model->boundary.empty()) {
+    return Status::InvalidArgument(
+        dir + ": the grouping model reads learned boundary scores but there is no " +
+        BoundaryModel::kFileName + " (train it with 'placerec-train boundary --out " + dir + "')");
   }
   return std::shared_ptr<const BackgroundModel>(std::move(model));
 }
@@ -171,12 +182,18 @@ SceneSegmentation SceneOrganizer::ClassifiedSuperpixels(const WorkingImage& imag
   return superpixels;
 }
 
+cv::Mat SceneOrganizer::BoundaryScores(const SceneSegmentation& parts,
+                                       const cv::Mat& features) const {
+  if (!model_->GroupingReadsBoundary()) return cv::Mat();
+  return model_->boundary.ScoreMap(features, CrackPixels(parts.labels));
+}
+
 SceneSegmentation SceneOrganizer::MergeParts(const SceneSegmentation& parts,
                                              const cv::Mat& appearance, const cv::Mat& lab,
-                                             int* merges) const {
+                                             const cv::Mat& boundary, int* merges) const {
   MergeState state(parts.labels, parts.size(), lab, appearance, options_.texton_stride,
                    model_->textons.inv_std, model_->classifier, options_.background_threshold,
-                   options_.one_per_class);
+                   options_.one_per_class, boundary);
   const int count = MergeRegions(model_->grouping, options_.merge, &state);
   if (merges != nullptr) *merges = count;
   SceneSegmentation merged = state.Result();
@@ -188,12 +205,18 @@ SceneSegmentation SceneOrganizer::Segment(const WorkingImage& image,
                                           SceneOrganizerSummary* summary) const {
   SceneOrganizerSummary stats;
   cv::Mat appearance;
-  SceneSegmentation parts = ClassifiedSuperpixels(image, nullptr, &stats.timings, &appearance);
+  cv::Mat features;
+  SceneSegmentation parts = ClassifiedSuperpixels(image, &features, &stats.timings, &appearance);
   stats.superpixels = parts.size();
   for (const SegmentClass c : parts.classes) stats.background_superpixels += IsBackground(c);
   Timer timer;
   if (options_.learned_merge) {
-    parts = MergeParts(parts, appearance, image.lab, &stats.learned_merges);
+    const cv::Mat boundary = BoundaryScores(parts, features);
+    if (!boundary.empty()) {
+      stats.timings.emplace_back("boundary", timer.ElapsedMs());
+      timer.Restart();
+    }
+    parts = MergeParts(parts, appearance, image.lab, boundary, &stats.learned_merges);
     stats.timings.emplace_back("merging", timer.ElapsedMs());
     timer.Restart();
   }

@@ -14,6 +14,7 @@
 #include <opencv2/core.hpp>
 
 #include "common/organization/background.h"
+#include "common/organization/boundary.h"
 #include "common/organization/perceptual_organization.h"
 #include "common/organization/region_merging.h"
 #include "common/organization/textons.h"
@@ -28,16 +29,23 @@ namespace placerec {
 // built from.
 std::string DefaultModelsDir();
 
-// Textons, background classifiers and the learned grouping model, loaded once and shared
-// (read-only) by every organizer.
+// Textons, background classifiers, the learned boundary classifier and the learned grouping
+// model, loaded once and shared (read-only) by every organizer.
 struct BackgroundModel {
   TextonModel textons;
   BackgroundClassifier classifier;
+  BoundaryModel boundary;     // empty when the directory has no boundary.yml.gz
   RegionMergeModel grouping;  // empty when the directory has no grouping.yml.gz
+
+  // Whether the grouping model reads the learned boundary features (region_merging.h).
+  bool GroupingReadsBoundary() const {
+    return !grouping.empty() && grouping.feature_size() > kMergeBoundaryOffset;
+  }
 };
 
-// Loads textons.yml, the background classifiers and, when present, grouping.yml.gz from
-// `directory` (empty: DefaultModelsDir()).
+// Loads textons.yml, the background classifiers and, when present, boundary.yml.gz and
+// grouping.yml.gz from `directory` (empty: DefaultModelsDir()). A grouping model that reads
+// the boundary features without a boundary model beside it is an error.
 StatusOr<std::shared_ptr<const BackgroundModel>> LoadBackgroundModel(const std::string& directory);
 
 // The learned merging's threshold, chosen on the 150 stanford_background training images the
@@ -89,7 +97,9 @@ struct SceneOrganizerSummary {
   int background_superpixels = 0;
   int learned_merges = 0;  // merges of the learned region merging
   OrganizationSummary organization;
-  StageTimings timings;  // superpixels, filter_bank, textons, classifiers, merging, organization
+  // superpixels, filter_bank, textons, classifiers, boundary (when the grouping reads it),
+  // merging, organization
+  StageTimings timings;
 };
 
 class SceneOrganizer {
@@ -115,10 +125,15 @@ class SceneOrganizer {
   SceneSegmentation ClassifiedSuperpixels(const WorkingImage& image, cv::Mat* features = nullptr,
                                           StageTimings* timings = nullptr,
                                           cv::Mat* appearance = nullptr) const;
+  // The learned boundary scores on the cracks of `parts` (BoundaryModel::ScoreMap) from the
+  // filter-bank features; an empty matrix when the grouping model does not read them.
+  cv::Mat BoundaryScores(const SceneSegmentation& parts, const cv::Mat& features) const;
   // The learned region merging of classified superpixels (`appearance` their RegionAppearance
-  // rows); returns the merged partition with re-decided classes.
+  // rows, `boundary` their BoundaryScores); returns the merged partition with re-decided
+  // classes.
   SceneSegmentation MergeParts(const SceneSegmentation& parts, const cv::Mat& appearance,
-                               const cv::Mat& lab, int* merges = nullptr) const;
+                               const cv::Mat& lab, const cv::Mat& boundary,
+                               int* merges = nullptr) const;
 
   const SceneOrganizerOptions& options() const { return options_; }
   const BackgroundModel& model() const { return *model_; }
