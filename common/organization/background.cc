@@ -40,6 +40,10 @@ StatusOr<cv::Ptr<cv::ml::Boost>> LoadBoost(const std::string& file, int features
     return Status::InvalidArgument(file + ": " + std::to_string(boost->getVarCount()) +
                                    " features, expected " + std::to_string(features));
   }
+  if (BoostedForest::Depth(*boost) > BoostedForest::kMaxDepth) {
+    return Status::InvalidArgument(file + ": trees deeper than " +
+                                   std::to_string(BoostedForest::kMaxDepth));
+  }
   return boost;
 }
 

@@ -1,8 +1,10 @@
 // Fast prediction for the boosted classifiers of this module (OpenCV ml::Boost with ordered
-// variables): the trees flattened into one array of nodes, walked without OpenCV's per-call
-// overhead. The sum of a sample is exactly what ml::Boost::predict returns with RAW_OUTPUT |
-// PREDICT_SUM (leaf values added in tree order in double precision), several times faster on
-// the small batches the region merging scores after every merge.
+// variables): each tree padded to a perfect binary tree of its own depth and stored in heap
+// order, so that a sample walks it with one comparison per level and no data-dependent branch
+// or pointer chase. The sum of a sample is exactly what ml::Boost::predict returns with
+// RAW_OUTPUT | PREDICT_SUM (leaf values added in tree order in double precision), several times
+// faster on the small batches the region merging scores after every merge and on the pixels
+// the boundary classifier scores.
 #pragma once
 
 #include <vector>
@@ -14,10 +16,15 @@ namespace placerec {
 
 class BoostedForest {
  public:
+  // The deepest tree the layout takes (2^12 leaves); loaders refuse deeper models.
+  static constexpr int kMaxDepth = 12;
+  // The depth of the deepest tree of a trained `boost`.
+  static int Depth(const cv::ml::Boost& boost);
+
   BoostedForest() = default;
   // Flattens a trained `boost` whose variables are all ordered (TrainGentleBoost trains so;
   // ml::Boost keeps no public record of variable types, so categorical splits cannot be told
-  // apart and would be misread).
+  // apart and would be misread) and whose trees are at most kMaxDepth deep.
   explicit BoostedForest(const cv::ml::Boost& boost);
 
   int var_count() const { return var_count_; }
@@ -25,16 +32,18 @@ class BoostedForest {
   double Sum(const float* sample) const;
 
  private:
-  struct Node {
-    int var = -1;  // -1: leaf
-    float threshold = 0.0f;
-    bool inversed = false;  // go right when value <= threshold
-    int left = -1;
-    int right = -1;
-    double value = 0.0;  // the leaf's weak response
+  struct Tree {
+    int depth = 0;        // levels of splits (0: a single leaf)
+    int first_split = 0;  // index into vars_ / thresholds_ of its 2^depth - 1 splits
+    int first_leaf = 0;   // index into leaves_ of its 2^depth leaves
   };
-  std::vector<Node> nodes_;
-  std::vector<int> roots_;
+  std::vector<Tree> trees_;
+  // Split k of a tree sends a sample to child 2k + 2 when !(value <= threshold), else 2k + 1
+  // (OpenCV's "inversed" splits have their children swapped; padding splits compare with
+  // +infinity and lead to one leaf on both sides).
+  std::vector<int> vars_;
+  std::vector<float> thresholds_;
+  std::vector<double> leaves_;
   int var_count_ = 0;
 };
 

@@ -176,7 +176,8 @@ StatusOr<BoundaryModel> BoundaryModel::Load(const std::string& directory) {
     }
     cv::Ptr<cv::ml::Boost> boost = cv::ml::Boost::create();
     boost->read(fs["boost"]);
-    if (!boost->isTrained() || boost->getVarCount() != kBoundaryFeatures) {
+    if (!boost->isTrained() || boost->getVarCount() != kBoundaryFeatures ||
+        BoostedForest::Depth(*boost) > BoostedForest::kMaxDepth) {
       return Status::InvalidArgument(path + " is not a trained boundary classifier");
     }
     model.boost_ = boost;

@@ -412,8 +412,10 @@ SceneSegmentation MergeState::Result() const {
 // ---- The model ----
 
 bool RegionMergeModel::TrainingOptions::Check(std::string* error) const {
-  if (weak_count < 1 || max_depth < 1 || !(weight_trim_rate >= 0 && weight_trim_rate <= 1)) {
-    *error = "grouping training: weak_count and max_depth must be >= 1, weight_trim_rate in [0, 1]";
+  if (weak_count < 1 || max_depth < 1 || max_depth > 10 ||
+      !(weight_trim_rate >= 0 && weight_trim_rate <= 1)) {
+    *error =
+        "grouping training: weak_count >= 1, max_depth in [1, 10], weight_trim_rate in [0, 1]";
     return false;
   }
   return true;
@@ -505,9 +507,12 @@ StatusOr<RegionMergeModel> RegionMergeModel::Load(const std::string& directory) 
     for (int i = 0; i < members; ++i) {
       cv::Ptr<cv::ml::Boost> boost = cv::ml::Boost::create();
       boost->read(fs[version == 1 ? std::string("boost") : "member_" + std::to_string(i)]);
-      if (!boost->isTrained() || boost->getVarCount() < 1 || boost->getVarCount() > features) {
+      if (!boost->isTrained() || boost->getVarCount() < 1 || boost->getVarCount() > features ||
+          BoostedForest::Depth(*boost) > BoostedForest::kMaxDepth) {
         return Status::InvalidArgument(path + ": member " + std::to_string(i) +
-                                       " is not a trained grouping classifier");
+                                       " is not a trained grouping classifier (or has trees "
+                                       "deeper than " +
+                                       std::to_string(BoostedForest::kMaxDepth) + ")");
       }
       model.AddMember(boost);
     }
