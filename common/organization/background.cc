@@ -215,8 +215,12 @@ cv::Mat BackgroundClassifier::ForestScores(const cv::Mat& features, int first, i
   CHECK_EQ(features.type(), CV_32F);
   CHECK_GE(features.cols, feature_size());
   cv::Mat scores(features.rows, count, CV_32F);
-  for (int r = 0; r < features.rows; ++r) {
-    ForestSums(features.ptr<float>(r), first, count, scores.ptr<float>(r));
+  if (features.rows == 0) return scores;
+  std::vector<double> sums(static_cast<size_t>(features.rows));
+  for (int c = 0; c < count; ++c) {
+    forests_[static_cast<size_t>(first + c)].Sums(features.ptr<float>(0), features.step1(),
+                                                  features.rows, sums.data());
+    for (int r = 0; r < features.rows; ++r) scores.at<float>(r, c) = static_cast<float>(sums[r]);
   }
   return scores;
 }

@@ -79,4 +79,29 @@ double BoostedForest::Sum(const float* sample) const {
   return sum;
 }
 
+void BoostedForest::Sums(const float* samples, size_t stride, int n, double* out) const {
+  constexpr int kBatch = 16;
+  for (int start = 0; start < n; start += kBatch) {
+    const int count = std::min(kBatch, n - start);
+    const float* batch = samples + static_cast<size_t>(start) * stride;
+    double sums[kBatch] = {};
+    for (const Tree& tree : trees_) {
+      const int* var = vars_.data() + tree.first_split;
+      const float* threshold = thresholds_.data() + tree.first_split;
+      const double* leaves = leaves_.data() + tree.first_leaf - ((1 << tree.depth) - 1);
+      int slots[kBatch] = {};
+      for (int level = 0; level < tree.depth; ++level) {
+        for (int i = 0; i < count; ++i) {
+          const int slot = slots[i];
+          slots[i] = 2 * slot + 1 +
+                     static_cast<int>(
+                         !(batch[static_cast<size_t>(i) * stride + var[slot]] <= threshold[slot]));
+        }
+      }
+      for (int i = 0; i < count; ++i) sums[i] += leaves[slots[i]];
+    }
+    std::copy(sums, sums + count, out + start);
+  }
+}
+
 }  // namespace placerec

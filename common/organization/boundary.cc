@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <limits>
+#include <vector>
 
 #include <glog/logging.h>
 #include <opencv2/core/persistence.hpp>
@@ -198,16 +199,29 @@ cv::Mat BoundaryModel::ScoreMap(const cv::Mat& bank, const cv::Mat& mask) const 
   CHECK_EQ(mask.type(), CV_8U);
   CHECK(mask.size() == bank.size());
   cv::Mat scores(bank.size(), CV_32F, cv::Scalar(0.0f));
-  float features[kBoundaryFeatures];
+  // Rows of features, scored in batches (BoostedForest::Sums).
+  constexpr int kBatch = 256;
+  std::vector<float> features(static_cast<size_t>(kBatch) * kBoundaryFeatures);
+  std::vector<double> sums(kBatch);
+  std::vector<float*> targets;
+  targets.reserve(kBatch);
+  auto flush = [&]() {
+    const int n = static_cast<int>(targets.size());
+    forest_.Sums(features.data(), kBoundaryFeatures, n, sums.data());
+    for (int i = 0; i < n; ++i) *targets[static_cast<size_t>(i)] = static_cast<float>(sums[i]);
+    targets.clear();
+  };
   for (int y = 0; y < bank.rows; ++y) {
     const uint8_t* m = mask.ptr<uint8_t>(y);
     float* s = scores.ptr<float>(y);
     for (int x = 0; x < bank.cols; ++x) {
       if (m[x] == 0) continue;
-      BoundaryPixelFeatures(bank, x, y, features);
-      s[x] = static_cast<float>(forest_.Sum(features));
+      BoundaryPixelFeatures(bank, x, y, features.data() + targets.size() * kBoundaryFeatures);
+      targets.push_back(s + x);
+      if (static_cast<int>(targets.size()) == kBatch) flush();
     }
   }
+  if (!targets.empty()) flush();
   return scores;
 }
 

@@ -537,12 +537,19 @@ cv::Mat RegionMergeModel::Scores(const cv::Mat& features) const {
   CHECK_EQ(features.type(), CV_32F);
   CHECK_GE(features.cols, feature_size());
   cv::Mat scores(features.rows, 1, CV_32F);
+  if (features.rows == 0) return scores;
   const double scale = 1.0 / members();
+  // The members' sums rounded to float and added in member order, as ml::Boost::predict
+  // returns them.
+  std::vector<float> total(static_cast<size_t>(features.rows), 0.0f);
+  std::vector<double> sums(static_cast<size_t>(features.rows));
+  const size_t stride = features.step1();
+  for (const BoostedForest& forest : forests_) {
+    forest.Sums(features.ptr<float>(0), stride, features.rows, sums.data());
+    for (int r = 0; r < features.rows; ++r) total[r] += static_cast<float>(sums[r]);
+  }
   for (int r = 0; r < features.rows; ++r) {
-    const float* row = features.ptr<float>(r);
-    float sum = 0.0f;  // the members' sums rounded to float, as ml::Boost::predict returns them
-    for (const BoostedForest& forest : forests_) sum += static_cast<float>(forest.Sum(row));
-    scores.at<float>(r) = static_cast<float>(sum * scale);
+    scores.at<float>(r) = static_cast<float>(total[r] * scale);
   }
   return scores;
 }
