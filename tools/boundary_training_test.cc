@@ -24,6 +24,42 @@ namespace fs = std::filesystem;
 const char* const kTrain[] = {"2000042", "3001336", "0000176"};
 const char* const kTest = "0000059";
 
+// Mean learned score of the superpixel-crack pixels of kTest on its ground-truth object
+// boundaries and off them.
+struct OnOff {
+  double on = 0;
+  double off = 0;
+  int on_count = 0;
+  int off_count = 0;
+};
+
+OnOff ScoreTestImage(const BoundaryModel& model, const std::string& dataset,
+                     const SceneOrganizerOptions& organizer) {
+  OnOff result;
+  StatusOr<LabelledImage> image = ReadLabelledImage(dataset, kTest);
+  if (!image.ok()) return result;
+  const WorkingImage working = MakeWorkingImage(image->bgr, organizer.superpixels.working_width);
+  const SceneSegmentation superpixels = ComputeSuperpixels(working, organizer.superpixels);
+  const cv::Mat cracks = CrackPixels(superpixels.labels);
+  const cv::Mat scores = model.ScoreMap(ComputeFilterBank(working.lab), cracks);
+  const cv::Mat object_cracks = CrackPixels(LayerAtSize(image->objects, working.bgr.size()));
+  for (int y = 0; y < cracks.rows; ++y) {
+    for (int x = 0; x < cracks.cols; ++x) {
+      if (!cracks.at<uint8_t>(y, x)) continue;
+      if (object_cracks.at<uint8_t>(y, x)) {
+        result.on += scores.at<float>(y, x);
+        ++result.on_count;
+      } else {
+        result.off += scores.at<float>(y, x);
+        ++result.off_count;
+      }
+    }
+  }
+  if (result.on_count > 0) result.on /= result.on_count;
+  if (result.off_count > 0) result.off /= result.off_count;
+  return result;
+}
+
 class BoundaryTrainingTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -74,36 +110,10 @@ TEST_F(BoundaryTrainingTest, LearnedModelScoresObjectBoundariesOfAnUnseenImageHi
   const StatusOr<BoundaryModel> model = BoundaryModel::Load(config_.out);
   ASSERT_TRUE(model.ok()) << model.status().ToString();
 
-  // The test image's superpixel cracks: mean score on and off its object boundaries.
-  StatusOr<LabelledImage> image = ReadLabelledImage(config_.dataset, kTest);
-  ASSERT_TRUE(image.ok());
-  const WorkingImage working =
-      MakeWorkingImage(image->bgr, config_.organizer.superpixels.working_width);
-  const SceneSegmentation superpixels = ComputeSuperpixels(working, config_.organizer.superpixels);
-  const cv::Mat bank = ComputeFilterBank(working.lab);
-  const cv::Mat cracks = CrackPixels(superpixels.labels);
-  const cv::Mat scores = model->ScoreMap(bank, cracks);
-  const cv::Mat objects = LayerAtSize(image->objects, working.bgr.size());
-  const cv::Mat object_cracks = CrackPixels(objects);
-  double on = 0;
-  double off = 0;
-  int on_count = 0;
-  int off_count = 0;
-  for (int y = 0; y < cracks.rows; ++y) {
-    for (int x = 0; x < cracks.cols; ++x) {
-      if (!cracks.at<uint8_t>(y, x)) continue;
-      if (object_cracks.at<uint8_t>(y, x)) {
-        on += scores.at<float>(y, x);
-        ++on_count;
-      } else {
-        off += scores.at<float>(y, x);
-        ++off_count;
-      }
-    }
-  }
-  ASSERT_GT(on_count, 100);
-  ASSERT_GT(off_count, 100);
-  EXPECT_GT(on / on_count, off / off_count + 0.2);
+  const OnOff scores = ScoreTestImage(*model, config_.dataset, config_.organizer);
+  ASSERT_GT(scores.on_count, 100);
+  ASSERT_GT(scores.off_count, 100);
+  EXPECT_GT(scores.on, scores.off + 0.2);
   const nlohmann::json& test = (*manifest)["accuracy"]["test"];
   EXPECT_GT(test["balanced_accuracy"].get<double>(), 52.0);  // chance: 50
 }
@@ -128,6 +138,18 @@ TEST_F(BoundaryTrainingTest, ImageWithoutObjectsIsRefusedAndNothingIsWritten) {
   EXPECT_NE(manifest.status().message().find(kTrain[1]), std::string::npos);
   EXPECT_FALSE(fs::exists(fs::path(config_.out) / BoundaryModel::kFileName));
   EXPECT_FALSE(fs::exists(fs::path(config_.out) / "boundary.json"));
+}
+
+// The shipped boundary model (models/, when it has one) on a test image it was not trained on:
+// object boundaries score clearly above the edges inside objects.
+TEST_F(BoundaryTrainingTest, ShippedModelSeparatesObjectBoundariesOfATestImage) {
+  const StatusOr<BoundaryModel> model = BoundaryModel::Load(PLACEREC_MODELS_DIR);
+  if (!model.ok()) GTEST_SKIP() << "no shipped boundary model in " << PLACEREC_MODELS_DIR;
+  const OnOff scores = ScoreTestImage(*model, source_, SceneOrganizerOptions());
+  ASSERT_GT(scores.on_count, 100);
+  ASSERT_GT(scores.off_count, 100);
+  EXPECT_GT(scores.on, 0.0);
+  EXPECT_LT(scores.off, 0.0);
 }
 
 }  // namespace

@@ -468,15 +468,22 @@ TEST(MergeRegionsTest, ThresholdDecidesHowFarMergingGoes) {
   EXPECT_EQ(all.Result().size(), 1);
 }
 
-// The shipped grouping model at the default threshold on the synthetic blocks: the halves of
-// one block belong together, two blocks of very different colour do not.
+// The shipped grouping model at the default threshold on the synthetic blocks, as
+// SceneOrganizer merges: the greedy merging joins the halves of each block and keeps the four
+// blocks of very different colour apart; every pair of halves scores above the threshold and
+// above every pair of halves from two different blocks.
 TEST(ShippedGroupingModelTest, JoinsHalvesOfOneSurfaceAndKeepsDifferentSurfacesApart) {
   const std::shared_ptr<const BackgroundModel> model = ShippedModel();
   if (!model || model->grouping.empty()) {
     GTEST_SKIP() << "no trained grouping model in " << PLACEREC_MODELS_DIR;
   }
   const Scene scene = MakeScene();
-  const MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions);
+  // The learned boundary scores the model reads, as SceneOrganizer computes them.
+  const cv::Mat boundary =
+      model->GroupingReadsBoundary()
+          ? model->boundary.ScoreMap(ComputeFilterBank(scene.lab), CrackPixels(scene.labels))
+          : cv::Mat();
+  MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions, boundary);
   cv::Mat halves(4, kMergeFeatures, CV_32F);
   for (int block = 0; block < 4; ++block) {
     state.PairFeatures(2 * block, 2 * block + 1, halves.ptr<float>(block));
@@ -486,11 +493,24 @@ TEST(ShippedGroupingModelTest, JoinsHalvesOfOneSurfaceAndKeepsDifferentSurfacesA
   state.PairFeatures(0, 4, blocks.ptr<float>(1));  // orange above blue
   const cv::Mat same = model->grouping.Scores(halves);
   const cv::Mat different = model->grouping.Scores(blocks);
-  // Judged at the shipped threshold, as SceneOrganizer merges.
   const double threshold = DefaultMergeOptions().threshold;
-  for (int r = 0; r < same.rows; ++r) EXPECT_GT(same.at<float>(r), threshold) << "block " << r;
+  double lowest_same = std::numeric_limits<double>::infinity();
+  for (int r = 0; r < same.rows; ++r) {
+    EXPECT_GT(same.at<float>(r), threshold) << "block " << r;
+    lowest_same = std::min<double>(lowest_same, same.at<float>(r));
+  }
   for (int r = 0; r < different.rows; ++r) {
-    EXPECT_LT(different.at<float>(r), threshold) << "pair " << r;
+    EXPECT_LT(different.at<float>(r), lowest_same) << "pair " << r;
+  }
+  // The merging itself: four merges, one per block, and the blocks stay apart.
+  EXPECT_EQ(MergeRegions(model->grouping, DefaultMergeOptions(), &state), 4);
+  const SceneSegmentation result = state.Result();
+  ASSERT_EQ(result.size(), 4);
+  for (int block = 0; block < 4; ++block) {
+    EXPECT_EQ(state.Find(2 * block), state.Find(2 * block + 1)) << "block " << block;
+    for (int other = block + 1; other < 4; ++other) {
+      EXPECT_NE(state.Find(2 * block), state.Find(2 * other)) << block << " and " << other;
+    }
   }
 }
 
