@@ -26,6 +26,14 @@ std::string TodayUtc() {
   return text;
 }
 
+Status WriteManifest(const std::string& path, const nlohmann::json& manifest) {
+  std::ofstream out(path);
+  out << manifest.dump(2) << "\n";
+  out.close();
+  if (!out) return Status::IoError("cannot write " + path);
+  return Status::Ok();
+}
+
 std::vector<int> RegionLabels(const cv::Mat& regions, int n, const cv::Mat& gt_classes,
                               const ClassTable& table, double min_labelled_fraction,
                               std::vector<int>* majority_out) {
@@ -508,10 +516,7 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
     files[name] = FileSize(entry.path().string());
   }
   manifest["file_bytes"] = files;
-  std::ofstream out(config.out + "/manifest.json");
-  if (!out) return Status::IoError("cannot write " + config.out + "/manifest.json");
-  out << manifest.dump(2) << "\n";
-  if (!out) return Status::IoError("cannot write " + config.out + "/manifest.json");
+  PLACEREC_RETURN_IF_ERROR(WriteManifest(config.out + "/manifest.json", manifest));
   return manifest;
 }
 

@@ -23,6 +23,9 @@ namespace placerec {
 // Today's date in UTC as YYYY-MM-DD (the "created" field of the training manifests).
 std::string TodayUtc();
 
+// Writes a training manifest (or any JSON) to `path`, indented, with a trailing newline.
+Status WriteManifest(const std::string& path, const nlohmann::json& manifest);
+
 // Pixels of every region 0..n-1 of `regions` (other ids ignored).
 std::vector<int> RegionAreas(const cv::Mat& regions, int n);
 

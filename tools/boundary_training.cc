@@ -4,7 +4,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <random>
 
 #include <opencv2/imgproc.hpp>
@@ -28,23 +27,6 @@ struct PixelSample {
   int positives() const { return static_cast<int>(std::count(labels.begin(), labels.end(), 1)); }
 };
 
-// CV_8U mask of the pixels next to a pixel of another ground-truth object (both ids > 0).
-cv::Mat ObjectBoundaries(const cv::Mat& objects) {
-  cv::Mat mask(objects.size(), CV_8U, cv::Scalar(0));
-  for (int y = 0; y < objects.rows; ++y) {
-    const int* row = objects.ptr<int>(y);
-    const int* below = y + 1 < objects.rows ? objects.ptr<int>(y + 1) : nullptr;
-    uint8_t* m = mask.ptr<uint8_t>(y);
-    uint8_t* m_below = below != nullptr ? mask.ptr<uint8_t>(y + 1) : nullptr;
-    for (int x = 0; x < objects.cols; ++x) {
-      if (row[x] <= 0) continue;
-      if (x + 1 < objects.cols && row[x + 1] > 0 && row[x + 1] != row[x]) m[x] = m[x + 1] = 1;
-      if (below != nullptr && below[x] > 0 && below[x] != row[x]) m[x] = m_below[x] = 1;
-    }
-  }
-  return mask;
-}
-
 // Draws up to `per_label` boundary and non-boundary pixels from the superpixel cracks of one
 // image and appends their features to `sample`.
 Status SampleImage(const BoundaryTrainingConfig& config, const std::string& id,
@@ -60,7 +42,8 @@ Status SampleImage(const BoundaryTrainingConfig& config, const std::string& id,
   const SceneSegmentation superpixels = ComputeSuperpixels(working, config.organizer.superpixels);
   const cv::Mat bank = ComputeFilterBank(working.lab);
   const cv::Mat objects = LayerAtSize(image->objects, working.bgr.size());
-  const cv::Mat boundaries = ObjectBoundaries(objects);
+  // Pixels next to a pixel of another ground-truth object (both labelled).
+  const cv::Mat boundaries = CrackPixels(objects, /*ignore_unlabelled=*/true);
   cv::Mat distance;
   if (cv::countNonZero(boundaries) == 0) {
     distance = cv::Mat(objects.size(), CV_32F, cv::Scalar(1e6f));
@@ -237,10 +220,7 @@ StatusOr<nlohmann::json> TrainBoundaryModel(const BoundaryTrainingConfig& config
   manifest["accuracy"] = accuracy;
   manifest["seconds"] = {{"sampling", sampling_seconds}, {"boosting", boosting_seconds}};
   manifest["seed"] = config.seed;
-  const std::string path = config.out + "/boundary.json";
-  std::ofstream out(path);
-  out << manifest.dump(2) << "\n";
-  if (!out) return Status::IoError("cannot write " + path);
+  PLACEREC_RETURN_IF_ERROR(WriteManifest(config.out + "/boundary.json", manifest));
   return manifest;
 }
 

@@ -408,9 +408,7 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
            {"manifest", in ? nlohmann::json::parse(in, nullptr, false) : nlohmann::json()}});
     }
   }
-  std::ofstream out(config.out + "/grouping.json");
-  if (!out) return Status::IoError("cannot write " + config.out + "/grouping.json");
-  out << manifest.dump(2) << "\n";
+  PLACEREC_RETURN_IF_ERROR(WriteManifest(config.out + "/grouping.json", manifest));
   return manifest;
 }
 

@@ -38,6 +38,28 @@ constexpr char kUsage[] =
     "               one grouping model that averages the scores of trained ones\n\n"
     "'placerec-train COMMAND --help' lists the options of a command.";
 
+// Parses --leave-out-fold's text into *fold; on an error prints it for `command` and returns
+// the exit code.
+std::optional<int> ParseFoldFlag(const char* command, const std::string& text, Fold* fold) {
+  StatusOr<Fold> parsed = ParseFold(text);
+  if (!parsed.ok()) {
+    std::fprintf(stderr, "%s: --leave-out-fold: %s\n", command, parsed.status().ToString().c_str());
+    return 2;
+  }
+  *fold = *parsed;
+  return std::nullopt;
+}
+
+// Prints a training run's manifest, or its error, and returns the exit code.
+int ReportTraining(const char* command, const StatusOr<nlohmann::json>& manifest) {
+  if (!manifest.ok()) {
+    std::fprintf(stderr, "%s: %s\n", command, manifest.status().ToString().c_str());
+    return 1;
+  }
+  std::printf("%s\n", manifest->dump(2).c_str());
+  return 0;
+}
+
 int BackgroundCommand(int argc, char** argv) {
   BackgroundTrainingConfig config;
   bool quiet = false;
@@ -92,13 +114,10 @@ int BackgroundCommand(int argc, char** argv) {
           parser.ParseOrExit(argc, argv, 2, "placerec-train background")) {
     return *exit;
   }
-  StatusOr<Fold> fold = ParseFold(leave_out_fold);
-  if (!fold.ok()) {
-    std::fprintf(stderr, "placerec-train background: --leave-out-fold: %s\n",
-                 fold.status().ToString().c_str());
-    return 2;
+  if (const std::optional<int> exit =
+          ParseFoldFlag("placerec-train background", leave_out_fold, &config.leave_out_fold)) {
+    return *exit;
   }
-  config.leave_out_fold = *fold;
   config.structured_classes.clear();
   if (structured != "none") {
     for (const std::string& name : SplitString(structured, ',')) {
@@ -110,13 +129,7 @@ int BackgroundCommand(int argc, char** argv) {
   config.progress = !quiet;
   config.command_line = CommandLine(argc, argv);
   cv::setNumThreads(1);  // deterministic k-means, and a fair share of a shared machine
-  StatusOr<nlohmann::json> manifest = TrainBackgroundModels(config);
-  if (!manifest.ok()) {
-    std::fprintf(stderr, "placerec-train background: %s\n", manifest.status().ToString().c_str());
-    return 1;
-  }
-  std::printf("%s\n", manifest->dump(2).c_str());
-  return 0;
+  return ReportTraining("placerec-train background", TrainBackgroundModels(config));
 }
 
 int BoundaryCommand(int argc, char** argv) {
@@ -138,8 +151,8 @@ int BoundaryCommand(int argc, char** argv) {
              "split whose accuracy goes into the manifest ('' to skip)");
   parser.Add("holdout", &config.holdout,
              "leave the first N images of --split out of training (their accuracy is reported)");
-  std::string boundary_fold;
-  parser.Add("leave-out-fold", &boundary_fold,
+  std::string leave_out_fold;
+  parser.Add("leave-out-fold", &leave_out_fold,
              "I/K: also leave out fold I of the images after the holdout (a boundary model for "
              "the fold's directory of placerec-train grouping --cross-fit)");
   parser.Add("samples-per-image", &config.samples_per_image,
@@ -156,23 +169,14 @@ int BoundaryCommand(int argc, char** argv) {
           parser.ParseOrExit(argc, argv, 2, "placerec-train boundary")) {
     return *exit;
   }
-  StatusOr<Fold> fold = ParseFold(boundary_fold);
-  if (!fold.ok()) {
-    std::fprintf(stderr, "placerec-train boundary: --leave-out-fold: %s\n",
-                 fold.status().ToString().c_str());
-    return 2;
+  if (const std::optional<int> exit =
+          ParseFoldFlag("placerec-train boundary", leave_out_fold, &config.leave_out_fold)) {
+    return *exit;
   }
-  config.leave_out_fold = *fold;
   config.progress = !quiet;
   config.command_line = CommandLine(argc, argv);
   cv::setNumThreads(1);
-  StatusOr<nlohmann::json> manifest = TrainBoundaryModel(config);
-  if (!manifest.ok()) {
-    std::fprintf(stderr, "placerec-train boundary: %s\n", manifest.status().ToString().c_str());
-    return 1;
-  }
-  std::printf("%s\n", manifest->dump(2).c_str());
-  return 0;
+  return ReportTraining("placerec-train boundary", TrainBoundaryModel(config));
 }
 
 int GroupingCommand(int argc, char** argv) {
@@ -231,13 +235,7 @@ int GroupingCommand(int argc, char** argv) {
     if (!dir.empty()) config.cross_fit.push_back(dir);
   }
   cv::setNumThreads(1);
-  StatusOr<nlohmann::json> manifest = TrainGroupingModel(config);
-  if (!manifest.ok()) {
-    std::fprintf(stderr, "placerec-train grouping: %s\n", manifest.status().ToString().c_str());
-    return 1;
-  }
-  std::printf("%s\n", manifest->dump(2).c_str());
-  return 0;
+  return ReportTraining("placerec-train grouping", TrainGroupingModel(config));
 }
 
 int GroupingEnsembleCommand(int argc, char** argv) {
@@ -286,11 +284,8 @@ int GroupingEnsembleCommand(int argc, char** argv) {
     std::fprintf(stderr, "placerec-train grouping-ensemble: %s\n", status.ToString().c_str());
     return 1;
   }
-  std::ofstream file(out + "/grouping.json");
-  file << manifest.dump(2) << "\n";
-  if (!file) {
-    std::fprintf(stderr, "placerec-train grouping-ensemble: cannot write %s/grouping.json\n",
-                 out.c_str());
+  if (const Status status = WriteManifest(out + "/grouping.json", manifest); !status.ok()) {
+    std::fprintf(stderr, "placerec-train grouping-ensemble: %s\n", status.ToString().c_str());
     return 1;
   }
   std::printf("%d classifiers from %zu models written to %s/%s\n", ensemble.members(),

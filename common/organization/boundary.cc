@@ -85,17 +85,20 @@ void BoundaryPixelFeatures(const cv::Mat& bank, int x, int y, float* out) {
   CHECK_EQ(i, kBoundaryFeatures);
 }
 
-cv::Mat CrackPixels(const cv::Mat& labels) {
+cv::Mat CrackPixels(const cv::Mat& labels, bool ignore_unlabelled) {
   CHECK_EQ(labels.type(), CV_32S);
   cv::Mat mask(labels.size(), CV_8U, cv::Scalar(0));
+  auto cracks = [ignore_unlabelled](int a, int b) {
+    return a != b && (!ignore_unlabelled || (a > 0 && b > 0));
+  };
   for (int y = 0; y < labels.rows; ++y) {
     const int* row = labels.ptr<int>(y);
     const int* below = y + 1 < labels.rows ? labels.ptr<int>(y + 1) : nullptr;
     uint8_t* m = mask.ptr<uint8_t>(y);
     uint8_t* m_below = below != nullptr ? mask.ptr<uint8_t>(y + 1) : nullptr;
     for (int x = 0; x < labels.cols; ++x) {
-      if (x + 1 < labels.cols && row[x + 1] != row[x]) m[x] = m[x + 1] = 1;
-      if (below != nullptr && below[x] != row[x]) m[x] = m_below[x] = 1;
+      if (x + 1 < labels.cols && cracks(row[x], row[x + 1])) m[x] = m[x + 1] = 1;
+      if (below != nullptr && cracks(row[x], below[x])) m[x] = m_below[x] = 1;
     }
   }
   return mask;

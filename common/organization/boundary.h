@@ -39,8 +39,9 @@ constexpr int kBoundaryFeatures = 101;
 void BoundaryPixelFeatures(const cv::Mat& bank, int x, int y, float* out);
 
 // CV_8U mask of the pixels of `labels` (CV_32S) that have a 4-neighbour with another label:
-// the pixels on either side of every crack.
-cv::Mat CrackPixels(const cv::Mat& labels);
+// the pixels on either side of every crack. With `ignore_unlabelled`, labels <= 0 (ground
+// truth's unlabelled pixels) neither are nor make crack pixels.
+cv::Mat CrackPixels(const cv::Mat& labels, bool ignore_unlabelled = false);
 
 class BoundaryModel {
  public:

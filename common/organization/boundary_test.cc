@@ -94,6 +94,22 @@ TEST(BoundaryFeaturesTest, CrackPixelsAreBothSidesOfEveryLabelChange) {
   }
 }
 
+TEST(BoundaryFeaturesTest, CrackPixelsCanIgnoreUnlabelledPixels) {
+  // Objects 1 and 2 meet in column 2/3; unlabelled (0) pixels border both.
+  cv::Mat labels(3, 6, CV_32S, cv::Scalar(1));
+  labels.colRange(3, 6).setTo(2);
+  labels.row(2).setTo(0);
+  labels.at<int>(0, 0) = 0;
+  const cv::Mat mask = CrackPixels(labels, /*ignore_unlabelled=*/true);
+  const int expected[3][6] = {{0, 0, 1, 1, 0, 0}, {0, 0, 1, 1, 0, 0}, {0, 0, 0, 0, 0, 0}};
+  for (int y = 0; y < 3; ++y) {
+    for (int x = 0; x < 6; ++x) EXPECT_EQ(mask.at<uint8_t>(y, x), expected[y][x]) << x << "," << y;
+  }
+  // Without the flag the unlabelled pixels' borders are cracks too.
+  EXPECT_EQ(CrackPixels(labels).at<uint8_t>(2, 0), 1);
+  EXPECT_EQ(CrackPixels(labels).at<uint8_t>(0, 1), 1);
+}
+
 // Training samples from step images: pixels beside the step are boundaries, the rest not.
 void StepSamples(int images, cv::Mat* features, std::vector<int>* labels) {
   float f[kBoundaryFeatures];
