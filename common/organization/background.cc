@@ -92,8 +92,10 @@ bool BackgroundTrainingOptions::Check(std::string* error) const {
     *error = "background weak_count must be at least 1, got " + std::to_string(weak_count);
     return false;
   }
-  if (max_depth < 1 || max_depth > 10) {
-    *error = "background max_depth must be in [1, 10], got " + std::to_string(max_depth);
+  if (max_depth < 1 || max_depth > BoostedForest::kMaxTrainingDepth) {
+    *error = "background max_depth must be in [1, " +
+             std::to_string(BoostedForest::kMaxTrainingDepth) + "], got " +
+             std::to_string(max_depth);
     return false;
   }
   if (!(weight_trim_rate >= 0.0 && weight_trim_rate <= 1.0)) {

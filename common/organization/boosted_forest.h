@@ -18,6 +18,9 @@ class BoostedForest {
  public:
   // The deepest tree the layout takes (2^12 leaves); loaders refuse deeper models.
   static constexpr int kMaxDepth = 12;
+  // The deepest trees the training commands grow (below kMaxDepth, so that what they write
+  // always loads).
+  static constexpr int kMaxTrainingDepth = 10;
   // The depth of the deepest tree of a trained `boost`.
   static int Depth(const cv::ml::Boost& boost);
 

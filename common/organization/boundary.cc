@@ -105,9 +105,10 @@ cv::Mat CrackPixels(const cv::Mat& labels, bool ignore_unlabelled) {
 }
 
 bool BoundaryModel::TrainingOptions::Check(std::string* error) const {
-  if (weak_count < 1 || max_depth < 1 || max_depth > 10 ||
+  if (weak_count < 1 || max_depth < 1 || max_depth > BoostedForest::kMaxTrainingDepth ||
       !(weight_trim_rate >= 0 && weight_trim_rate <= 1)) {
-    *error = "boundary training: weak_count >= 1, max_depth in [1, 10], weight_trim_rate in [0, 1]";
+    *error = "boundary training: weak_count >= 1, max_depth in [1, " +
+             std::to_string(BoostedForest::kMaxTrainingDepth) + "], weight_trim_rate in [0, 1]";
     return false;
   }
   return true;

@@ -52,9 +52,8 @@ MergeState::MergeState(const cv::Mat& labels, int num_regions, const cv::Mat& la
   CHECK_EQ(appearance.rows, num_regions);
   CHECK_EQ(appearance.type(), CV_32F);
   CHECK_GE(texton_stride, 1);
-  const bool have_boundary = !boundary_scores.empty();
-  have_boundary_ = have_boundary;
-  if (have_boundary) {
+  have_boundary_ = !boundary_scores.empty();
+  if (have_boundary_) {
     CHECK_EQ(boundary_scores.type(), CV_32F);
     CHECK(boundary_scores.size() == labels.size());
   }
@@ -111,9 +110,9 @@ MergeState::MergeState(const cv::Mat& labels, int num_regions, const cv::Mat& la
     const int* below = y + 1 < size_.height ? labels.ptr<int>(y + 1) : nullptr;
     const cv::Vec3f* lab_row = lab.ptr<cv::Vec3f>(y);
     const cv::Vec3f* lab_below = below != nullptr ? lab.ptr<cv::Vec3f>(y + 1) : nullptr;
-    const float* boundary_row = have_boundary ? boundary_scores.ptr<float>(y) : nullptr;
+    const float* boundary_row = have_boundary_ ? boundary_scores.ptr<float>(y) : nullptr;
     const float* boundary_below =
-        have_boundary && below != nullptr ? boundary_scores.ptr<float>(y + 1) : nullptr;
+        have_boundary_ && below != nullptr ? boundary_scores.ptr<float>(y + 1) : nullptr;
     for (int x = 0; x < size_.width; ++x) {
       const int l = row[x];
       CHECK(l >= 0 && l < num_regions) << "label " << l << " outside 0.." << num_regions - 1;
@@ -134,13 +133,13 @@ MergeState::MergeState(const cv::Mat& labels, int num_regions, const cv::Mat& la
         r.perimeter += 1;
         regions_[row[x + 1]].perimeter += 1;
         crack(l, row[x + 1], DeltaE(lab_row[x], lab_row[x + 1]), wide(x, y, x + 1, y), false,
-              have_boundary ? 0.5 * (boundary_row[x] + boundary_row[x + 1]) : 0.0);
+              have_boundary_ ? 0.5 * (boundary_row[x] + boundary_row[x + 1]) : 0.0);
       }
       if (below != nullptr && below[x] != l) {
         r.perimeter += 1;
         regions_[below[x]].perimeter += 1;
         crack(l, below[x], DeltaE(lab_row[x], lab_below[x]), wide(x, y, x, y + 1), true,
-              have_boundary ? 0.5 * (boundary_row[x] + boundary_below[x]) : 0.0);
+              have_boundary_ ? 0.5 * (boundary_row[x] + boundary_below[x]) : 0.0);
       }
       if (y % texton_stride == 0 && x % texton_stride == 0) r.samples += 1;
     }
@@ -412,10 +411,10 @@ SceneSegmentation MergeState::Result() const {
 // ---- The model ----
 
 bool RegionMergeModel::TrainingOptions::Check(std::string* error) const {
-  if (weak_count < 1 || max_depth < 1 || max_depth > 10 ||
+  if (weak_count < 1 || max_depth < 1 || max_depth > BoostedForest::kMaxTrainingDepth ||
       !(weight_trim_rate >= 0 && weight_trim_rate <= 1)) {
-    *error =
-        "grouping training: weak_count >= 1, max_depth in [1, 10], weight_trim_rate in [0, 1]";
+    *error = "grouping training: weak_count >= 1, max_depth in [1, " +
+             std::to_string(BoostedForest::kMaxTrainingDepth) + "], weight_trim_rate in [0, 1]";
     return false;
   }
   return true;
