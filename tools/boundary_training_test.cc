@@ -37,7 +37,10 @@ OnOff ScoreTestImage(const BoundaryModel& model, const std::string& dataset,
                      const SceneOrganizerOptions& organizer) {
   OnOff result;
   StatusOr<LabelledImage> image = ReadLabelledImage(dataset, kTest);
-  if (!image.ok()) return result;
+  if (!image.ok()) {
+    ADD_FAILURE() << "cannot read " << kTest << ": " << image.status().ToString();
+    return result;
+  }
   const WorkingImage working = MakeWorkingImage(image->bgr, organizer.superpixels.working_width);
   const SceneSegmentation superpixels = ComputeSuperpixels(working, organizer.superpixels);
   const cv::Mat cracks = CrackPixels(superpixels.labels);
