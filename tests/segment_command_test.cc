@@ -1,7 +1,8 @@
 // `placerec-eval segment` as the issue checks it: the written segments/<id>.png and
 // classes/<id>.png follow the output contract, a folder with images and a split list only is
 // enough, the reported object IoU is what the written segments score against the ground truth
-// (recomputed here independently of the scoring code), per_image.csv adds up to it, and a bad
+// (recomputed here independently of the scoring code), per_image.csv adds up to it, frames
+// unlike the datasets' (grayscale, tiny, large, odd shapes) keep the contract, and a bad
 // dataset gets an error and no output. Three stanford_background test images are copied into a
 // temporary dataset; the test skips without ../shared/data.
 #include <sys/wait.h>
@@ -20,6 +21,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "common/util/paths.h"
 
@@ -109,36 +111,43 @@ class SegmentCommandTest : public ::testing::Test {
   fs::path root_;
 };
 
+// The output contract for one image: segments/<id>.png 16-bit and classes/<id>.png 8-bit, both
+// the image's size, segment ids 1..n each used, one class per segment, classes among the six.
+void ExpectOutputContract(const std::string& image_path, const std::string& out,
+                          const std::string& id) {
+  const std::set<int> allowed_classes = {0, 1, 2, 3, 4, 7};
+  const cv::Mat image = cv::imread(image_path, cv::IMREAD_UNCHANGED);
+  const cv::Mat segments = cv::imread(out + "/segments/" + id + ".png", cv::IMREAD_UNCHANGED);
+  const cv::Mat classes = cv::imread(out + "/classes/" + id + ".png", cv::IMREAD_UNCHANGED);
+  ASSERT_FALSE(image.empty()) << image_path;
+  ASSERT_FALSE(segments.empty()) << id;
+  ASSERT_FALSE(classes.empty()) << id;
+  EXPECT_EQ(segments.type(), CV_16U) << id;
+  EXPECT_EQ(classes.type(), CV_8U) << id;
+  EXPECT_EQ(segments.size(), image.size()) << id;
+  EXPECT_EQ(classes.size(), image.size()) << id;
+  if (segments.size() != image.size() || classes.size() != image.size()) return;
+  std::map<int, std::set<int>> classes_of;
+  for (int y = 0; y < segments.rows; ++y) {
+    for (int x = 0; x < segments.cols; ++x) {
+      classes_of[segments.at<uint16_t>(y, x)].insert(classes.at<uint8_t>(y, x));
+    }
+  }
+  ASSERT_FALSE(classes_of.empty());
+  EXPECT_EQ(classes_of.begin()->first, 1) << id;
+  EXPECT_EQ(classes_of.rbegin()->first, static_cast<int>(classes_of.size())) << id;
+  for (const auto& [segment, seen] : classes_of) {
+    EXPECT_EQ(seen.size(), 1u) << id << " segment " << segment;
+    EXPECT_TRUE(allowed_classes.count(*seen.begin())) << id << " class " << *seen.begin();
+  }
+}
+
 TEST_F(SegmentCommandTest, ImagesAndSplitOnlyGiveValidSegmentsAndClasses) {
   const std::string out = (root_ / "out_bare").string();
   const Command run = RunSegment((root_ / "bare").string(), out);
   ASSERT_EQ(run.code, 0) << run.output;
-  const std::set<int> allowed_classes = {0, 1, 2, 3, 4, 7};
   for (const char* id : kIds) {
-    const cv::Mat image =
-        cv::imread((root_ / "bare" / "images" / (std::string(id) + ".jpg")).string());
-    const cv::Mat segments = cv::imread(out + "/segments/" + id + ".png", cv::IMREAD_UNCHANGED);
-    const cv::Mat classes = cv::imread(out + "/classes/" + id + ".png", cv::IMREAD_UNCHANGED);
-    ASSERT_FALSE(segments.empty()) << id;
-    ASSERT_FALSE(classes.empty()) << id;
-    EXPECT_EQ(segments.type(), CV_16U) << id;
-    EXPECT_EQ(classes.type(), CV_8U) << id;
-    EXPECT_EQ(segments.size(), image.size()) << id;
-    EXPECT_EQ(classes.size(), image.size()) << id;
-    // Every pixel in exactly one segment: ids 1..n, each used, and one class per segment.
-    std::map<int, std::set<int>> classes_of;
-    for (int y = 0; y < segments.rows; ++y) {
-      for (int x = 0; x < segments.cols; ++x) {
-        classes_of[segments.at<uint16_t>(y, x)].insert(classes.at<uint8_t>(y, x));
-      }
-    }
-    ASSERT_FALSE(classes_of.empty());
-    EXPECT_EQ(classes_of.begin()->first, 1) << id;
-    EXPECT_EQ(classes_of.rbegin()->first, static_cast<int>(classes_of.size())) << id;
-    for (const auto& [segment, seen] : classes_of) {
-      EXPECT_EQ(seen.size(), 1u) << id << " segment " << segment;
-      EXPECT_TRUE(allowed_classes.count(*seen.begin())) << id << " class " << *seen.begin();
-    }
+    ExpectOutputContract((root_ / "bare" / "images" / (std::string(id) + ".jpg")).string(), out, id);
   }
   // --overlays 1 draws the first image: itself and its segments side by side, a legend below.
   const cv::Mat first =
@@ -263,6 +272,43 @@ TEST_F(SegmentCommandTest, ReportedIouIsWhatTheWrittenSegmentsScore) {
     ++listed;
   }
   EXPECT_EQ(listed, 3);
+}
+
+// Frames unlike the datasets' (the issue scores data the project does not have): a grayscale
+// JPEG, a portrait crop, a wide strip, a frame of 8x6 pixels, one four times the working
+// width and one of a single colour all keep the output contract at their own size.
+TEST_F(SegmentCommandTest, UnusualFramesKeepTheOutputContract) {
+  const fs::path odd = root_ / "odd";
+  fs::create_directories(odd / "images");
+  const cv::Mat source =
+      cv::imread((root_ / "bare" / "images" / (std::string(kIds[0]) + ".jpg")).string());
+  ASSERT_FALSE(source.empty());
+  std::map<std::string, cv::Mat> frames;
+  cv::cvtColor(source, frames["gray"], cv::COLOR_BGR2GRAY);
+  frames["portrait"] = source(cv::Rect(0, 0, source.cols / 3, source.rows)).clone();
+  cv::resize(source, frames["strip"], cv::Size(1000, 60), 0, 0, cv::INTER_AREA);
+  cv::resize(source, frames["micro"], cv::Size(8, 6), 0, 0, cv::INTER_AREA);
+  cv::resize(source, frames["large"], cv::Size(4 * source.cols, 4 * source.rows));
+  frames["flat"] = cv::Mat(240, 320, CV_8UC3, cv::Scalar(120, 130, 140));
+  std::ofstream split(odd / "test.txt");
+  for (const auto& [id, frame] : frames) {
+    ASSERT_TRUE(cv::imwrite((odd / "images" / (id + ".jpg")).string(), frame)) << id;
+    split << id << "\n";
+  }
+  split.close();
+  ASSERT_EQ(cv::imread((odd / "images" / "gray.jpg").string(), cv::IMREAD_UNCHANGED).channels(), 1);
+  const std::string out = (root_ / "out_odd").string();
+  const Command run = RunSegment(odd.string(), out);
+  ASSERT_EQ(run.code, 0) << run.output;
+  for (const auto& [id, frame] : frames) {
+    ExpectOutputContract((odd / "images" / (id + ".jpg")).string(), out, id);
+  }
+  // A frame of one colour is one segment.
+  const cv::Mat flat = cv::imread(out + "/segments/flat.png", cv::IMREAD_UNCHANGED);
+  ASSERT_FALSE(flat.empty());
+  double lowest = 0, highest = 0;
+  cv::minMaxLoc(flat, &lowest, &highest);
+  EXPECT_EQ(highest, 1.0);
 }
 
 TEST_F(SegmentCommandTest, MissingSplitIsAnErrorAndWritesNothing) {
