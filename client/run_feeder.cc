@@ -1,7 +1,5 @@
 #include "client/run_feeder.h"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <cstdio>
 #include <deque>
@@ -15,6 +13,7 @@
 #include "common/eval/plots.h"
 #include "common/eval/stats.h"
 #include "common/util/paths.h"
+#include "common/util/progress.h"
 #include "common/util/timer.h"
 
 namespace placerec {
@@ -79,8 +78,7 @@ StatusOr<FeedReport> FeedRun(PlacerecClient* client, const Run& run, const FeedO
   int answered = 0;
   int loop_closures = 0;
   Status failure;
-  const bool tty = isatty(STDERR_FILENO) == 1;
-  const int progress_every = std::max(1, frames / 10);
+  ProgressLine progress(static_cast<size_t>(frames), 1, static_cast<size_t>(frames / 10));
   Timer wall;
 
   client->SetAnswerCallback([&](const FrameResult& r) {
@@ -91,7 +89,7 @@ StatusOr<FeedReport> FeedRun(PlacerecClient* client, const Run& run, const FeedO
     const bool earlier = best.sequence >= 0 && best.sequence < f;
     const bool correct = earlier && run.IsPositive(f, static_cast<int>(best.sequence));
     std::lock_guard lock(mutex);
-    if (options.progress && tty) std::fprintf(stderr, "\r\033[K");
+    if (options.progress) progress.Clear();
     std::printf(
         "loop closure: frame %d (%s) revisits frame %lld (%s), score %.0f, %d landmarks "
         "matched%s\n",
@@ -105,16 +103,15 @@ StatusOr<FeedReport> FeedRun(PlacerecClient* client, const Run& run, const FeedO
     std::lock_guard lock(mutex);
     ++answered;
     if (result.ok() && result.loop_closure) ++loop_closures;
-    if (options.progress && (tty || answered % progress_every == 0 || answered == frames)) {
+    if (options.progress) {
       const double elapsed = wall.ElapsedMs() / 1000.0;
-      std::fprintf(stderr,
-                   "%s[%4d/%d] %5.1f%%  %s #%d %s  lm %3d  map %6lld lm  loops %d  %6.0f ms  "
-                   "%.1f fps%s",
-                   tty ? "\r" : "", answered, frames, 100.0 * answered / frames,
-                   result.robot.c_str(), f, AnswerCodeName(result.code), result.landmarks,
-                   static_cast<long long>(result.map_landmarks), loop_closures, result.latency_ms,
-                   elapsed > 0 ? answered / elapsed : 0.0, tty ? " " : "\n");
-      if (tty && answered == frames) std::fprintf(stderr, "\n");
+      progress.Report(static_cast<size_t>(answered),
+                      "[%4d/%d] %5.1f%%  %s #%d %s  lm %3d  map %6lld lm  loops %d  %6.0f ms  "
+                      "%.1f fps",
+                      answered, frames, 100.0 * answered / frames, result.robot.c_str(), f,
+                      AnswerCodeName(result.code), result.landmarks,
+                      static_cast<long long>(result.map_landmarks), loop_closures,
+                      result.latency_ms, elapsed > 0 ? answered / elapsed : 0.0);
     }
     report.results[f] = std::move(result);
   };

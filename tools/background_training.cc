@@ -15,6 +15,7 @@
 
 #include "common/organization/filter_bank.h"
 #include "common/util/paths.h"
+#include "common/util/progress.h"
 #include "common/util/timer.h"
 
 namespace placerec {
@@ -132,17 +133,6 @@ nlohmann::json BackgroundAccuracy::ToJson() const {
   return out;
 }
 
-namespace {
-
-void Progress(bool on, const char* stage, size_t done, size_t total) {
-  if (on && (done % 20 == 0 || done == total)) {
-    std::fprintf(stderr, "\r%s %zu/%zu", stage, done, total);
-    if (done == total) std::fprintf(stderr, "\n");
-  }
-}
-
-}  // namespace
-
 std::vector<int> RegionAreas(const cv::Mat& regions, int n) {
   std::vector<int> area(static_cast<size_t>(n), 0);
   for (int y = 0; y < regions.rows; ++y) {
@@ -252,6 +242,7 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
   // 1. Textons: k-means on pixels sampled from every training image.
   Timer timer;
   cv::Mat pixel_samples;
+  ProgressLine sampling_progress(ids->size(), 1, kLogProgressEvery);
   for (size_t i = 0; i < ids->size(); ++i) {
     StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*ids)[i]);
     if (!image.ok()) return image.status();
@@ -267,7 +258,7 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
       std::copy(f, f + kTextonFeatureSize, samples.ptr<float>(s));
     }
     pixel_samples.push_back(samples);
-    Progress(config.progress, "filter bank", i + 1, ids->size());
+    if (config.progress) sampling_progress.Report(i + 1, "filter bank %zu/%zu", i + 1, ids->size());
   }
   const double sampling_seconds = timer.ElapsedMs() / 1000.0;
   timer.Restart();
@@ -303,6 +294,7 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
     }
   };
   int superpixel_regions = 0;
+  ProgressLine region_progress(ids->size(), 1, kLogProgressEvery);
   for (size_t i = 0; i < ids->size(); ++i) {
     StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*ids)[i]);
     if (!image.ok()) return image.status();
@@ -323,7 +315,7 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
       const cv::Mat objects = ObjectRegions(LayerAtSize(image->objects, working.bgr.size()), &n);
       append(RegionAppearance(objects, n, map, features, assigner), objects, n, gt, 0.5);
     }
-    Progress(config.progress, "regions", i + 1, ids->size());
+    if (config.progress) region_progress.Report(i + 1, "regions %zu/%zu", i + 1, ids->size());
   }
   const double regions_seconds = timer.ElapsedMs() / 1000.0;
   if (config.progress) {
@@ -364,6 +356,7 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
     auto rivals_of = [&](const cv::Mat& appearance) {
       return classifier.Rivals(appearance, config.organizer.one_per_class);
     };
+    ProgressLine evaluation_progress(eval_ids->size(), 1, kLogProgressEvery);
     for (size_t i = 0; i < eval_ids->size(); ++i) {
       StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*eval_ids)[i]);
       if (!image.ok()) return image.status();
@@ -401,7 +394,9 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
           check_labels.push_back(labels[r]);
         }
       }
-      Progress(config.progress, "evaluation", i + 1, eval_ids->size());
+      if (config.progress) {
+        evaluation_progress.Report(i + 1, "evaluation %zu/%zu", i + 1, eval_ids->size());
+      }
     }
     evaluation["split"] = config.eval_split;
     evaluation["ground_truth_objects"] = objects_accuracy.ToJson();

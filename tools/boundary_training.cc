@@ -11,6 +11,7 @@
 #include "common/organization/filter_bank.h"
 #include "common/segmentation/superpixels.h"
 #include "common/util/paths.h"
+#include "common/util/progress.h"
 #include "common/util/timer.h"
 #include "tools/background_training.h"
 #include "tools/labelled_dataset.h"
@@ -86,12 +87,12 @@ StatusOr<PixelSample> SampleImages(const BoundaryTrainingConfig& config,
                                    const std::vector<std::string>& ids, const char* what,
                                    std::mt19937_64* rng) {
   PixelSample sample;
+  ProgressLine progress(ids.size(), 1, kLogProgressEvery);
   for (size_t i = 0; i < ids.size(); ++i) {
     PLACEREC_RETURN_IF_ERROR(SampleImage(config, ids[i], rng, &sample));
-    if (config.progress && ((i + 1) % 20 == 0 || i + 1 == ids.size())) {
-      std::fprintf(stderr, "\r%s: pixels from %zu/%zu images: %d", what, i + 1, ids.size(),
-                   sample.features.rows);
-      if (i + 1 == ids.size()) std::fprintf(stderr, "\n");
+    if (config.progress) {
+      progress.Report(i + 1, "%s: pixels from %zu/%zu images: %d", what, i + 1, ids.size(),
+                      sample.features.rows);
     }
   }
   return sample;

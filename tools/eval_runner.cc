@@ -15,6 +15,7 @@
 #include "common/storage/sqlite_store.h"
 #include "common/util/logging.h"
 #include "common/util/paths.h"
+#include "common/util/progress.h"
 #include "common/util/timer.h"
 
 namespace placerec {
@@ -94,6 +95,7 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
   int64_t landmarks = 0;
   int loop_closures = 0;
   Timer run_timer;
+  ProgressLine progress(static_cast<size_t>(frames), 1, static_cast<size_t>(frames / 10));
 
   for (int f = 0; f < frames; ++f) {
     const RunFrame& frame = run.frames[f];
@@ -134,6 +136,7 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
       if (eval.print_loop_closures) {
         const PlaceMatch& best = result.matches.front();
         const bool correct = run.IsPositive(frame.frame, answer.reference);
+        if (eval.progress) progress.Clear();
         std::printf(
             "loop closure: frame %d (%s) revisits frame %lld (%s), score %.0f, %d "
             "landmarks matched%s\n",
@@ -147,13 +150,12 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
     if (eval.progress) {
       const double elapsed = run_timer.ElapsedMs() / 1000.0;
       const double eta = elapsed / (f + 1) * (frames - f - 1);
-      std::fprintf(stderr,
-                   "\r[%4d/%d] %5.1f%%  %s  kp %4d  obj %3d  lm %3d  map %6lld lm  loops %d  "
-                   "eta %4.0fs ",
-                   f + 1, frames, 100.0 * (f + 1) / frames, frame.robot.c_str(), result.keypoints,
-                   result.objects, result.landmarks, static_cast<long long>(result.map.landmarks),
-                   loop_closures, eta);
-      if (f + 1 == frames) std::fprintf(stderr, "\n");
+      progress.Report(static_cast<size_t>(f + 1),
+                      "[%4d/%d] %5.1f%%  %s  kp %4d  obj %3d  lm %3d  map %6lld lm  loops %d  "
+                      "eta %4.0fs",
+                      f + 1, frames, 100.0 * (f + 1) / frames, frame.robot.c_str(),
+                      result.keypoints, result.objects, result.landmarks,
+                      static_cast<long long>(result.map.landmarks), loop_closures, eta);
     }
   }
 

@@ -10,6 +10,7 @@
 #include <random>
 
 #include "common/util/paths.h"
+#include "common/util/progress.h"
 #include "common/util/timer.h"
 #include "tools/background_training.h"
 #include "tools/labelled_dataset.h"
@@ -267,6 +268,7 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
   std::mt19937_64 rng(config.seed);
   std::vector<TrainingImage> images;
   const size_t total = ids->size() - static_cast<size_t>(config.holdout);
+  ProgressLine pass1_progress(total, 1, kLogProgressEvery);
   for (size_t i = static_cast<size_t>(config.holdout); i < ids->size(); ++i) {
     StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*ids)[i]);
     if (!image.ok()) return image.status();
@@ -322,10 +324,9 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
       Record(state, votes, changed, config.min_purity, &sample);
     }
     images.push_back(std::move(t));
-    if (config.progress && (images.size() % 20 == 0 || images.size() == total)) {
-      std::fprintf(stderr, "\rpass 1: pairs from %zu/%zu images: %d", images.size(), total,
-                   sample.features.rows);
-      if (images.size() == total) std::fprintf(stderr, "\n");
+    if (config.progress) {
+      pass1_progress.Report(images.size(), "pass 1: pairs from %zu/%zu images: %d", images.size(),
+                            total, sample.features.rows);
     }
   }
   const double pairs_seconds = timer.ElapsedMs() / 1000.0;
@@ -345,6 +346,7 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
     RegionMergeOptions policy;
     policy.threshold = config.policy_threshold;
     size_t done = 0;
+    ProgressLine pass2_progress(images.size(), 1, kLogProgressEvery);
     for (const TrainingImage& t : images) {
       std::vector<Votes> votes = t.votes;
       MergeState state = new_state(t);
@@ -355,10 +357,9 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
         }
       });
       ++done;
-      if (config.progress && (done % 20 == 0 || done == images.size())) {
-        std::fprintf(stderr, "\rpass 2: pairs from %zu/%zu images: %d", done, images.size(),
-                     sample.features.rows - pass1_pairs);
-        if (done == images.size()) std::fprintf(stderr, "\n");
+      if (config.progress) {
+        pass2_progress.Report(done, "pass 2: pairs from %zu/%zu images: %d", done, images.size(),
+                              sample.features.rows - pass1_pairs);
       }
     }
     const double policy_seconds = timer.ElapsedMs() / 1000.0;

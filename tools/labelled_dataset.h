@@ -65,4 +65,8 @@ StatusOr<Fold> ParseFold(const std::string& text);
 // The fold (0..count-1) of the image at `position` among `total` (count >= 1, total >= 1).
 int FoldOf(size_t position, size_t total, int count);
 
+// Work over a dataset's images (training, `placerec-eval segment`) writes a progress line to a
+// log (anything but a terminal, see ProgressLine) every this many images.
+constexpr size_t kLogProgressEvery = 50;
+
 }  // namespace placerec

@@ -15,6 +15,7 @@
 #include "common/organization/scene_organizer.h"
 #include "common/util/options.h"
 #include "common/util/paths.h"
+#include "common/util/progress.h"
 #include "common/util/timer.h"
 #include "tools/background_training.h"
 #include "tools/segment_pictures.h"
@@ -510,10 +511,12 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     overlay_at.push_back(static_cast<size_t>(i) * ids->size() / static_cast<size_t>(overlays));
   }
   Timer total_timer;
+  ProgressLine progress(ids->size(), 1, kLogProgressEvery);
   for (size_t i = 0; i < ids->size(); ++i) {
     const std::string& id = (*ids)[i];
     StatusOr<LabelledImage> image = ReadLabelledImage(dataset, id);
     if (!image.ok()) {
+      progress.Clear();
       std::fprintf(stderr, "placerec-eval segment: %s\n", image.status().ToString().c_str());
       return 1;
     }
@@ -535,6 +538,7 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     for (const auto& [stage, ms] : summary.timings) stage_ms[stage] += ms;
     segments_total += segmentation.size();
     if (segmentation.size() > 65535) {
+      progress.Clear();
       std::fprintf(stderr, "placerec-eval segment: %s has more than 65535 segments\n", id.c_str());
       return 1;
     }
@@ -552,6 +556,7 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     }
     if (!cv::imwrite(out + "/segments/" + id + ".png", ids16) ||
         !cv::imwrite(out + "/classes/" + id + ".png", classes8)) {
+      progress.Clear();
       std::fprintf(stderr, "placerec-eval segment: cannot write %s's pictures\n", id.c_str());
       return 1;
     }
@@ -574,6 +579,7 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
       for (const ObjectScore& s : scores) sum += s.iou;
       add_row(id, segmentation.size(), image_ms, static_cast<int>(scores.size()), sum);
       if (verbose) {
+        if (!quiet) progress.Clear();
         std::string rounds;
         for (const int p : summary.organization.parts) rounds += " " + std::to_string(p);
         std::fprintf(stderr,
@@ -599,10 +605,7 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
         pixels.Add(segments, segmentation.classes, gt_classes, *table);
       }
     }
-    if (!quiet && ((i + 1) % 10 == 0 || i + 1 == ids->size())) {
-      std::fprintf(stderr, "\rsegmented %zu/%zu", i + 1, ids->size());
-      if (i + 1 == ids->size()) std::fprintf(stderr, "\n");
-    }
+    if (!quiet) progress.Report(i + 1, "segmented %zu/%zu", i + 1, ids->size());
   }
 
   nlohmann::json report;
