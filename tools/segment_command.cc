@@ -579,7 +579,7 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
       for (const ObjectScore& s : scores) sum += s.iou;
       add_row(id, segmentation.size(), image_ms, static_cast<int>(scores.size()), sum);
       if (verbose) {
-        if (!quiet) progress.Clear();
+        progress.Clear();
         std::string rounds;
         for (const int p : summary.organization.parts) rounds += " " + std::to_string(p);
         std::fprintf(stderr,
