@@ -96,9 +96,11 @@ struct IndexQueryStats {
 struct IndexResult {
   // Object-level matches: the seed's retrieval (§5.6), sorted by (query object, landmark).
   std::vector<LandmarkMatch> objects;
-  // For every place with an object-level match: the query descriptors matched into the place's
-  // landmarks with a ratio test over the whole place. These feed the geometric check; they are
-  // more selective than matches inside single objects, whose second neighbours are few.
+  // For every candidate place (an object-level match, or among the places with the most
+  // distinctive votes and their neighbours, see `vote_places`): the query descriptors matched
+  // into the place's landmarks with a ratio test over the whole place. These feed the geometric
+  // check; they are more selective than matches inside single objects, whose second neighbours
+  // are few. A voted place may have no object-level match at all.
   std::map<PlaceId, std::vector<PointMatch>> place_points;
   IndexQueryStats stats;
 };
