@@ -78,7 +78,7 @@ StatusOr<FeedReport> FeedRun(PlacerecClient* client, const Run& run, const FeedO
   int answered = 0;
   int loop_closures = 0;
   Status failure;
-  ProgressLine progress(static_cast<size_t>(frames), 1, static_cast<size_t>(frames / 10));
+  ProgressLine progress(static_cast<size_t>(frames), static_cast<size_t>(frames / 10));
   Timer wall;
 
   client->SetAnswerCallback([&](const FrameResult& r) {

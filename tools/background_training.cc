@@ -242,7 +242,7 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
   // 1. Textons: k-means on pixels sampled from every training image.
   Timer timer;
   cv::Mat pixel_samples;
-  ProgressLine sampling_progress(ids->size(), 1, kLogProgressEvery);
+  ProgressLine sampling_progress(ids->size(), kLogProgressEvery);
   for (size_t i = 0; i < ids->size(); ++i) {
     StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*ids)[i]);
     if (!image.ok()) return image.status();
@@ -294,7 +294,7 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
     }
   };
   int superpixel_regions = 0;
-  ProgressLine region_progress(ids->size(), 1, kLogProgressEvery);
+  ProgressLine region_progress(ids->size(), kLogProgressEvery);
   for (size_t i = 0; i < ids->size(); ++i) {
     StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*ids)[i]);
     if (!image.ok()) return image.status();
@@ -356,7 +356,7 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
     auto rivals_of = [&](const cv::Mat& appearance) {
       return classifier.Rivals(appearance, config.organizer.one_per_class);
     };
-    ProgressLine evaluation_progress(eval_ids->size(), 1, kLogProgressEvery);
+    ProgressLine evaluation_progress(eval_ids->size(), kLogProgressEvery);
     for (size_t i = 0; i < eval_ids->size(); ++i) {
       StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*eval_ids)[i]);
       if (!image.ok()) return image.status();

@@ -87,7 +87,7 @@ StatusOr<PixelSample> SampleImages(const BoundaryTrainingConfig& config,
                                    const std::vector<std::string>& ids, const char* what,
                                    std::mt19937_64* rng) {
   PixelSample sample;
-  ProgressLine progress(ids.size(), 1, kLogProgressEvery);
+  ProgressLine progress(ids.size(), kLogProgressEvery);
   for (size_t i = 0; i < ids.size(); ++i) {
     PLACEREC_RETURN_IF_ERROR(SampleImage(config, ids[i], rng, &sample));
     if (config.progress) {

@@ -95,7 +95,7 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
   int64_t landmarks = 0;
   int loop_closures = 0;
   Timer run_timer;
-  ProgressLine progress(static_cast<size_t>(frames), 1, static_cast<size_t>(frames / 10));
+  ProgressLine progress(static_cast<size_t>(frames), static_cast<size_t>(frames / 10));
 
   for (int f = 0; f < frames; ++f) {
     const RunFrame& frame = run.frames[f];

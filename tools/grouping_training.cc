@@ -268,7 +268,7 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
   std::mt19937_64 rng(config.seed);
   std::vector<TrainingImage> images;
   const size_t total = ids->size() - static_cast<size_t>(config.holdout);
-  ProgressLine pass1_progress(total, 1, kLogProgressEvery);
+  ProgressLine pass1_progress(total, kLogProgressEvery);
   for (size_t i = static_cast<size_t>(config.holdout); i < ids->size(); ++i) {
     StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*ids)[i]);
     if (!image.ok()) return image.status();
@@ -346,7 +346,7 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
     RegionMergeOptions policy;
     policy.threshold = config.policy_threshold;
     size_t done = 0;
-    ProgressLine pass2_progress(images.size(), 1, kLogProgressEvery);
+    ProgressLine pass2_progress(images.size(), kLogProgressEvery);
     for (const TrainingImage& t : images) {
       std::vector<Votes> votes = t.votes;
       MergeState state = new_state(t);

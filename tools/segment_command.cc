@@ -511,7 +511,7 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     overlay_at.push_back(static_cast<size_t>(i) * ids->size() / static_cast<size_t>(overlays));
   }
   Timer total_timer;
-  ProgressLine progress(ids->size(), 1, kLogProgressEvery);
+  ProgressLine progress(ids->size(), kLogProgressEvery);
   for (size_t i = 0; i < ids->size(); ++i) {
     const std::string& id = (*ids)[i];
     StatusOr<LabelledImage> image = ReadLabelledImage(dataset, id);

@@ -7,11 +7,11 @@
 
 namespace placerec {
 
-ProgressLine::ProgressLine(size_t total, size_t terminal_every, size_t log_every, FILE* out)
+ProgressLine::ProgressLine(size_t total, size_t log_every, FILE* out)
     : out_(out),
       terminal_(isatty(fileno(out)) == 1),
       total_(total),
-      every_(std::max<size_t>(1, terminal_ ? terminal_every : log_every)) {}
+      every_(terminal_ ? 1 : std::max<size_t>(1, log_every)) {}
 
 bool ProgressLine::Due(size_t done) const { return done == total_ || done % every_ == 0; }
 

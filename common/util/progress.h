@@ -10,10 +10,10 @@ namespace placerec {
 
 class ProgressLine {
  public:
-  // `total` steps. On a terminal a report is due every `terminal_every` steps, elsewhere every
-  // `log_every` steps; the last step is always due. `out` is the stream written to; whether
-  // it is a terminal is asked once, here.
-  ProgressLine(size_t total, size_t terminal_every, size_t log_every, FILE* out = stderr);
+  // `total` steps. On a terminal every step is reported, elsewhere every `log_every` steps;
+  // the last step always is. `out` is the stream written to; whether it is a terminal is asked
+  // once, here.
+  ProgressLine(size_t total, size_t log_every, FILE* out = stderr);
 
   bool terminal() const { return terminal_; }
 

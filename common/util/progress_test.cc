@@ -26,7 +26,7 @@ std::string Contents(FILE* file) {
 TEST(ProgressLineTest, InALogEveryDueReportIsALineOfItsOwn) {
   FILE* log = std::tmpfile();
   ASSERT_NE(log, nullptr);
-  ProgressLine progress(/*total=*/7, /*terminal_every=*/1, /*log_every=*/3, log);
+  ProgressLine progress(/*total=*/7, /*log_every=*/3, log);
   EXPECT_FALSE(progress.terminal());
   for (size_t i = 1; i <= 7; ++i) progress.Report(i, "step %zu/%d", i, 7);
   progress.Clear();
@@ -37,14 +37,14 @@ TEST(ProgressLineTest, InALogEveryDueReportIsALineOfItsOwn) {
 TEST(ProgressLineTest, DueEveryNStepsAndAtTheLast) {
   FILE* log = std::tmpfile();
   ASSERT_NE(log, nullptr);
-  const ProgressLine progress(10, 1, 4, log);
+  const ProgressLine progress(10, 4, log);
   EXPECT_FALSE(progress.Due(1));
   EXPECT_TRUE(progress.Due(4));
   EXPECT_FALSE(progress.Due(5));
   EXPECT_TRUE(progress.Due(8));
   EXPECT_TRUE(progress.Due(10));
   // An interval of 0 reports every step rather than dividing by zero.
-  const ProgressLine every_step(3, 0, 0, log);
+  const ProgressLine every_step(3, 0, log);
   EXPECT_TRUE(every_step.Due(1));
   EXPECT_TRUE(every_step.Due(2));
   std::fclose(log);
@@ -62,7 +62,7 @@ TEST(ProgressLineTest, OnATerminalTheLineIsRewrittenInPlace) {
   ASSERT_NE(terminal, nullptr);
 
   {
-    ProgressLine progress(/*total=*/3, /*terminal_every=*/1, /*log_every=*/100, terminal);
+    ProgressLine progress(/*total=*/3, /*log_every=*/100, terminal);
     EXPECT_TRUE(progress.terminal());
     progress.Report(1, "a");
     progress.Report(2, "b");
