@@ -258,7 +258,7 @@ SyntheticMap& MapOf(int landmarks) {
   entry.map = std::move(*map);
   const FrameAnalyzer analyzer(options.analyzer);
   const FrameObservation observation = analyzer.Analyze(Data().frame);
-  entry.query.robot = "query";
+  entry.query.recent.robot = "query";
   entry.query.image_width = observation.processed_size.width;
   for (const SceneObject& object : observation.objects) {
     entry.query.objects.push_back({object.sift_count(), object.colour, object.descriptors});

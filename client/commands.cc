@@ -139,8 +139,8 @@ int QueryCommand(int argc, const char* const* argv) {
       "places, and neither the map nor any robot's state changes.");
   parser.AddPositional("image", &images, "image files");
   parser.Add("robot", &robot,
-             "robot id the query is sent as (its own places are skipped when "
-             "fewer than loop-min-same-robot-gap frames back)");
+             "robot id the query is sent as (its own recent past is skipped: places younger "
+             "than min-same-robot-gap-seconds or in a view it still sees)");
   parser.Add("sequence", &sequence, "sequence number sent with the first image");
   AddConnectionFlags(&parser, &options);
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-client query")) {

@@ -53,5 +53,39 @@ TEST(EndToEndTest, CorridorLoopWithSuperpixels) {
   ExpectCorridorRecall(SegmentationMethod::kSuperpixels, kSuperpixelRecallFloor);
 }
 
+// A camera at 10 and at 30 frames per second (every frame of the run sent ten times 0.1 s apart,
+// and thirty times 1/30 s apart) never closes a loop to its own pass: every loop closure is a
+// listed revisit. The revisits are still found, and at 30 Hz the map is the one the run builds
+// at 1 Hz (copies of a frame show nothing new and are not stored).
+void ExpectNoLoopToTheSamePass(int copies, int64_t interval_us) {
+  const std::string dataset = DataRoot() + "/rtabmap_indoor";
+  if (!PathExists(dataset + "/runs/corridor_loop.frames.csv")) {
+    GTEST_SKIP() << "needs " << dataset << "/runs/corridor_loop.frames.csv; set PLACEREC_DATA";
+  }
+  StatusOr<placerec::Run> run = LoadOrSkip("rtabmap_indoor", "corridor_loop");
+  ASSERT_TRUE(run.ok()) << run.status().ToString();
+  const placerec::Run repeated = RepeatFrames(*run, copies, interval_us);
+  ASSERT_EQ(repeated.frames.size(), run->frames.size() * copies);
+  EvalOptions eval;
+  eval.progress = false;
+  eval.pictures = 0;
+  StatusOr<EvalReport> report = EvaluateRun(repeated, RecognizerOptions(), eval);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  const nlohmann::json& decision = report->summary["decision"];
+  EXPECT_EQ(decision["false_positives"].get<int>(), 0) << report->summary.dump(2);
+  EXPECT_EQ(decision["false_loop_closures_same_robot"].get<int>(), 0);
+  EXPECT_GE(decision["true_positives"].get<int>(), 15 * copies) << report->summary.dump(2);
+  EXPECT_GE(report->score.recall_at_100_precision, kOrganizationRecallFloor);
+  EXPECT_LE(report->summary["map"]["places"].get<int>(), 84);
+}
+
+TEST(EndToEndTest, TenHertzCameraNeverClosesALoopToItsOwnPass) {
+  ExpectNoLoopToTheSamePass(10, 100000);
+}
+
+TEST(EndToEndTest, ThirtyHertzCameraNeverClosesALoopToItsOwnPass) {
+  ExpectNoLoopToTheSamePass(30, 33333);
+}
+
 }  // namespace
 }  // namespace placerec

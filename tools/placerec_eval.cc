@@ -44,6 +44,8 @@ int RunCommand(int argc, char** argv) {
   std::string out;
   EvalOptions eval;
   bool quiet = false;
+  int repeat = 1;
+  double repeat_interval_ms = 100.0;
   RecognizerOptions options;
   FlagParser parser(
       "placerec-eval run --dataset DIR --run NAME --out OUT [options]\n\n"
@@ -57,6 +59,11 @@ int RunCommand(int argc, char** argv) {
   parser.Add("db", &eval.db_path, "SQLite map file to build (default: a map in memory)");
   parser.Add("pictures", &eval.pictures, "match pictures to draw");
   parser.Add("max-frames", &eval.max_frames, "stop after this many frames (0: all)");
+  parser.Add("repeat", &repeat,
+             "send every frame this many times, repeat-interval-ms apart (a faster camera or a "
+             "robot standing still); OUT/run.frames.csv and run.positives.csv hold the fed run");
+  parser.Add("repeat-interval-ms", &repeat_interval_ms,
+             "capture-time interval between the copies of a frame (100: 10 Hz, 33.3: 30 Hz)");
   parser.AddSwitch("print-loops", &eval.print_loop_closures,
                    "print each loop closure as it is found");
   parser.AddSwitch("quiet", &quiet, "no progress line");
@@ -69,12 +76,28 @@ int RunCommand(int argc, char** argv) {
     std::fprintf(stderr, "placerec-eval run: %s\n", error.c_str());
     return 2;
   }
+  if (repeat < 1 || repeat_interval_ms <= 0) {
+    std::fprintf(stderr, "placerec-eval run: --repeat must be >= 1 and --repeat-interval-ms > 0\n");
+    return 2;
+  }
   eval.out_dir = out;
   eval.progress = !quiet;
   StatusOr<Run> run = LoadRun(ResolveDataset(dataset), run_name);
   if (!run.ok()) {
     std::fprintf(stderr, "placerec-eval run: %s\n", run.status().ToString().c_str());
     return 1;
+  }
+  if (repeat > 1) {
+    *run = RepeatFrames(*run, repeat, static_cast<int64_t>(repeat_interval_ms * 1000.0));
+    if (!MakeDirectories(out)) {
+      std::fprintf(stderr, "placerec-eval run: cannot create %s\n", out.c_str());
+      return 1;
+    }
+    const Status written = WriteRun(*run, out + "/run");
+    if (!written.ok()) {
+      std::fprintf(stderr, "placerec-eval run: %s\n", written.ToString().c_str());
+      return 1;
+    }
   }
   StatusOr<EvalReport> report = EvaluateRun(*run, options, eval);
   if (!report.ok()) {

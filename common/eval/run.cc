@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <system_error>
 
@@ -202,6 +203,59 @@ std::vector<std::string> ListRuns(const std::string& dataset_dir) {
   }
   std::sort(names.begin(), names.end());
   return names;
+}
+
+Run RepeatFrames(const Run& run, int copies, int64_t interval_us) {
+  if (copies <= 1) return run;
+  Run repeated;
+  repeated.dataset_dir = run.dataset_dir;
+  repeated.name =
+      run.name + "_x" + std::to_string(copies) + "@" + std::to_string(interval_us / 1000) + "ms";
+  std::map<std::string, int64_t> shift;  // per robot: how much later its frames now come
+  std::map<std::string, int64_t> last;   // per robot: the last copy's capture time
+  for (const RunFrame& frame : run.frames) {
+    int64_t start = frame.utime + shift[frame.robot];
+    const auto previous = last.find(frame.robot);
+    if (previous != last.end() && start < previous->second + interval_us) {
+      start = previous->second + interval_us;
+      shift[frame.robot] = start - frame.utime;
+    }
+    for (int c = 0; c < copies; ++c) {
+      RunFrame copy = frame;
+      copy.frame = static_cast<int>(repeated.frames.size());
+      copy.utime = start + c * interval_us;
+      repeated.frames.push_back(copy);
+    }
+    last[frame.robot] = start + (copies - 1) * interval_us;
+  }
+  for (const auto& [query, reference] : run.positives) {
+    for (int q = 0; q < copies; ++q) {
+      for (int r = 0; r < copies; ++r) {
+        repeated.positives.insert({query * copies + q, reference * copies + r});
+      }
+    }
+  }
+  repeated.is_revisit.assign(repeated.frames.size(), false);
+  for (const auto& p : repeated.positives) repeated.is_revisit[p.first] = true;
+  for (bool r : repeated.is_revisit) repeated.num_revisits += r ? 1 : 0;
+  return repeated;
+}
+
+Status WriteRun(const Run& run, const std::string& prefix) {
+  std::ofstream frames(prefix + ".frames.csv");
+  frames << "frame,robot,image,utime_us\n";
+  for (const RunFrame& f : run.frames) {
+    frames << f.frame << ',' << f.robot << ',' << f.image << ',' << f.utime << '\n';
+  }
+  std::ofstream positives(prefix + ".positives.csv");
+  positives << "query,reference\n";
+  for (const auto& [query, reference] : run.positives) {
+    positives << query << ',' << reference << '\n';
+  }
+  frames.close();
+  positives.close();
+  if (!frames || !positives) return Status::IoError("cannot write " + prefix + ".*.csv");
+  return Status::Ok();
 }
 
 Run FirstFrames(const Run& run, int frames) {

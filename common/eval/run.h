@@ -45,6 +45,17 @@ StatusOr<Run> LoadRun(const std::string& dataset_dir, const std::string& run_nam
 // scoring a partial feed. The whole run when `frames` is not below its length.
 Run FirstFrames(const Run& run, int frames);
 
+// The run as a faster camera would send it: every frame `copies` times, `interval_us` apart in
+// capture time (a robot standing still for a moment, or a camera at 1e6 / interval_us frames per
+// second). A robot's next frame keeps its capture time unless the copies reach it; then the rest
+// of that robot's frames move later. Copies of frames q and r are a positive pair exactly when
+// (q, r) is; copies of one frame are not (they are the robot's own recent past). The name gets a
+// suffix such as "x10@100ms".
+Run RepeatFrames(const Run& run, int copies, int64_t interval_us);
+
+// Writes `prefix`.frames.csv (image paths as the run holds them) and `prefix`.positives.csv.
+Status WriteRun(const Run& run, const std::string& prefix);
+
 // Names of the runs in <dataset>/runs (the <run> of each <run>.frames.csv), sorted; empty when
 // the folder does not exist.
 std::vector<std::string> ListRuns(const std::string& dataset_dir);

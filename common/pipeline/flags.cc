@@ -178,10 +178,20 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add("vote-window", &o->index.vote_window,
          "a robot's places this many frames apart count as one location for the votes");
   p->Add("flann-checks", &o->index.flann.checks, "FLANN leaves checked per query descriptor");
-  p->Add("min-same-robot-gap", &o->loop.min_same_robot_gap,
-         "a robot's own places count only this many frames back (§5.7)");
-  p->Add("min-same-robot-gap-seconds", &o->loop.min_same_robot_gap_seconds,
-         "... and this many seconds back");
+  p->Add("min-same-robot-gap-seconds", &o->recent_past.min_gap_seconds,
+         "a robot's own places count only this many seconds (capture time) back (§5.7 step 6; "
+         "the seed counts frames, which depends on the frame rate)");
+  p->Add("away-seconds", &o->recent_past.away_seconds,
+         "... and only once the robot's frames have not seen their view for this many seconds");
+  p->Add("recent-past-descriptors", &o->recent_past.descriptors_per_frame,
+         "strongest keypoints per frame compared with the robot's recent views");
+  p->Add("recent-past-min-matches", &o->recent_past.min_matches_seen,
+         "orientation-consistent ratio-test matches that mean a frame still sees a view");
+  p->Add("recent-past-new-view-fraction", &o->recent_past.new_view_fraction,
+         "a frame matching less than this fraction of its compared keypoints begins a new view");
+  p->Add("duplicate-fraction", &o->recent_past.duplicate_fraction,
+         "a frame sharing this fraction of its compared keypoints with the robot's last distinct "
+         "frame shows nothing new: answered, not stored (1 stores every frame; not in the seed)");
   p->Add("geometric-verification", &o->loop.geometric_verification,
          "score places by fundamental-matrix RANSAC inliers");
   p->Add("orientation-tolerance", &o->loop.orientation_tolerance,

@@ -60,8 +60,6 @@ AnalyzerOptions SyntheticAnalyzerOptions() {
 RecognizerOptions TestOptions() {
   RecognizerOptions options;
   options.analyzer = SyntheticAnalyzerOptions();
-  // Views 4 steps apart do not overlap: a robot's own places that close are not revisits.
-  options.loop.min_same_robot_gap = 4;
   return options;
 }
 
@@ -145,18 +143,28 @@ TEST(RecognizerTest, SecondRobotRecognisesThePlacesTheFirstMapped) {
   const int frames = (world.cols - kViewWidth) / step + 1;
   int64_t sequence = 0;
   int landmarks = 0;
+  int duplicates = 0;
   for (int i = 0; i < frames; ++i) {
     const RecognitionResult result =
         recognizer.Process({"a", sequence++, i * 1000000LL, true}, View(world, i * step));
     ASSERT_TRUE(result.status.ok()) << result.status.ToString();
-    landmarks += result.landmarks;
     if (i > 0) {
       EXPECT_GT(result.landmarks, 0) << "frame " << i;
     }
+    // A frame whose strongest features all lie in the part it shares with the last one shows
+    // nothing new and is not stored.
+    if (result.duplicate) {
+      ++duplicates;
+      EXPECT_FALSE(result.place.IsValid());
+      EXPECT_EQ(result.stored_descriptors, 0);
+    } else {
+      landmarks += result.landmarks;
+    }
   }
+  EXPECT_LE(duplicates, frames / 10);
   const MapCounts mapped = map->Counts();
   EXPECT_EQ(mapped.landmarks, landmarks);
-  EXPECT_EQ(mapped.places, frames - 1);  // the first frame has no landmarks yet
+  EXPECT_EQ(mapped.places, frames - 1 - duplicates);  // the first frame has no landmarks yet
 
   // Query-only frames leave the map exactly as it was.
   const StatusOr<uint64_t> before = map->Checksum();
@@ -195,6 +203,42 @@ TEST(RecognizerTest, SecondRobotRecognisesThePlacesTheFirstMapped) {
   EXPECT_EQ(after.matches.front().place.id, before_close.matches.front().place.id);
   EXPECT_EQ(after.matches.front().score, before_close.matches.front().score);
   std::remove(path.c_str());
+}
+
+// A robot that stands still for 30 s at 10 frames per second sends the same view 300 times: no
+// frame is a loop closure to its own past, and the map keeps one place for the view. Once it
+// has driven away and comes back after more than min_gap_seconds, its first place answers.
+TEST(RecognizerTest, StandingStillIsNeverALoopClosureComingBackIs) {
+  const cv::Mat world = World(5);
+  const RecognizerOptions options = TestOptions();
+  std::unique_ptr<PlaceMap> map = OpenMap(":memory:", options);
+  Recognizer recognizer(options, map.get());
+  int64_t sequence = 0;
+  int64_t utime = 0;
+  const FrameObservation start = recognizer.Analyze(View(world, 0));
+  const FrameObservation next = recognizer.Analyze(View(world, kStep));
+  // Two frames so that the start view has landmarks, then 300 copies of it.
+  ASSERT_TRUE(recognizer.Recognize({"a", sequence++, utime, true}, next).status.ok());
+  for (int f = 0; f < 300; ++f) {
+    utime += 100000;
+    const RecognitionResult result = recognizer.Recognize({"a", sequence++, utime, true}, start);
+    ASSERT_TRUE(result.status.ok());
+    EXPECT_FALSE(result.loop_closure) << "copy " << f;
+    for (const PlaceMatch& match : result.matches) EXPECT_NE(match.place.robot, "a");
+  }
+  EXPECT_EQ(map->Counts().places, 1);
+  // Drive along the street, one view a second, then turn back to the start.
+  for (int x = kStep; x + kViewWidth <= world.cols; x += kStep) {
+    utime += 1000000;
+    ASSERT_TRUE(recognizer.Process({"a", sequence++, utime, true}, View(world, x)).status.ok());
+  }
+  utime += 1000000;
+  const RecognitionResult back = recognizer.Process({"a", sequence++, utime, true}, View(world, 0));
+  ASSERT_TRUE(back.status.ok());
+  ASSERT_FALSE(back.matches.empty());
+  EXPECT_TRUE(back.loop_closure);
+  EXPECT_EQ(back.matches.front().place.robot, "a");
+  EXPECT_LE(back.matches.front().place.sequence, 302);  // the start, or the view 80 px on
 }
 
 }  // namespace

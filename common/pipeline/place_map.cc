@@ -46,7 +46,7 @@ MapLookupResult PlaceMap::Lookup(const MapLookup& lookup,
   const IndexResult found = index_.Query(lookup.objects, [&](PlaceId id) {
     const auto it = places_.find(id);
     return it != places_.end() &&
-           PlaceAllowed(it->second, lookup.robot, lookup.sequence, lookup.utime, options);
+           lookup.recent.Allows(it->second.robot, it->second.sequence, it->second.utime);
   });
   result.stats = found.stats;
   result.index_ms = timer.ElapsedMs();

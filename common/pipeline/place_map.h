@@ -12,6 +12,7 @@
 
 #include "common/recognition/landmark_index.h"
 #include "common/recognition/loop_decision.h"
+#include "common/recognition/recent_past.h"
 #include "common/recognition/types.h"
 #include "common/storage/landmark_store.h"
 #include "common/util/status.h"
@@ -26,9 +27,7 @@ struct MapCounts {
 
 // What a frame looks up: its objects and where their descriptors sit in the frame.
 struct MapLookup {
-  std::string robot;
-  int64_t sequence = 0;
-  int64_t utime = 0;
+  RecentPastFilter recent;  // the querying robot, its frame's time and its recent past
   std::vector<IndexQuery> objects;
   std::vector<std::vector<cv::KeyPoint>> object_keypoints;  // per object, per descriptor row
   int image_width = 0;                                      // processed frame width, pixels

@@ -10,7 +10,8 @@
 namespace placerec {
 
 bool RecognizerOptions::Check(std::string* error) const {
-  return analyzer.Check(error) && landmarks.Check(error) && index.Check(error) && loop.Check(error);
+  return analyzer.Check(error) && landmarks.Check(error) && index.Check(error) &&
+         loop.Check(error) && recent_past.Check(error);
 }
 
 Recognizer::Recognizer(const RecognizerOptions& options, PlaceMap* map,
@@ -22,7 +23,7 @@ Recognizer::Recognizer(const RecognizerOptions& options, PlaceMap* map,
 Recognizer::RobotState* Recognizer::StateOf(const std::string& robot) {
   std::lock_guard lock(robots_mutex_);
   std::unique_ptr<RobotState>& state = robots_[robot];
-  if (!state) state = std::make_unique<RobotState>(options_.landmarks);
+  if (!state) state = std::make_unique<RobotState>(options_.landmarks, options_.recent_past);
   return state.get();
 }
 
@@ -84,11 +85,20 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   const LandmarkSelection selection = state->selector.Select(object_descriptors);
   result.timings.emplace_back("landmarks", timer.ElapsedMs());
 
+  // The robot's own recent past (seed §5.7 step 6) moves on with every inserted frame; a query
+  // only reads it.
+  timer.Restart();
+  RecentPastUpdate recent;
+  if (request.insert) {
+    recent =
+        state->recent_past.Observe(request.sequence, request.utime, observation.features.keypoints,
+                                   observation.features.descriptors);
+  }
+  result.timings.emplace_back("recent_past", timer.ElapsedMs());
+
   // Lookup (seed §5.7 step 5) and decision (step 6).
   MapLookup lookup;
-  lookup.robot = request.robot;
-  lookup.sequence = request.sequence;
-  lookup.utime = request.utime;
+  lookup.recent = state->recent_past.Filter(request.robot, request.utime);
   lookup.image_width = observation.processed_size.width;
   std::vector<int> query_to_object;
   if (options_.query_objects == QueryObjects::kAll) {
@@ -186,8 +196,10 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
     return result;
   }
 
-  // Store this frame's landmarks, committed before the answer goes out.
+  // Store this frame's landmarks, committed before the answer goes out; a frame that shows
+  // nothing new since the robot's last stored place is not stored.
   timer.Restart();
+  result.duplicate = recent.duplicate;
   // Rows stored per landmark: the tracked ones, topped up in plain scenes.
   std::vector<std::vector<int>> stored_rows(selection.landmarks.size());
   size_t stored_total = 0;
@@ -238,7 +250,9 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
     landmarks.push_back(std::move(landmark));
   }
   result.landmarks = static_cast<int>(landmarks.size());
-  if (!landmarks.empty()) {
+  if (result.duplicate) {
+    result.stored_descriptors = 0;
+  } else if (!landmarks.empty()) {
     Place place;
     place.robot = request.robot;
     place.sequence = request.sequence;
@@ -253,7 +267,9 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
     }
     result.place = place.id;
   }
-  state->selector.Remember(object_descriptors);
+  // The landmark history holds the robot's distinct frames: copies of a view would make every
+  // object "widely visible" at a high frame rate.
+  if (!result.duplicate) state->selector.Remember(object_descriptors);
   state->last_sequence = request.sequence;
   result.timings.emplace_back("insert", timer.ElapsedMs());
   result.map = map_->Counts();

@@ -17,6 +17,7 @@
 #include "common/pipeline/place_map.h"
 #include "common/recognition/landmark_selector.h"
 #include "common/recognition/loop_decision.h"
+#include "common/recognition/recent_past.h"
 #include "common/util/status.h"
 #include "common/util/timer.h"
 
@@ -33,6 +34,7 @@ struct RecognizerOptions {
   LandmarkSelectorOptions landmarks;
   LandmarkIndexOptions index;
   LoopDecisionOptions loop;
+  RecentPastOptions recent_past;
   QueryObjects query_objects = QueryObjects::kAll;
   // Look up at most this many of the query objects' descriptors, the strongest keypoints
   // (largest DoG response) first: the cost of a lookup grows with the descriptors searched.
@@ -69,9 +71,12 @@ struct RecognitionResult {
   int landmarks = 0;           // this frame's landmarks (0 for query-only frames)
   int stored_descriptors = 0;  // descriptors this frame added to the map
   PlaceId place;               // the place inserted for this frame, if any
-  MapCounts map;               // map size after this frame
-  double image_scale = 1.0;    // processed / original frame size (max_image_width)
-  StageTimings timings;        // milliseconds
+  // The frame showed nothing new since the robot's last stored place (recent_past.h): its
+  // landmarks were not stored.
+  bool duplicate = false;
+  MapCounts map;             // map size after this frame
+  double image_scale = 1.0;  // processed / original frame size (max_image_width)
+  StageTimings timings;      // milliseconds
 };
 
 class Recognizer {
@@ -98,8 +103,10 @@ class Recognizer {
 
  private:
   struct RobotState {
-    explicit RobotState(const LandmarkSelectorOptions& options) : selector(options) {}
+    RobotState(const LandmarkSelectorOptions& landmarks, const RecentPastOptions& recent)
+        : selector(landmarks), recent_past(recent) {}
     LandmarkSelector selector;
+    RecentPast recent_past;
     int64_t last_sequence = INT64_MIN;
   };
   RobotState* StateOf(const std::string& robot);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <climits>
+#include <cmath>
 
 #include "common/features/features.h"
 #include "common/util/logging.h"
@@ -52,6 +53,39 @@ std::vector<DescriptorMatch> MatchRatioTest(const cv::Mat& query, const cv::Mat&
     matches.push_back({q, best_row, best});
   }
   return matches;
+}
+
+double AngleDifference(double a, double b) {
+  double d = std::fmod(a - b, 360.0);
+  if (d < -180) d += 360;
+  if (d >= 180) d -= 360;
+  return d;
+}
+
+std::vector<bool> ConsistentOrientation(const std::vector<double>& changes, double tolerance) {
+  if (tolerance <= 0 || changes.empty()) return std::vector<bool>(changes.size(), true);
+  constexpr int kBins = 36;
+  std::vector<double> histogram(kBins, 0.0);
+  for (const double change : changes) {
+    const double d = AngleDifference(change, 0.0) + 180.0;  // [0, 360)
+    histogram[static_cast<int>(d / 10.0) % kBins] += 1.0;
+  }
+  int peak = 0;
+  double best = -1;
+  for (int b = 0; b < kBins; ++b) {
+    const double v =
+        histogram[(b + kBins - 1) % kBins] + 2 * histogram[b] + histogram[(b + 1) % kBins];
+    if (v > best) {
+      best = v;
+      peak = b;
+    }
+  }
+  const double mode = peak * 10.0 + 5.0 - 180.0;
+  std::vector<bool> kept(changes.size());
+  for (size_t i = 0; i < changes.size(); ++i) {
+    kept[i] = std::abs(AngleDifference(changes[i], mode)) <= tolerance;
+  }
+  return kept;
 }
 
 }  // namespace placerec

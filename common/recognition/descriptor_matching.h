@@ -27,4 +27,13 @@ struct DescriptorMatch {
 std::vector<DescriptorMatch> MatchRatioTest(const cv::Mat& query, const cv::Mat& train,
                                             double ratio);
 
+// Difference of two angles in degrees, in [-180, 180).
+double AngleDifference(double a, double b);
+
+// Which of the matches, given by their keypoints' orientation changes (degrees), turn within
+// `tolerance` degrees of the most common change (the peak of a 10-degree histogram, smoothed
+// with its neighbours): two views of a scene from upright cameras rotate their features alike,
+// random matches do not. A tolerance <= 0 keeps every match.
+std::vector<bool> ConsistentOrientation(const std::vector<double>& changes, double tolerance);
+
 }  // namespace placerec

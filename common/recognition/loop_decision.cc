@@ -7,19 +7,12 @@
 
 #include <opencv2/calib3d.hpp>
 
+#include "common/recognition/descriptor_matching.h"
 #include "common/util/logging.h"
 
 namespace placerec {
 
 bool LoopDecisionOptions::Check(std::string* error) const {
-  if (min_same_robot_gap < 0) {
-    *error = "loop min_same_robot_gap must be >= 0 frames";
-    return false;
-  }
-  if (min_same_robot_gap_seconds < 0) {
-    *error = "loop min_same_robot_gap_seconds must be >= 0";
-    return false;
-  }
   if (orientation_tolerance < 0 || orientation_tolerance > 180) {
     *error = "loop orientation_tolerance must be in [0, 180] degrees";
     return false;
@@ -51,22 +44,7 @@ bool LoopDecisionOptions::Check(std::string* error) const {
   return true;
 }
 
-bool PlaceAllowed(const Place& candidate, const std::string& robot, int64_t sequence, int64_t utime,
-                  const LoopDecisionOptions& options) {
-  if (candidate.robot != robot) return true;
-  if (sequence - candidate.sequence < options.min_same_robot_gap) return false;
-  const double seconds = static_cast<double>(utime - candidate.utime) * 1e-6;
-  return seconds >= options.min_same_robot_gap_seconds;
-}
-
 namespace {
-
-double AngleDifference(double a, double b) {
-  double d = std::fmod(a - b, 360.0);
-  if (d < -180) d += 360;
-  if (d >= 180) d -= 360;
-  return d;
-}
 
 struct KeypointPair {
   const cv::KeyPoint* query;
@@ -74,34 +52,19 @@ struct KeypointPair {
   LandmarkId landmark;
 };
 
-// Matches whose orientation change is within `tolerance` degrees of the most common change
-// (the peak of a 10-degree histogram, refined by its neighbours).
-std::vector<KeypointPair> ConsistentOrientation(const std::vector<KeypointPair>& pairs,
-                                                double tolerance) {
+// Matches whose orientation change is within `tolerance` degrees of the most common change.
+std::vector<KeypointPair> ConsistentPairs(const std::vector<KeypointPair>& pairs,
+                                          double tolerance) {
   if (tolerance <= 0 || pairs.empty()) return pairs;
-  constexpr int kBins = 36;
-  std::vector<double> histogram(kBins, 0.0);
+  std::vector<double> changes;
+  changes.reserve(pairs.size());
   for (const KeypointPair& pair : pairs) {
-    const double d = AngleDifference(pair.query->angle, pair.stored->angle) + 180.0;  // [0, 360)
-    histogram[static_cast<int>(d / 10.0) % kBins] += 1.0;
+    changes.push_back(AngleDifference(pair.query->angle, pair.stored->angle));
   }
-  int peak = 0;
-  double best = -1;
-  for (int b = 0; b < kBins; ++b) {
-    const double v =
-        histogram[(b + kBins - 1) % kBins] + 2 * histogram[b] + histogram[(b + 1) % kBins];
-    if (v > best) {
-      best = v;
-      peak = b;
-    }
-  }
-  const double mode = peak * 10.0 + 5.0 - 180.0;
+  const std::vector<bool> consistent = ConsistentOrientation(changes, tolerance);
   std::vector<KeypointPair> kept;
-  for (const KeypointPair& pair : pairs) {
-    if (std::abs(AngleDifference(AngleDifference(pair.query->angle, pair.stored->angle), mode)) <=
-        tolerance) {
-      kept.push_back(pair);
-    }
+  for (size_t i = 0; i < pairs.size(); ++i) {
+    if (consistent[i]) kept.push_back(pairs[i]);
   }
   return kept;
 }
@@ -221,7 +184,7 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
       const double width_ratio = query_width > 0 && place->image_width > 0
                                      ? static_cast<double>(place->image_width) / query_width
                                      : 1.0;
-      for (const KeypointPair& pair : ConsistentOrientation(pairs, options.orientation_tolerance)) {
+      for (const KeypointPair& pair : ConsistentPairs(pairs, options.orientation_tolerance)) {
         match.point_pairs.emplace_back(pair.query->pt, pair.stored->pt);
         match.point_landmarks.push_back(pair.landmark);
         log_scales[place_id].push_back(std::log(std::max(1e-3f, pair.query->size) /

@@ -17,13 +17,9 @@
 
 namespace placerec {
 
+// Which of the querying robot's own places may answer is decided before ranking, by its recent
+// past (recent_past.h); other robots' places always may (the map is shared).
 struct LoopDecisionOptions {
-  // A place of the querying robot only counts when it is at least this many frames (sequence
-  // numbers) back (seed §5.7 step 6: "a big difference between t_c and t_m"). Other robots'
-  // places always count: the map is shared.
-  int64_t min_same_robot_gap = 20;
-  // ... and at least this many seconds back (0: no time condition).
-  double min_same_robot_gap_seconds = 0.0;
   // Fit a fundamental matrix with RANSAC to each candidate place's matched keypoints and score
   // the place by its inliers. Off: the score is the number of matched descriptors.
   bool geometric_verification = true;
@@ -71,10 +67,6 @@ struct LoopDecisionOptions {
 
   bool Check(std::string* error) const;
 };
-
-// Whether `candidate` may be reported for a frame of `robot` with `sequence` and `utime`.
-bool PlaceAllowed(const Place& candidate, const std::string& robot, int64_t sequence, int64_t utime,
-                  const LoopDecisionOptions& options);
 
 struct PlaceMatch {
   Place place;

@@ -268,15 +268,8 @@ TEST(LandmarkSelectorTest, ObjectsSeenInThePreviousThreeFramesAreLandmarks) {
   EXPECT_EQ(selector.Select({Noisy(c, &rng)}).landmarks, std::vector<int>({0}));
 }
 
-TEST(LoopDecisionTest, SameRobotPlacesNeedAGap) {
+TEST(LoopDecisionTest, DefaultsPassAndBadValuesFail) {
   LoopDecisionOptions options;
-  Place own{PlaceId(1), "left", 100, 1000000, 3};
-  Place other{PlaceId(2), "right", 100, 1000000, 3};
-  EXPECT_FALSE(PlaceAllowed(own, "left", 119, 2000000, options));
-  EXPECT_TRUE(PlaceAllowed(own, "left", 120, 2000000, options));
-  EXPECT_TRUE(PlaceAllowed(other, "left", 101, 1000001, options));
-  options.min_same_robot_gap_seconds = 30;
-  EXPECT_FALSE(PlaceAllowed(own, "left", 200, 20000000, options));
   std::string error;
   EXPECT_TRUE(LoopDecisionOptions().Check(&error)) << error;
   options.ransac_threshold = 0;
