@@ -303,7 +303,8 @@ BENCHMARK(BM_Retrieval)->Arg(1000)->Arg(10000)->Arg(100000)->Unit(benchmark::kMi
 // once so that each stage is timed on its own input. Null when the models are missing.
 struct OrganizationFixture {
   OrganizationFixture() {
-    StatusOr<SceneOrganizer> created = SceneOrganizer::Create(SceneOrganizerOptions());
+    StatusOr<SceneOrganizer> created =
+        SceneOrganizer::Create(SceneOrganizerOptions::ForSegmentation());
     if (!created.ok()) {
       error = created.status().ToString();
       return;

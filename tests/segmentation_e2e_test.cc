@@ -26,13 +26,14 @@ TEST(SegmentationEndToEndTest, LearnedMergingGroupsBetterThanTheSeedRuleAndSuper
   if (!PathExists(dataset + "/test.txt")) {
     GTEST_SKIP() << "needs " << dataset << " (the shared evaluation data)";
   }
-  SceneOrganizerOptions learned_options;
+  const SceneOrganizerOptions learned_options = SceneOrganizerOptions::ForSegmentation();
   StatusOr<SceneOrganizer> learned = SceneOrganizer::Create(learned_options);
   if (!learned.ok() && learned.status().code() == StatusCode::kNotFound) {
     GTEST_SKIP() << learned.status().ToString();
   }
   ASSERT_TRUE(learned.ok()) << learned.status().ToString();
-  SceneOrganizerOptions seed_options;
+  // The seed's rule on the same background decision.
+  SceneOrganizerOptions seed_options = SceneOrganizerOptions::ForSegmentation();
   seed_options.learned_merge = false;
   seed_options.organization = OrganizationOptions();
   const SceneOrganizer seed(seed_options, std::make_shared<BackgroundModel>(learned->model()));

@@ -75,7 +75,7 @@ struct BackgroundTrainingConfig {
   TextonTrainingOptions textons;
   BackgroundTrainingOptions boost;
   // Working resolution, initial partition and texton stride: the ones segmentation uses.
-  SceneOrganizerOptions organizer;
+  SceneOrganizerOptions organizer = SceneOrganizerOptions::ForSegmentation();
   // Training regions: the superpixels of each image and/or its ground-truth object regions (the
   // seed trains on ground-truth segments, §6.2.2).
   bool superpixel_regions = true;

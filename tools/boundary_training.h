@@ -37,7 +37,8 @@ struct BoundaryTrainingConfig {
   double positive_distance = 1.0;
   double negative_distance = 3.0;
   BoundaryModel::TrainingOptions boost;
-  SceneOrganizerOptions organizer;  // working width and initial partition
+  SceneOrganizerOptions organizer =  // working width and initial partition
+      SceneOrganizerOptions::ForSegmentation();
   uint64_t seed = 2009;
   bool progress = true;
   std::string command_line;  // recorded in the manifest

@@ -148,7 +148,7 @@ TEST_F(BoundaryTrainingTest, ImageWithoutObjectsIsRefusedAndNothingIsWritten) {
 TEST_F(BoundaryTrainingTest, ShippedModelSeparatesObjectBoundariesOfATestImage) {
   const StatusOr<BoundaryModel> model = BoundaryModel::Load(PLACEREC_MODELS_DIR);
   if (!model.ok()) GTEST_SKIP() << "no shipped boundary model in " << PLACEREC_MODELS_DIR;
-  const OnOff scores = ScoreTestImage(*model, source_, SceneOrganizerOptions());
+  const OnOff scores = ScoreTestImage(*model, source_, SceneOrganizerOptions::ForSegmentation());
   ASSERT_GT(scores.on_count, 100);
   ASSERT_GT(scores.off_count, 100);
   EXPECT_GT(scores.on, 0.0);

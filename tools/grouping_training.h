@@ -52,7 +52,8 @@ struct GroupingTrainingConfig {
   // The leading columns of the pair features the model reads (region_merging.h).
   int features = kMergeRelationFeatures;
   RegionMergeModel::TrainingOptions boost;
-  SceneOrganizerOptions organizer;  // working width, initial partition, texton stride
+  SceneOrganizerOptions organizer =  // working width, initial partition, texton stride
+      SceneOrganizerOptions::ForSegmentation();
   uint64_t seed = 2009;
   bool progress = true;
   // The invocation (CommandLine of util/options.h), recorded in the manifest; empty when not

@@ -265,15 +265,14 @@ void TallyTrueRegions(const SceneOrganizer& organizer, const WorkingImage& worki
     const int* o = working_objects.ptr<int>(y);
     int* r = regions.ptr<int>(y);
     for (int x = 0; x < regions.cols; ++x) {
-      r[x] = o[x] <= 0 ? -1
-                       : compact.emplace(o[x], static_cast<int>(compact.size())).first->second;
+      r[x] = o[x] <= 0 ? -1 : compact.emplace(o[x], static_cast<int>(compact.size())).first->second;
     }
   }
   const int n = static_cast<int>(compact.size());
   const cv::Mat appearance = organizer.Appearance(organizer.Features(working), regions, n);
   std::vector<int> majority;
-  const std::vector<int> labels = RegionLabels(
-      regions, n, LayerAtSize(image.classes, working_size), table, 0.5, &majority);
+  const std::vector<int> labels =
+      RegionLabels(regions, n, LayerAtSize(image.classes, working_size), table, 0.5, &majority);
   const BackgroundClassifier& classifier = organizer.model().classifier;
   const cv::Mat region_scores = classifier.Scores(appearance);
   const std::vector<float> rivals = classifier.Rivals(appearance, options.one_per_class);
@@ -332,7 +331,7 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   std::string dataset;
   std::string split = "test";
   std::string out;
-  SceneOrganizerOptions options;
+  SceneOrganizerOptions options = SceneOrganizerOptions::ForSegmentation();
   int overlays = 12;
   int max_images = 0;
   double min_object_fraction = 0.005;
@@ -343,8 +342,6 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   bool verbose = false;
   bool oracle_classes = false;
   bool oracle_grouping = false;
-  OrganizationOptions& po = options.organization;
-  SuperpixelOptions& sp = options.superpixels;
   FlagParser parser(
       "placerec-eval segment --dataset DIR --split test --out OUT [options]\n\n"
       "Segments every image of DIR/<split>.txt (superpixels, background classes, the learned\n"
@@ -362,8 +359,6 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
                      "dataset directory, or its name under PLACEREC_DATA / ../shared/data");
   parser.AddRequired("out", &out, "output directory (created if missing)");
   parser.Add("split", &split, "split list DIR/<split>.txt");
-  parser.Add("models-dir", &options.models_dir,
-             "trained textons and classifiers (default: PLACEREC_MODELS or models/)");
   parser.Add("overlays", &overlays, "overlay pictures to draw (evenly spread over the split)");
   parser.Add("max-images", &max_images, "segment only the first N images (0: all)");
   parser.Add("min-object-fraction", &min_object_fraction,
@@ -373,45 +368,7 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
   parser.Add("grid-k", &grid_k, "superpixel baseline: FH k values at 320x240, comma-separated");
   parser.Add("grid-min", &grid_min,
              "superpixel baseline: FH minimum sizes at 320x240 (pixels), comma-separated");
-  parser.Add("segment-width", &sp.working_width,
-             "working width in pixels (seed §6.1: about 320x240; 0: image size)");
-  parser.Add("fh-sigma", &sp.sigma, "initial partition: FH smoothing sigma (§6.1.2)");
-  parser.Add("fh-k", &sp.k, "initial partition: FH k at 640x480, scaled by area (§6.1.2: 300)");
-  parser.Add("fh-min-size", &sp.min_size,
-             "initial partition: FH minimum component at 640x480 (§6.1.2: 20)");
-  parser.Add("min-region-fraction", &sp.min_region_fraction,
-             "initial partition: regions below this fraction merge into a neighbour (§3.6)");
-  parser.Add("colour-merge-distance", &sp.colour_merge_distance,
-             "initial partition: similar-colour merge distance (Delta E, §3.6)");
-  parser.Add("texton-stride", &options.texton_stride, "textons on every N-th pixel in x and y");
-  AddBackgroundDecisionFlags(&parser, &options);
-  parser.Add("background-smoothing", &options.background_smoothing,
-             "weight of the neighbours' mean classifier scores in each superpixel's decision "
-             "(0: independent decisions)");
-  AddLearnedMergeFlags(&parser, &options);
-  parser.Add("po-theta-complexity", &po.theta_complexity, "theta_B of eq. 3.6 (seed: 18)");
-  parser.Add("po-theta-cohesion", &po.theta_cohesion, "theta_C of eq. 3.6 (seed: 3.5)");
-  parser.Add("po-alpha", &po.alpha, "alpha of eq. 3.13 (seed: 20)");
-  parser.Add("po-beta", &po.beta, "beta of eq. 3.13 (seed: 3)");
-  parser.Add("po-complexity-step", &po.complexity_step, "s of eq. 3.8 (contour pixels)");
-  parser.Add("po-complexity-window", &po.complexity_window, "k of eq. 3.8 (steps)");
-  parser.Add("po-symmetry-tolerance", &po.symmetry_tolerance,
-             "eq. 3.11: centroid heights equal within this fraction of the shorter part");
-  parser.Add("po-alignment-extension", &po.alignment_extension,
-             "eq. 3.12: extension beyond each end, fraction of the common boundary's chord");
-  parser.Add("po-alignment-tolerance", &po.alignment_tolerance,
-             "eq. 3.12: aligned when at most this share of the extension touches either part");
-  parser.Add("po-enclosed-fraction", &po.enclosed_fraction,
-             "a part sharing this much of its boundary with a neighbour is enclosed by it");
-  parser.Add("po-max-subset", &po.max_subset, "Algorithm 1: neighbours tested together (1, 2)");
-  parser.Add("po-max-rounds", &po.max_rounds, "Algorithm 2: rounds");
-  parser.Add("po-round-colour-merge", &po.round_colour_merge_distance,
-             "Algorithm 2: similar-colour merge between rounds (Delta E; 0: none)");
-  parser.Add("po-background-merge-colour", &po.background_merge_colour_distance,
-             "the final background merge joins only regions closer than this in CIE Lab "
-             "(Delta E; 0: any two of one class)");
-  parser.Add("po-merge-background", &po.merge_background,
-             "merge adjacent background regions of one class at the end");
+  AddOrganizerFlags(&parser, &options);
   parser.Add("oracle-classes", &oracle_classes,
              "diagnosis only: superpixels take the background class of their ground-truth "
              "majority class instead of the classifiers' decision, then the --po-* grouping "
@@ -521,7 +478,7 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
       return 1;
     }
     Timer timer;
-    const WorkingImage working = MakeWorkingImage(image->bgr, sp.working_width);
+    const WorkingImage working = MakeWorkingImage(image->bgr, options.superpixels.working_width);
     SceneOrganizerSummary summary;
     SceneSegmentation segmentation;
     if (oracle_classes && !image->classes.empty()) {
@@ -590,7 +547,7 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
                      scores.empty() ? 0.0 : 100.0 * sum / scores.size(), scores.size());
       }
       for (GridSetting& setting : grid) {
-        SuperpixelOptions baseline_options = sp;
+        SuperpixelOptions baseline_options = options.superpixels;
         // Settings are given at 320x240; SuperpixelOptions are at 640x480, scaled by area.
         baseline_options.k = setting.k * 4.0;
         baseline_options.min_size = setting.min_size * 4;
@@ -664,8 +621,8 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     std::snprintf(learned, sizeof(learned), "learned merging (threshold %g)",
                   options.merge.threshold);
     const std::string method =
-        oracle_grouping  ? "superpixels grouped by the ground truth (oracle)"
-        : oracle_classes ? "seed's Perceptual Organization on ground-truth classes (oracle)"
+        oracle_grouping         ? "superpixels grouped by the ground truth (oracle)"
+        : oracle_classes        ? "seed's Perceptual Organization on ground-truth classes (oracle)"
         : options.learned_merge ? std::string(learned)
                                 : "seed's Perceptual Organization";
     const Status chart = WriteSegmentSummaryChart(report, method, out + "/summary.png");

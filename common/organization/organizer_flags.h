@@ -1,6 +1,7 @@
-// Command-line flags for the SceneOrganizerOptions that several commands set (placerec-eval
-// segment and run, placerec-server, placerec-train), so that each means the same everywhere and
-// its default comes from the struct.
+// Command-line flags for SceneOrganizerOptions (seed Ch. 3), one binding shared by every command
+// that sets them (placerec-eval run and segment, placerec-server, placerec-train), so that each
+// flag has one name and means the same everywhere, and its default comes from the options the
+// command starts from (SceneOrganizerOptions::ForRecognition() or ::ForSegmentation()).
 #pragma once
 
 #include "common/organization/scene_organizer.h"
@@ -8,12 +9,13 @@
 
 namespace placerec {
 
-// --background-threshold and --one-per-class: how a region's classifier scores become its
-// background class.
-void AddBackgroundDecisionFlags(FlagParser* parser, SceneOrganizerOptions* options);
+// Every option of the scene organiser: --models-dir, the initial partition (--po-segment-width,
+// --po-fh-k, ...), --texton-stride, the background decision, --background-smoothing, the
+// learned merging and Perceptual Organization (--po-theta-complexity, ..., --po-max-rounds).
+void AddOrganizerFlags(FlagParser* parser, SceneOrganizerOptions* options);
 
-// --learned-merge and --merge-threshold: the learned region merging before Perceptual
-// Organization.
-void AddLearnedMergeFlags(FlagParser* parser, SceneOrganizerOptions* options);
+// --background-threshold and --one-per-class alone: how a region's classifier scores become its
+// background class (the trainers report accuracy with them).
+void AddBackgroundDecisionFlags(FlagParser* parser, SceneOrganizerOptions* options);
 
 }  // namespace placerec

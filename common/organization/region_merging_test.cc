@@ -493,7 +493,7 @@ TEST(ShippedGroupingModelTest, JoinsHalvesOfOneSurfaceAndKeepsDifferentSurfacesA
   state.PairFeatures(0, 4, blocks.ptr<float>(1));  // orange above blue
   const cv::Mat same = model->grouping.Scores(halves);
   const cv::Mat different = model->grouping.Scores(blocks);
-  const double threshold = DefaultMergeOptions().threshold;
+  const double threshold = SceneOrganizerOptions::ForSegmentation().merge.threshold;
   double lowest_same = std::numeric_limits<double>::infinity();
   for (int r = 0; r < same.rows; ++r) {
     EXPECT_GT(same.at<float>(r), threshold) << "block " << r;
@@ -503,7 +503,8 @@ TEST(ShippedGroupingModelTest, JoinsHalvesOfOneSurfaceAndKeepsDifferentSurfacesA
     EXPECT_LT(different.at<float>(r), lowest_same) << "pair " << r;
   }
   // The merging itself: four merges, one per block, and the blocks stay apart.
-  EXPECT_EQ(MergeRegions(model->grouping, DefaultMergeOptions(), &state), 4);
+  EXPECT_EQ(MergeRegions(model->grouping, SceneOrganizerOptions::ForSegmentation().merge, &state),
+            4);
   const SceneSegmentation result = state.Result();
   ASSERT_EQ(result.size(), 4);
   for (int block = 0; block < 4; ++block) {

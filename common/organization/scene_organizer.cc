@@ -50,33 +50,28 @@ StatusOr<std::shared_ptr<const BackgroundModel>> LoadBackgroundModel(const std::
   return std::shared_ptr<const BackgroundModel>(std::move(model));
 }
 
-RegionMergeOptions DefaultMergeOptions() {
-  RegionMergeOptions options;
-  // Chosen on validation images neither the grouping model nor the background and boundary
-  // classifiers saw: the first 150 stanford_background training images, described with models
-  // trained without them (placerec-train background / boundary --holdout 150), and the 296
-  // msrc_v2 training images (another dataset, so that the choice also has to generalise), by
-  // the mean of the two object IoUs. The four-member recipe on 48 features (with the learned
-  // boundary scores) trained without those stanford images, stanford / msrc: -0.8: 49.0 /
-  // 63.9 %, -0.6: 51.0 / 62.2 %, -0.5: 51.8 / 61.4 %, -0.4: 52.2 / 60.4 %, -0.2: 52.4 /
-  // 57.6 %; the 42-feature recipe before it at -0.4: 50.8 / 60.0 %. The shipped members are
-  // that recipe retrained on all 572 training images (models/README.md).
-  options.threshold = -0.5;
+namespace {
+
+// The learned merging's threshold for the shipped grouping model, chosen on validation images
+// that neither it nor the background and boundary classifiers saw (models/README.md).
+constexpr double kShippedGroupingThreshold = -0.5;
+
+}  // namespace
+
+SceneOrganizerOptions SceneOrganizerOptions::ForRecognition() {
+  SceneOrganizerOptions options;
+  options.one_per_class = false;
+  options.merge.threshold = kShippedGroupingThreshold;  // used only with --learned-merge true
   return options;
 }
 
-OrganizationOptions DefaultOrganizationOptions() {
-  OrganizationOptions options;
-  // The learned merging already joins background regions where boundary and appearance say
-  // one surface; the class-and-colour merge after it joins more across real boundaries on
-  // stanford (one member alone at threshold 0.2: 49.8 % without it, 48.9 % with it; msrc 57.9 /
-  // 58.4 %).
-  options.merge_background = false;
-  // Nor do the energy-minimising rounds (Algorithm 1 and 2) improve on the learned merging
-  // there (one member alone at 0.3: 49.7 % without them, 49.6 % with one round, 47.9 % with
-  // two; the other at -0.3: 50.8 % without, 49.2 % with one round). They
-  // stay available (--po-max-rounds) and are what recognition uses (frame_analyzer.h).
-  options.max_rounds = 0;
+SceneOrganizerOptions SceneOrganizerOptions::ForSegmentation() {
+  SceneOrganizerOptions options;
+  options.background_threshold = -1.0;
+  options.learned_merge = true;
+  options.merge.threshold = kShippedGroupingThreshold;
+  options.organization.merge_background = false;
+  options.organization.max_rounds = 0;
   return options;
 }
 
@@ -170,12 +165,11 @@ SceneSegmentation SceneOrganizer::ClassifiedSuperpixels(const WorkingImage& imag
     }
     scores = smoothed;
   }
-  const std::vector<float> rivals =
-      model_->classifier.Rivals(appearance, options_.one_per_class);
+  const std::vector<float> rivals = model_->classifier.Rivals(appearance, options_.one_per_class);
   superpixels.classes.resize(static_cast<size_t>(scores.rows));
   for (int r = 0; r < scores.rows; ++r) {
-    superpixels.classes[r] = BackgroundClassifier::Decide(
-        scores.ptr<float>(r), options_.background_threshold, rivals[r]);
+    superpixels.classes[r] = BackgroundClassifier::Decide(scores.ptr<float>(r),
+                                                          options_.background_threshold, rivals[r]);
   }
   if (timings != nullptr) timings->emplace_back("classifiers", timer.ElapsedMs());
   if (features_out != nullptr) *features_out = features;

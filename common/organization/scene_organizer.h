@@ -48,13 +48,8 @@ struct BackgroundModel {
 // the boundary features without a boundary model beside it is an error.
 StatusOr<std::shared_ptr<const BackgroundModel>> LoadBackgroundModel(const std::string& directory);
 
-// The learned merging's threshold, chosen on the 150 stanford_background training images the
-// shipped grouping model was not trained on (models/grouping.json, models/README.md).
-RegionMergeOptions DefaultMergeOptions();
-// The seed's Perceptual Organization options, except where the learned merging changes what
-// works best on those held-out images (see the definition).
-OrganizationOptions DefaultOrganizationOptions();
-
+// The defaults are the seed's method (§3.4-3.7, §6.2.1). Two uses depart from it, each in one
+// named preset: recognition (ForRecognition) and object segmentation (ForSegmentation).
 struct SceneOrganizerOptions {
   // The initial partition (seed §3.6, §6.1.2: sigma 0.5, k 300, min 20 at 640x480, small and
   // similar-colour merges). working_width is applied by whoever makes the WorkingImage.
@@ -63,11 +58,8 @@ struct SceneOrganizerOptions {
   // those samples (1: every pixel).
   int texton_stride = 2;
   // A region is background when its best classifier's score exceeds this (0: the boosted
-  // decision) and, with one_per_class, every structured class's score. -1 with one_per_class:
-  // on the validation images (models/README.md) the five classes' mean recall on msrc_v2 was
-  // 77.1 %, against 74.7 at 0 and 75.8 for the five-way decision at 0, at the same object IoU.
-  // Recognition sets 0 and five-way (AnalyzerOptions).
-  double background_threshold = -1.0;
+  // decision, seed §3.4) and, with one_per_class, every structured class's score.
+  double background_threshold = 0.0;
   // The seed's one-per-class decision (§6.2.1): a region is background only when its best
   // background score also beats every structured class's classifier (when the models have
   // structured classifiers; background.h).
@@ -79,14 +71,25 @@ struct SceneOrganizerOptions {
   // It shapes the superpixels' classes only: the learned merging decides every region it keeps
   // again from the region's own classifier scores.
   double background_smoothing = 0.0;
-  // Learned region merging (region_merging.h) of the classified superpixels before Perceptual
-  // Organization; needs grouping.yml.gz in the models directory.
-  bool learned_merge = true;
-  RegionMergeOptions merge = DefaultMergeOptions();
-  // Perceptual Organization of the (merged) parts; see DefaultOrganizationOptions.
-  OrganizationOptions organization = DefaultOrganizationOptions();
+  // Learned region merging (region_merging.h, not in the seed) of the classified superpixels
+  // before Perceptual Organization; needs grouping.yml.gz in the models directory.
+  bool learned_merge = false;
+  RegionMergeOptions merge;
+  // Perceptual Organization of the (merged) parts (seed §3.5, §3.7).
+  OrganizationOptions organization;
   // Directory with the trained models; empty: DefaultModelsDir().
   std::string models_dir;
+
+  // Place recognition (placerec-eval run, the server): the seed's grouping, with the five-way
+  // background decision at the boosted threshold (a background class need not beat the
+  // structured classes). The learned merging lowers recall at 100 % precision there
+  // (docs/experiments/).
+  static SceneOrganizerOptions ForRecognition();
+  // Object segmentation (placerec-eval segment, the trainers): the learned merging at the
+  // threshold chosen on held-out validation images (models/README.md), then neither the
+  // seed's rounds nor its background merge (they lower the score after the learned merging),
+  // and the one-per-class decision at -1 (higher background recall on validation).
+  static SceneOrganizerOptions ForSegmentation();
 
   bool Check(std::string* error) const;
 };

@@ -4,6 +4,7 @@
 #include <ostream>
 
 #include "common/organization/organizer_flags.h"
+#include "common/segmentation/superpixel_flags.h"
 
 namespace placerec {
 
@@ -58,36 +59,12 @@ std::istream& operator>>(std::istream& is, SegmentationMethod& value) {
   return is;
 }
 
-namespace {
-
-void AddOrganizationFlags(FlagParser* p, SceneOrganizerOptions* o) {
-  p->Add("models-dir", &o->models_dir,
-         "trained textons and background classifiers (default: PLACEREC_MODELS or models/)");
-  p->Add("po-segment-width", &o->superpixels.working_width,
-         "organization: working width in pixels (seed §6.1: about 320x240)");
-  p->Add("po-fh-k", &o->superpixels.k,
-         "organization: initial partition FH k at 640x480, scaled by area (§6.1.2: 300)");
-  p->Add("po-fh-min-size", &o->superpixels.min_size,
-         "organization: initial partition FH minimum component at 640x480 (§6.1.2: 20)");
-  AddBackgroundDecisionFlags(p, o);
-  AddLearnedMergeFlags(p, o);
-  p->Add("po-theta-b", &o->organization.theta_complexity,
-         "structure potential weight of boundary complexity (eq. 3.6: 18)");
-  p->Add("po-theta-c", &o->organization.theta_cohesion,
-         "structure potential weight of cohesiveness (eq. 3.6: 3.5)");
-  p->Add("po-alpha", &o->organization.alpha, "attachment alpha (eq. 3.13: 20)");
-  p->Add("po-beta", &o->organization.beta, "attachment beta (eq. 3.13: 3)");
-  p->Add("po-rounds", &o->organization.max_rounds, "Algorithm 2: at most this many rounds");
-}
-
-}  // namespace
-
 void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   AnalyzerOptions& a = o->analyzer;
   p->Add("segmentation", &a.segmentation,
          "organization (Perceptual Organization, seed Ch. 3) or superpixels (coarse superpixels "
          "as objects)");
-  AddOrganizationFlags(p, &a.organization);
+  AddOrganizerFlags(p, &a.organization);
   p->Add("max-image-width", &a.max_image_width,
          "frames wider than this are scaled down before SIFT (pixels; 0 keeps the size)");
   p->Add("sift-max-features", &a.features.max_features, "keep the strongest N keypoints (0: all)");
@@ -101,17 +78,7 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
          "(0: never)");
   p->Add("sift-low-contrast-threshold", &a.features.low_contrast_threshold,
          "contrast threshold of the retry on plain frames");
-  p->Add("segment-width", &a.superpixels.working_width,
-         "superpixels: working width in pixels (seed §6.1: about 320x240; 0: frame size)");
-  p->Add("fh-sigma", &a.superpixels.sigma,
-         "superpixels: Felzenszwalb-Huttenlocher smoothing sigma (§6.1.2)");
-  p->Add("fh-k", &a.superpixels.k, "superpixels: FH threshold k at 640x480, scaled by area");
-  p->Add("fh-min-size", &a.superpixels.min_size,
-         "superpixels: FH minimum component at 640x480 in pixels, scaled by area (§6.1.2)");
-  p->Add("min-region-fraction", &a.superpixels.min_region_fraction,
-         "regions below this fraction of the image merge into a neighbour (§3.6: 0.0003)");
-  p->Add("colour-merge-distance", &a.superpixels.colour_merge_distance,
-         "merge adjacent regions closer than this in CIE Lab (Delta E; §3.6; 0 disables)");
+  AddSuperpixelFlags(p, &a.superpixels, "", "--segmentation superpixels (objects; k 1200)");
   p->Add("h-min-intensity", &a.colour.min_intensity,
          "colour invariant: ignore pixels darker than this (eq. 5.6 D, 0..1)");
   p->Add("h-min-denominator", &a.colour.min_denominator,

@@ -68,19 +68,9 @@ struct AnalyzerOptions {
   int max_image_width = 0;
   FeatureOptions features;
   SegmentationMethod segmentation = SegmentationMethod::kOrganization;
-  // kOrganization: the initial partition (seed values), models and grouping parameters.
-  // Recognition uses the seed's grouping (Algorithm 2, background merge) without the learned
-  // region merging that `placerec-eval segment` uses by default. With it (--learned-merge true
-  // --po-rounds 0) R@100P / max F1 rose on corridor_loop (0.591 -> 0.636, 0.818 -> 0.870) but
-  // R@100P fell on day_left_then_day_right (0.360 -> 0.280; max F1 0.783 -> 0.804).
-  SceneOrganizerOptions organization = [] {
-    SceneOrganizerOptions o;
-    o.learned_merge = false;
-    o.one_per_class = false;
-    o.background_threshold = 0.0;
-    o.organization = OrganizationOptions();
-    return o;
-  }();
+  // kOrganization: the initial partition, models and grouping parameters (the recognition
+  // preset: the seed's grouping without the learned merging that `placerec-eval segment` uses).
+  SceneOrganizerOptions organization = SceneOrganizerOptions::ForRecognition();
   // kSuperpixels: superpixels serve as the objects, so they are four times coarser than the
   // seed's initial partition (k 1200 instead of 300 at 640x480): segments of that size hold
   // enough keypoints to be matched as objects.
