@@ -52,15 +52,14 @@ StatusOr<std::shared_ptr<const BackgroundModel>> LoadBackgroundModel(const std::
 
 RegionMergeOptions DefaultMergeOptions() {
   RegionMergeOptions options;
-  // Chosen on validation images neither the grouping model nor the background and boundary
-  // classifiers saw: the first 150 stanford_background training images, described with models
-  // trained without them (placerec-train background / boundary --holdout 150), and the 296
-  // msrc_v2 training images (another dataset, so that the choice also has to generalise), by
-  // the mean of the two object IoUs. The four-member recipe on 48 features (with the learned
-  // boundary scores) trained without those stanford images, stanford / msrc: -0.8: 49.0 /
-  // 63.9 %, -0.6: 51.0 / 62.2 %, -0.5: 51.8 / 61.4 %, -0.4: 52.2 / 60.4 %, -0.2: 52.4 /
-  // 57.6 %; the 42-feature recipe before it at -0.4: 50.8 / 60.0 %. The shipped members are
-  // that recipe retrained on all 572 training images (models/README.md).
+  // A pair merges while the members' mean score exceeds this. Chosen on validation images
+  // neither the grouping model nor the background and boundary classifiers saw: the first 150
+  // stanford_background training images, described with models trained without them
+  // (placerec-train background / boundary --holdout 150), and the 296 msrc_v2 training images
+  // (another dataset, so that the choice also has to generalise), by the mean of the two object
+  // IoUs of seed eq. 6.2. The shipped members are that recipe retrained on all 572 training
+  // images (models/README.md); the figures per threshold are in
+  // docs/experiments/2026-12-01-learned-boundaries.md.
   options.threshold = -0.5;
   return options;
 }
@@ -68,14 +67,13 @@ RegionMergeOptions DefaultMergeOptions() {
 OrganizationOptions DefaultOrganizationOptions() {
   OrganizationOptions options;
   // The learned merging already joins background regions where boundary and appearance say
-  // one surface; the class-and-colour merge after it joins more across real boundaries on
-  // stanford (one member alone at threshold 0.2: 49.8 % without it, 48.9 % with it; msrc 57.9 /
-  // 58.4 %).
+  // one surface; the final class-and-colour background merge after it (seed §3.7) joins more
+  // across real boundaries on stanford validation images
+  // (docs/experiments/2026-11-29-learned-merging.md).
   options.merge_background = false;
-  // Nor do the energy-minimising rounds (Algorithm 1 and 2) improve on the learned merging
-  // there (one member alone at 0.3: 49.7 % without them, 49.6 % with one round, 47.9 % with
-  // two; the other at -0.3: 50.8 % without, 49.2 % with one round). They
-  // stay available (--po-max-rounds) and are what recognition uses (frame_analyzer.h).
+  // Nor do the seed's energy-minimising rounds (Algorithm 1 and 2, §3.5) improve on the learned
+  // merging there (same file). They stay available (--po-max-rounds) and are what recognition
+  // uses (frame_analyzer.h).
   options.max_rounds = 0;
   return options;
 }

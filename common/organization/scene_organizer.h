@@ -48,8 +48,8 @@ struct BackgroundModel {
 // the boundary features without a boundary model beside it is an error.
 StatusOr<std::shared_ptr<const BackgroundModel>> LoadBackgroundModel(const std::string& directory);
 
-// The learned merging's threshold, chosen on the 150 stanford_background training images the
-// shipped grouping model was not trained on (models/grouping.json, models/README.md).
+// The learned merging's threshold, chosen on validation images the grouping models trained for
+// the choice did not see (docs/experiments/2026-12-01-learned-boundaries.md).
 RegionMergeOptions DefaultMergeOptions();
 // The seed's Perceptual Organization options, except where the learned merging changes what
 // works best on those held-out images (see the definition).
@@ -63,10 +63,10 @@ struct SceneOrganizerOptions {
   // those samples (1: every pixel).
   int texton_stride = 2;
   // A region is background when its best classifier's score exceeds this (0: the boosted
-  // decision) and, with one_per_class, every structured class's score. -1 with one_per_class:
-  // on the validation images (models/README.md) the five classes' mean recall on msrc_v2 was
-  // 77.1 %, against 74.7 at 0 and 75.8 for the five-way decision at 0, at the same object IoU.
-  // Recognition sets 0 and five-way (AnalyzerOptions).
+  // decision) and, with one_per_class, every structured class's score. -1 with one_per_class
+  // gave the best mean recall of the five classes on the validation images at the same object
+  // IoU (docs/experiments/2026-11-29-learned-merging.md). Recognition sets 0 and five-way
+  // (AnalyzerOptions).
   double background_threshold = -1.0;
   // The seed's one-per-class decision (§6.2.1): a region is background only when its best
   // background score also beats every structured class's classifier (when the models have

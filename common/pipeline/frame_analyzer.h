@@ -69,10 +69,10 @@ struct AnalyzerOptions {
   FeatureOptions features;
   SegmentationMethod segmentation = SegmentationMethod::kOrganization;
   // kOrganization: the initial partition (seed values), models and grouping parameters.
-  // Recognition uses the seed's grouping (Algorithm 2, background merge) without the learned
-  // region merging that `placerec-eval segment` uses by default. With it (--learned-merge true
-  // --po-rounds 0) R@100P / max F1 rose on corridor_loop (0.591 -> 0.636, 0.818 -> 0.870) but
-  // R@100P fell on day_left_then_day_right (0.360 -> 0.280; max F1 0.783 -> 0.804).
+  // Recognition uses the seed's grouping (Algorithm 2, background merge; §3.5, §3.7) without
+  // the learned region merging that `placerec-eval segment` uses by default: with it
+  // (--learned-merge true --po-rounds 0) recall at 100 % precision fell on the runs measured
+  // (docs/results.md; docs/experiments/2026-11-29-learned-merging-in-recognition.md).
   SceneOrganizerOptions organization = [] {
     SceneOrganizerOptions o;
     o.learned_merge = false;
