@@ -1,5 +1,5 @@
 // End-to-end: the whole pipeline on a real run from ../shared/data, scored as placerec-eval
-// scores it. The floors are set honestly below what was measured (see the README's figures).
+// scores it. The floors are set honestly below what was measured (docs/results.md).
 #include <gtest/gtest.h>
 
 #include "common/eval/run.h"
@@ -15,9 +15,10 @@ StatusOr<placerec::Run> LoadOrSkip(const std::string& dataset, const std::string
   return LoadRun(DataRoot() + "/" + dataset, name);
 }
 
-// Recall at 100 % precision on corridor_loop, measured with each segmentation (README,
-// "Figures"): Perceptual Organization (the default) 0.591, superpixels as objects 0.750. The
-// floors leave room for noise and small changes; they are not the targets.
+// Floors for recall at 100 % precision on corridor_loop with each segmentation: Perceptual
+// Organization (the default) and superpixels as objects (what each measured: docs/results.md,
+// "Place recognition"). The floors leave room for noise and small changes; they are not the
+// targets.
 constexpr double kOrganizationRecallFloor = 0.5;
 constexpr double kSuperpixelRecallFloor = 0.6;
 

@@ -30,9 +30,9 @@ SegmentClass BackgroundClassOf(int index);
 
 struct BackgroundTrainingOptions {
   int weak_count = 150;  // boosted trees per classifier
-  // Depth of each tree. 3 rather than 2: on 100 held-out stanford_background training images
-  // (classifiers trained on the other 472) pixel accuracy 73.1 vs 72.8 % and PO object IoU
-  // 44.0 vs 43.3 %; boosting takes about twice as long.
+  // Depth of each tree of the binary AdaBoost classifiers (seed §3.4). 3 rather than 2: slightly
+  // better on held-out stanford_background training images, at about twice the boosting time
+  // (docs/experiments/2026-11-22-segmentation-defaults.md).
   int max_depth = 3;
   double weight_trim_rate = 0.95;  // OpenCV Boost: samples outside this weight mass skip a round
   // Each classifier sees all its positive regions and at most this many negatives per positive

@@ -55,9 +55,8 @@ struct OrganizationOptions {
   int max_subset = 2;
   // Algorithm 2 stops after this many rounds, or earlier when a round groups nothing (seed §3.7:
   // "the result of two rounds grouping is good enough in most cases"). Two rather than three:
-  // on 100 held-out stanford_background training images a third round
-  // joins neighbouring objects and loses 1-2 points of object IoU (with ground-truth
-  // background classes 51.0 % at two rounds, 49.2 % at three; 50.4 % at one).
+  // on held-out stanford_background training images a third round joins neighbouring objects
+  // (docs/experiments/2026-11-22-segmentation-defaults.md).
   int max_rounds = 2;
   // Between rounds, adjacent structured groups whose mean CIE Lab colours are closer than this
   // (Delta E) merge (seed §3.7); 0 disables.
@@ -67,8 +66,8 @@ struct OrganizationOptions {
   bool merge_background = true;
   // When positive, that final merge joins two regions only when their mean CIE Lab colours are
   // closer than this (Delta E), so that a part misclassified as background does not join a whole
-  // background region. 0: any two of one class (the seed). Chosen on the first 150 training
-  // images of stanford_background (object IoU 45.1 % at 0, 45.5 at 10, 46.3 at 15, 45.8 at 20).
+  // background region. 0: any two of one class (the seed, §3.7). Chosen on the first 150
+  // training images of stanford_background (docs/experiments/2026-11-29-learned-merging.md).
   double background_merge_colour_distance = 15.0;
 
   bool Check(std::string* error) const;

@@ -83,12 +83,13 @@ struct SceneOrganizerOptions {
   // Place recognition (placerec-eval run, the server): the seed's grouping, with the five-way
   // background decision at the boosted threshold (a background class need not beat the
   // structured classes). The learned merging lowers recall at 100 % precision there
-  // (docs/experiments/).
+  // (docs/experiments/2026-11-29-learned-merging-in-recognition.md).
   static SceneOrganizerOptions ForRecognition();
   // Object segmentation (placerec-eval segment, the trainers): the learned merging at the
-  // threshold chosen on held-out validation images (models/README.md), then neither the
-  // seed's rounds nor its background merge (they lower the score after the learned merging),
-  // and the one-per-class decision at -1 (higher background recall on validation).
+  // threshold chosen on held-out validation images, then neither the seed's rounds (§3.5) nor
+  // its background merge (§3.7), which lower the score after the learned merging, and the
+  // one-per-class decision at -1, the best mean background recall at the same object IoU
+  // (docs/experiments/2026-11-29-learned-merging.md).
   static SceneOrganizerOptions ForSegmentation();
 
   bool Check(std::string* error) const;

@@ -2,10 +2,10 @@
 // k-d tree (libflann). The tree is grown by insertion only: FLANN's batch build shuffles its
 // points with std::random_device, so two processes fed the same frames would answer
 // differently, and a rebuild would stall every lookup for seconds on a large map. Grown trees
-// are deterministic (the same additions give the same answers), cost about half a microsecond
-// per added descriptor, and lose a few percent of nearest-neighbour recall against a batch-built
-// forest with the same number of checks (measured on Gardens Point SIFT: 163 vs 172 of 185
-// distinctive matches at 64 checks).
+// are deterministic (the same additions give the same answers) and cheap to extend, at the cost
+// of a little nearest-neighbour recall against a batch-built forest with the same number of
+// checks. The descriptor matching this serves is the seed's verification step (§5.6); the
+// comparison is in docs/experiments/2026-11-22-flann-and-ransac.md.
 #pragma once
 
 #include <cstdint>

@@ -28,7 +28,8 @@ struct LoopDecisionOptions {
   // cameras rotate their features alike, random matches do not. 0 keeps every match.
   double orientation_tolerance = 20.0;
   // The fundamental matrix is fitted with OpenCV's USAC (LO-RANSAC with SPRT, deterministic
-  // seed): as selective as plain RANSAC here and about ten times faster.
+  // seed), chosen over plain RANSAC for speed at the same selectivity
+  // (docs/experiments/2026-11-22-flann-and-ransac.md).
   // RANSAC inlier distance to the epipolar line, pixels of the processed frame.
   double ransac_threshold = 3.0;
   double ransac_confidence = 0.999;
