@@ -379,6 +379,39 @@ TEST(SqliteStoreTest, ChecksumFollowsContent) {
   EXPECT_NE(ChecksumOf(*file), previous);
 }
 
+// The checksum of a fixed map is pinned: it is a persisted fingerprint (maps are compared by it
+// across builds), and since it hashes the stored BLOBs as they are, it also pins their encoding.
+// Everything below is explicit (no random numbers), so the value depends on nothing else.
+TEST(SqliteStoreTest, ChecksumOfAFixedMapIsPinned) {
+  std::unique_ptr<LandmarkStore> store = Open(":memory:");
+  ASSERT_NE(store, nullptr);
+  EXPECT_EQ(ChecksumOf(*store), 0xcbf29ce484222325u);  // FNV-1a 64 offset basis: nothing hashed
+  for (int sequence = 0; sequence < 3; ++sequence) {
+    Place place = MakePlace(sequence == 1 ? "beta" : "alpha", sequence);
+    std::vector<Landmark> landmarks(static_cast<size_t>(sequence));
+    for (int i = 0; i < sequence; ++i) {
+      Landmark& landmark = landmarks[static_cast<size_t>(i)];
+      landmark.sift_count = 10 + i;
+      landmark.colour.peaks.assign(static_cast<size_t>(i + 1),
+                                   0.25f - 0.5f * static_cast<float>(i));
+      landmark.segment_class = i == 0 ? SegmentClass::kStructured : SegmentClass::kWater;
+      landmark.box = cv::Rect(-3 + i, 7, 40, 25 + i);
+      const int rows = 2 + i;
+      landmark.descriptors.create(rows, 128, CV_8U);
+      for (int row = 0; row < rows; ++row) {
+        for (int col = 0; col < 128; ++col) {
+          landmark.descriptors.at<uint8_t>(row, col) = static_cast<uint8_t>(row * 37 + col * 5 + i);
+        }
+        landmark.keypoints.emplace_back(
+            10.5f * static_cast<float>(row), 3.25f + static_cast<float>(i),
+            2.0f + static_cast<float>(row), -45.0f * static_cast<float>(row));
+      }
+    }
+    ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
+  }
+  EXPECT_EQ(ChecksumOf(*store), 0x33ebd2cf9988439bu);
+}
+
 TEST(SqliteStoreTest, NewFileHasVersionOneAndWalJournal) {
   TempMap map("fresh");
   ASSERT_NE(Open(map.path()), nullptr);
