@@ -378,78 +378,7 @@ Status Exec(sqlite3* db, const char* sql, const std::string& path) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Validation of what AddPlace is given and of what is read back.
-
-bool IsKnownSegmentClass(int64_t value) {
-  switch (value) {
-    case static_cast<int>(SegmentClass::kSky):
-    case static_cast<int>(SegmentClass::kTree):
-    case static_cast<int>(SegmentClass::kRoad):
-    case static_cast<int>(SegmentClass::kGrass):
-    case static_cast<int>(SegmentClass::kWater):
-    case static_cast<int>(SegmentClass::kStructured):
-      return true;
-    default:
-      return false;
-  }
-}
-
-Status ValidateLandmark(const Landmark& landmark, size_t index) {
-  const std::string where = "landmark " + std::to_string(index) + ": ";
-  const cv::Mat& descriptors = landmark.descriptors;
-  if (!descriptors.empty()) {
-    if (descriptors.type() != CV_8UC1) {
-      return Status::InvalidArgument(where + "descriptors must be CV_8U with one channel (type " +
-                                     std::to_string(descriptors.type()) + ")");
-    }
-    if (descriptors.dims != 2 || descriptors.cols != kDescriptorSize) {
-      return Status::InvalidArgument(where + "descriptors have " +
-                                     std::to_string(descriptors.cols) + " columns, expected " +
-                                     std::to_string(kDescriptorSize));
-    }
-    if (!descriptors.isContinuous()) {
-      return Status::InvalidArgument(where + "descriptors are not continuous in memory");
-    }
-  }
-  const size_t rows = descriptors.empty() ? 0 : static_cast<size_t>(descriptors.rows);
-  if (landmark.keypoints.size() != rows) {
-    return Status::InvalidArgument(where + std::to_string(landmark.keypoints.size()) +
-                                   " keypoints for " + std::to_string(rows) +
-                                   " descriptors; there must be one per descriptor");
-  }
-  if (landmark.sift_count < 0) {
-    return Status::InvalidArgument(where + "sift_count is negative (" +
-                                   std::to_string(landmark.sift_count) + ")");
-  }
-  if (!IsKnownSegmentClass(static_cast<int>(landmark.segment_class))) {
-    return Status::InvalidArgument(where + "unknown segment class " +
-                                   std::to_string(static_cast<int>(landmark.segment_class)));
-  }
-  if (landmark.box.width < 0 || landmark.box.height < 0) {
-    return Status::InvalidArgument(where + "box has a negative size");
-  }
-  return Status::Ok();
-}
-
-Status ValidatePlace(const Place& place, const std::vector<Landmark>& landmarks) {
-  if (place.robot.empty()) return Status::InvalidArgument("robot id is empty");
-  if (place.image_width < 0) return Status::InvalidArgument("place image width is negative");
-  if (place.robot.size() > kMaxRobotIdLength) {
-    return Status::InvalidArgument("robot id is " + std::to_string(place.robot.size()) +
-                                   " bytes, longer than the limit of " +
-                                   std::to_string(kMaxRobotIdLength));
-  }
-  if (place.robot.find('\0') != std::string::npos) {
-    return Status::InvalidArgument("robot id contains a NUL byte");
-  }
-  if (landmarks.size() > static_cast<size_t>(INT_MAX)) {
-    return Status::InvalidArgument("too many landmarks for one place");
-  }
-  for (size_t i = 0; i < landmarks.size(); ++i) {
-    PLACEREC_RETURN_IF_ERROR(ValidateLandmark(landmarks[i], i));
-  }
-  return Status::Ok();
-}
+// Reading back: rows are checked before they are decoded or hashed.
 
 // Columns of kSelectLandmarks, in order.
 enum LandmarkColumn {
@@ -639,7 +568,7 @@ Status SqliteStore::AddPlace(Place* place, std::vector<Landmark>* landmarks) {
   if (place == nullptr) return Status::InvalidArgument("AddPlace needs a place");
   static const std::vector<Landmark> kNoLandmarks;
   const std::vector<Landmark>& items = landmarks != nullptr ? *landmarks : kNoLandmarks;
-  PLACEREC_RETURN_IF_ERROR(ValidatePlace(*place, items));
+  PLACEREC_RETURN_IF_ERROR(ValidatePlaceAndLandmarks(*place, items));
 
   std::lock_guard<std::mutex> lock(mutex_);
   sqlite3* db = db_.get();
