@@ -11,6 +11,7 @@
 #include "common/objects/objects.h"
 #include "common/segmentation/segmentation.h"
 #include "common/util/ids.h"
+#include "common/util/status.h"
 
 namespace placerec {
 
@@ -31,6 +32,11 @@ struct Place {
            utime == other.utime && num_landmarks == other.num_landmarks &&
            image_width == other.image_width;
   }
+
+  // What every landmark store requires of a place (LandmarkStore::AddPlace): a robot id of
+  // 1..kMaxRobotIdLength bytes without NUL bytes and image_width >= 0. InvalidArgument otherwise.
+  // The id and num_landmarks are the store's to set and are not checked.
+  Status Validate() const;
 };
 
 // A stored landmark object.
@@ -45,6 +51,16 @@ struct Landmark {
   std::vector<cv::KeyPoint> keypoints;  // one per stored descriptor (x, y, size, angle kept)
 
   int num_descriptors() const { return descriptors.rows; }
+
+  // What every landmark store requires of a landmark (LandmarkStore::AddPlace): descriptors CV_8U
+  // with one channel, kDescriptorSize columns and continuous in memory, or an empty matrix; one
+  // keypoint per descriptor row; sift_count >= 0; a known segment class; a box of non-negative
+  // size. InvalidArgument otherwise. The id and place are the store's to set and are not checked.
+  Status Validate() const;
 };
+
+// Validates a place and the landmarks stored with it, in that order; a landmark's error starts
+// with its index ("landmark 2: ..."). At most INT_MAX landmarks (Place::num_landmarks is an int).
+Status ValidatePlaceAndLandmarks(const Place& place, const std::vector<Landmark>& landmarks);
 
 }  // namespace placerec

@@ -43,6 +43,20 @@ bool IsBackground(SegmentClass segment_class) {
   return false;
 }
 
+bool IsKnownSegmentClass(int64_t value) {
+  switch (value) {
+    case static_cast<int>(SegmentClass::kSky):
+    case static_cast<int>(SegmentClass::kTree):
+    case static_cast<int>(SegmentClass::kRoad):
+    case static_cast<int>(SegmentClass::kGrass):
+    case static_cast<int>(SegmentClass::kWater):
+    case static_cast<int>(SegmentClass::kStructured):
+      return true;
+    default:
+      return false;
+  }
+}
+
 WorkingImage MakeWorkingImage(const cv::Mat& bgr, int working_width) {
   CHECK(!bgr.empty()) << "MakeWorkingImage needs an image";
   CHECK_EQ(bgr.type(), CV_8UC3) << "MakeWorkingImage needs 8-bit BGR";

@@ -25,6 +25,9 @@ enum class SegmentClass : uint8_t {
 
 const char* SegmentClassName(SegmentClass segment_class);
 bool IsBackground(SegmentClass segment_class);
+// Whether `value` is the number of a SegmentClass enumerator; values read from a map file or sent
+// by a robot may be anything else.
+bool IsKnownSegmentClass(int64_t value);
 
 // The frame at the resolution segmentation works at (seed §6.1: about 320x240).
 struct WorkingImage {

@@ -27,6 +27,12 @@ TEST(SegmentClassTest, NamesAndBackground) {
   EXPECT_EQ(static_cast<int>(SegmentClass::kStructured), 7);
 }
 
+TEST(SegmentClassTest, KnownValuesAreTheEnumerators) {
+  for (int64_t value : {0, 1, 2, 3, 4, 7}) EXPECT_TRUE(IsKnownSegmentClass(value)) << value;
+  for (int64_t value : {-1, 5, 6, 8, 255, 256 + 7})
+    EXPECT_FALSE(IsKnownSegmentClass(value)) << value;
+}
+
 TEST(WorkingImageTest, ResizesToWorkingWidthWithScale) {
   const cv::Mat bgr(480, 640, CV_8UC3, cv::Scalar(255, 255, 255));
   const WorkingImage half = MakeWorkingImage(bgr, 320);

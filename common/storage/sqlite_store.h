@@ -1,24 +1,16 @@
 // SQLite implementation of LandmarkStore (DESIGN.md "Architecture"): one file, WAL journal, each
-// place committed in one transaction before AddPlace returns. The schema carries a version (table
-// `meta`, key `schema_version`); opening a file written by a newer placerec fails with a message
-// instead of misreading it, and older files are migrated one version step at a time.
-//
-// Schema v1: places(id, robot, sequence, utime, num_landmarks), UNIQUE(robot, sequence);
-// landmarks(id, place_id, sift_count, colour_peaks, segment_class, box_x, box_y, box_w, box_h,
-// num_descriptors, descriptors, keypoints). BLOBs: colour_peaks float32 LE per peak, descriptors
-// num_descriptors * 128 bytes (CV_8U rows), keypoints float32 LE x, y, size, angle per
-// descriptor. Ids are SQLite rowids: they start at 1 and increase.
+// place committed in one transaction before AddPlace returns. The schema and its versions are in
+// schema.h (opening a file written by a newer placerec fails with a message instead of misreading
+// it; older files are migrated), the BLOB encodings in blob_codec.h, the digest in checksum.h.
 #pragma once
 
 #include <memory>
 #include <string>
 
 #include "common/storage/landmark_store.h"
+#include "common/storage/schema.h"  // kSqliteSchemaVersion
 
 namespace placerec {
-
-// Version of the schema this build writes.
-constexpr int kSqliteSchemaVersion = 1;
 
 struct SqliteStoreOptions {
   // PRAGMA synchronous=FULL: a committed place survives power loss, not only a killed process.

@@ -2,41 +2,25 @@
 
 #include <gtest/gtest.h>
 #include <signal.h>
-#include <sqlite3.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
-#include <cstdio>
 #include <fstream>
 #include <random>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "common/storage/storage_testing.h"
+
 namespace placerec {
 namespace {
 
-// A map file in the test's temporary directory, removed (with its WAL files) before and after.
-// The process id keeps concurrent runs (several build trees, ctest -j) apart.
-class TempMap {
- public:
-  explicit TempMap(const std::string& name)
-      : path_(::testing::TempDir() + "/placerec_storage_" + name + "_" + std::to_string(getpid()) +
-              ".db") {
-    Remove();
-  }
-  ~TempMap() { Remove(); }
-  const std::string& path() const { return path_; }
-
- private:
-  void Remove() const {
-    for (const char* suffix : {"", "-wal", "-shm", "-journal"}) {
-      std::remove((path_ + suffix).c_str());
-    }
-  }
-  std::string path_;
-};
+using testing_storage::ExecSql;
+using testing_storage::ExpectSameLandmark;
+using testing_storage::QuerySql;
+using testing_storage::TempMap;
 
 bool FileExists(const std::string& path) { return std::ifstream(path).good(); }
 
@@ -45,33 +29,6 @@ std::unique_ptr<LandmarkStore> Open(const std::string& path,
   StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(path, options);
   EXPECT_TRUE(store.ok()) << store.status().ToString();
   return store.ok() ? std::move(store).value() : nullptr;
-}
-
-// Runs constant SQL on a map file directly, to forge foreign, newer or damaged files.
-void ExecSql(const std::string& path, const char* sql) {
-  sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
-  char* error = nullptr;
-  const int rc = sqlite3_exec(db, sql, nullptr, nullptr, &error);
-  EXPECT_EQ(rc, SQLITE_OK) << (error != nullptr ? error : "");
-  sqlite3_free(error);
-  sqlite3_close(db);
-}
-
-// The first column of the first row of a constant query, as text.
-std::string QuerySql(const std::string& path, const char* sql) {
-  sqlite3* db = nullptr;
-  std::string value;
-  if (sqlite3_open(path.c_str(), &db) == SQLITE_OK) {
-    sqlite3_stmt* stmt = nullptr;
-    if (sqlite3_prepare_v2(db, sql, -1, &stmt, nullptr) == SQLITE_OK &&
-        sqlite3_step(stmt) == SQLITE_ROW) {
-      value = reinterpret_cast<const char*>(sqlite3_column_text(stmt, 0));
-    }
-    sqlite3_finalize(stmt);
-  }
-  sqlite3_close(db);
-  return value;
 }
 
 Place MakePlace(const std::string& robot, int64_t sequence) {
@@ -124,28 +81,6 @@ Contents ReadAll(const LandmarkStore& store) {
       [&contents](Landmark&& landmark) { contents.landmarks.push_back(std::move(landmark)); });
   EXPECT_TRUE(landmarks.ok()) << landmarks.ToString();
   return contents;
-}
-
-void ExpectSameLandmark(const Landmark& expected, const Landmark& actual) {
-  EXPECT_EQ(actual.id, expected.id);
-  EXPECT_EQ(actual.place, expected.place);
-  EXPECT_EQ(actual.sift_count, expected.sift_count);
-  EXPECT_EQ(actual.colour.peaks, expected.colour.peaks);
-  EXPECT_EQ(actual.box, expected.box);
-  EXPECT_EQ(actual.segment_class, expected.segment_class);
-  ASSERT_EQ(actual.descriptors.type(), CV_8U);
-  ASSERT_EQ(actual.descriptors.cols, 128);
-  ASSERT_EQ(actual.descriptors.rows, expected.descriptors.rows);
-  if (expected.descriptors.rows > 0) {
-    EXPECT_EQ(cv::countNonZero(actual.descriptors != expected.descriptors), 0);
-  }
-  ASSERT_EQ(actual.keypoints.size(), expected.keypoints.size());
-  for (size_t i = 0; i < expected.keypoints.size(); ++i) {
-    EXPECT_EQ(actual.keypoints[i].pt.x, expected.keypoints[i].pt.x) << i;
-    EXPECT_EQ(actual.keypoints[i].pt.y, expected.keypoints[i].pt.y) << i;
-    EXPECT_EQ(actual.keypoints[i].size, expected.keypoints[i].size) << i;
-    EXPECT_EQ(actual.keypoints[i].angle, expected.keypoints[i].angle) << i;
-  }
 }
 
 void ExpectCounts(const LandmarkStore& store, int64_t places, int64_t landmarks,

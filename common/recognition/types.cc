@@ -1,0 +1,68 @@
+#include "common/recognition/types.h"
+
+#include <climits>
+
+#include "common/features/features.h"
+
+namespace placerec {
+
+Status Place::Validate() const {
+  if (robot.empty()) return Status::InvalidArgument("robot id is empty");
+  if (image_width < 0) return Status::InvalidArgument("place image width is negative");
+  if (robot.size() > kMaxRobotIdLength) {
+    return Status::InvalidArgument("robot id is " + std::to_string(robot.size()) +
+                                   " bytes, longer than the limit of " +
+                                   std::to_string(kMaxRobotIdLength));
+  }
+  if (robot.find('\0') != std::string::npos) {
+    return Status::InvalidArgument("robot id contains a NUL byte");
+  }
+  return Status::Ok();
+}
+
+Status Landmark::Validate() const {
+  if (!descriptors.empty()) {
+    if (descriptors.type() != CV_8UC1) {
+      return Status::InvalidArgument("descriptors must be CV_8U with one channel (type " +
+                                     std::to_string(descriptors.type()) + ")");
+    }
+    if (descriptors.dims != 2 || descriptors.cols != kDescriptorSize) {
+      return Status::InvalidArgument("descriptors have " + std::to_string(descriptors.cols) +
+                                     " columns, expected " + std::to_string(kDescriptorSize));
+    }
+    if (!descriptors.isContinuous()) {
+      return Status::InvalidArgument("descriptors are not continuous in memory");
+    }
+  }
+  const size_t rows = descriptors.empty() ? 0 : static_cast<size_t>(descriptors.rows);
+  if (keypoints.size() != rows) {
+    return Status::InvalidArgument(std::to_string(keypoints.size()) + " keypoints for " +
+                                   std::to_string(rows) +
+                                   " descriptors; there must be one per descriptor");
+  }
+  if (sift_count < 0) {
+    return Status::InvalidArgument("sift_count is negative (" + std::to_string(sift_count) + ")");
+  }
+  if (!IsKnownSegmentClass(static_cast<int>(segment_class))) {
+    return Status::InvalidArgument("unknown segment class " +
+                                   std::to_string(static_cast<int>(segment_class)));
+  }
+  if (box.width < 0 || box.height < 0) return Status::InvalidArgument("box has a negative size");
+  return Status::Ok();
+}
+
+Status ValidatePlaceAndLandmarks(const Place& place, const std::vector<Landmark>& landmarks) {
+  PLACEREC_RETURN_IF_ERROR(place.Validate());
+  if (landmarks.size() > static_cast<size_t>(INT_MAX)) {
+    return Status::InvalidArgument("too many landmarks for one place");
+  }
+  for (size_t i = 0; i < landmarks.size(); ++i) {
+    const Status status = landmarks[i].Validate();
+    if (!status.ok()) {
+      return Status::InvalidArgument("landmark " + std::to_string(i) + ": " + status.message());
+    }
+  }
+  return Status::Ok();
+}
+
+}  // namespace placerec
