@@ -1,3 +1,5 @@
+include(${CMAKE_CURRENT_LIST_DIR}/PlacerecCheckIncludes.cmake)
+
 # One helper per kind of target. Every target gets the same warnings; PLACEREC_WERROR makes them errors.
 
 function(placerec_set_warnings target)
@@ -16,6 +18,7 @@ function(placerec_add_library name)
   target_link_libraries(${name} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
   set_target_properties(${name} PROPERTIES POSITION_INDEPENDENT_CODE ON)
   placerec_set_warnings(${name})
+  placerec_record_target(${name})
 endfunction()
 
 # placerec_add_executable(NAME SRCS a.cc ... [DEPS ...])
@@ -25,6 +28,7 @@ function(placerec_add_executable name)
   target_link_libraries(${name} PRIVATE ${ARG_DEPS})
   set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${PROJECT_BINARY_DIR}/bin)
   placerec_set_warnings(${name})
+  placerec_record_target(${name})
 endfunction()
 
 # placerec_add_test(NAME SRCS a_test.cc ... [DEPS ...] [LABELS ...] [TIMEOUT seconds])
@@ -45,6 +49,7 @@ function(placerec_add_test name)
     PLACEREC_BINARY_DIR="${PROJECT_BINARY_DIR}")
   set_target_properties(${name} PROPERTIES RUNTIME_OUTPUT_DIRECTORY ${PROJECT_BINARY_DIR}/tests)
   placerec_set_warnings(${name})
+  placerec_record_target(${name})
   gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
                        PROPERTIES TIMEOUT ${ARG_TIMEOUT} LABELS "${ARG_LABELS}")
 endfunction()
