@@ -9,7 +9,7 @@
 
 #include "common/organization/scene_organizer.h"
 #include "common/util/paths.h"
-#include "tools/labelled_dataset.h"
+#include "common/training/labelled_dataset.h"
 #include "tools/segment_command.h"
 
 namespace placerec {

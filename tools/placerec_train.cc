@@ -17,13 +17,13 @@
 #include <opencv2/core/utility.hpp>
 
 #include "common/organization/organizer_flags.h"
+#include "common/training/background_training.h"
+#include "common/training/boundary_training.h"
+#include "common/training/grouping_training.h"
 #include "common/util/csv.h"
 #include "common/util/logging.h"
 #include "common/util/options.h"
 #include "common/util/paths.h"
-#include "tools/background_training.h"
-#include "tools/boundary_training.h"
-#include "tools/grouping_training.h"
 
 namespace placerec {
 namespace {

@@ -13,11 +13,11 @@
 
 #include "common/organization/organizer_flags.h"
 #include "common/organization/scene_organizer.h"
+#include "common/training/background_training.h"
 #include "common/util/options.h"
 #include "common/util/paths.h"
 #include "common/util/progress.h"
 #include "common/util/timer.h"
-#include "tools/background_training.h"
 #include "tools/segment_pictures.h"
 
 namespace placerec {

@@ -12,7 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
-#include "tools/labelled_dataset.h"
+#include "common/training/labelled_dataset.h"
 
 namespace placerec {
 

@@ -12,9 +12,9 @@
 
 #include "common/organization/filter_bank.h"
 #include "common/segmentation/superpixels.h"
+#include "common/training/boundary_training.h"
+#include "common/training/labelled_dataset.h"
 #include "common/util/paths.h"
-#include "tools/boundary_training.h"
-#include "tools/labelled_dataset.h"
 
 namespace placerec {
 namespace {

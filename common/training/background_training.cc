@@ -1,4 +1,4 @@
-#include "tools/background_training.h"
+#include "common/training/background_training.h"
 
 #include <unistd.h>
 
@@ -219,8 +219,7 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
     }
     if (!found) {
       return Status::InvalidArgument("structured class '" + wanted + "' is not a labelled, " +
-                                     "non-background class of " + config.dataset +
-                                     "/classes.txt");
+                                     "non-background class of " + config.dataset + "/classes.txt");
     }
   }
   // The evaluation split is otherwise read only after the whole training: check it first.
@@ -230,9 +229,9 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
     for (const std::string& id : *eval_ids) {
       const StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, id);
       if (!image.ok()) {
-        return Status(image.status().code(),
-                      image.status().message() + " (listed in " + config.dataset + "/" +
-                          config.eval_split + ".txt, the --eval-split)");
+        return Status(image.status().code(), image.status().message() + " (listed in " +
+                                                 config.dataset + "/" + config.eval_split +
+                                                 ".txt, the --eval-split)");
       }
     }
   }
@@ -371,8 +370,7 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
       std::vector<int> majority;
       const std::vector<int> labels = RegionLabels(objects, n, gt, *table, 0.5, &majority);
       objects_accuracy.Add(classifier.Scores(appearance), rivals_of(appearance), labels, majority,
-                           RegionAreas(objects, n), *table,
-                           config.organizer.background_threshold);
+                           RegionAreas(objects, n), *table, config.organizer.background_threshold);
       const SceneSegmentation superpixels =
           ComputeSuperpixels(working, config.organizer.superpixels);
       std::vector<int> superpixel_majority;
@@ -407,9 +405,8 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
   // The check sample: regions, their labels and the decisions made now.
   nlohmann::json check;
   if (!check_features.empty()) {
-    const std::vector<SegmentClass> decided =
-        classifier.Classify(check_features, config.organizer.background_threshold,
-                            config.organizer.one_per_class);
+    const std::vector<SegmentClass> decided = classifier.Classify(
+        check_features, config.organizer.background_threshold, config.organizer.one_per_class);
     std::vector<int> decided_ids;
     int correct = 0;
     for (size_t r = 0; r < decided.size(); ++r) {

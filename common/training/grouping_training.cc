@@ -1,4 +1,4 @@
-#include "tools/grouping_training.h"
+#include "common/training/grouping_training.h"
 
 #include <algorithm>
 #include <cmath>
@@ -9,11 +9,11 @@
 #include <numeric>
 #include <random>
 
+#include "common/training/background_training.h"
+#include "common/training/labelled_dataset.h"
 #include "common/util/paths.h"
 #include "common/util/progress.h"
 #include "common/util/timer.h"
-#include "tools/background_training.h"
-#include "tools/labelled_dataset.h"
 
 namespace placerec {
 namespace {

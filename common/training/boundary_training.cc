@@ -1,4 +1,4 @@
-#include "tools/boundary_training.h"
+#include "common/training/boundary_training.h"
 
 #include <algorithm>
 #include <cmath>
@@ -10,11 +10,11 @@
 
 #include "common/organization/filter_bank.h"
 #include "common/segmentation/superpixels.h"
+#include "common/training/background_training.h"
+#include "common/training/labelled_dataset.h"
 #include "common/util/paths.h"
 #include "common/util/progress.h"
 #include "common/util/timer.h"
-#include "tools/background_training.h"
-#include "tools/labelled_dataset.h"
 
 namespace placerec {
 namespace {

@@ -9,8 +9,8 @@
 
 #include <gtest/gtest.h>
 
-#include "tools/grouping_training.h"
-#include "tools/labelled_dataset.h"
+#include "common/training/grouping_training.h"
+#include "common/training/labelled_dataset.h"
 
 namespace placerec {
 namespace {

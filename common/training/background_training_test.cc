@@ -10,8 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include "common/training/background_training.h"
 #include "common/util/paths.h"
-#include "tools/background_training.h"
 
 namespace placerec {
 namespace {

@@ -1,4 +1,4 @@
-#include "tools/labelled_dataset.h"
+#include "common/training/labelled_dataset.h"
 
 #include <fstream>
 #include <sstream>

@@ -15,8 +15,8 @@
 
 #include "common/organization/boundary.h"
 #include "common/organization/scene_organizer.h"
+#include "common/training/labelled_dataset.h"
 #include "common/util/status.h"
-#include "tools/labelled_dataset.h"
 
 namespace placerec {
 
