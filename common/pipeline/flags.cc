@@ -142,8 +142,8 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add(
       "vote-places", &o->index.vote_places,
       "also verify the places most query descriptors have neighbours in (0: object matches only)");
-  p->Add("vote-window", &o->index.vote_window,
-         "a robot's places this many frames apart count as one location for the votes");
+  p->Add("vote-window-seconds", &o->index.vote_window_seconds,
+         "a robot's places taken within this many seconds count as one location for the votes");
   p->Add("flann-checks", &o->index.flann.checks, "FLANN leaves checked per query descriptor");
   p->Add("min-same-robot-gap-seconds", &o->recent_past.min_gap_seconds,
          "a robot's own places count only this many seconds (capture time) back (§5.7 step 6; "
@@ -173,14 +173,14 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
          "RANSAC epipolar distance in pixels of the processed frame");
   p->Add("max-verified-places", &o->loop.max_verified_places,
          "candidate places checked geometrically per frame");
-  p->Add("localization-window", &o->loop.localization_window,
-         "answer with the best place's neighbour (within this many frames) whose features have "
-         "the query's scale (0: the best place)");
+  p->Add("localization-window-seconds", &o->loop.localization_window_seconds,
+         "answer with the best place's neighbour (same robot, taken within this many seconds) "
+         "whose features have the query's scale (0: the best place; not in the seed)");
   p->Add("localization-score-fraction", &o->loop.localization_score_fraction,
          "neighbours considered for localization score at least this fraction of the best");
   p->Add("min-scale-slope", &o->loop.min_scale_slope,
          "localize where the neighbours' log scale ratio crosses 0 when it changes this much "
-         "per frame");
+         "per second");
   p->Add("noise-inliers", &o->loop.noise_inliers,
          "inliers a wrong place reaches by chance; weaker neighbours are not considered");
   p->Add("max-matches", &o->loop.max_matches, "places returned per frame");

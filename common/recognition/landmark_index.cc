@@ -11,6 +11,10 @@
 namespace placerec {
 
 bool LandmarkIndexOptions::Check(std::string* error) const {
+  if (vote_window_seconds < 0) {
+    *error = "index vote_window_seconds must be >= 0";
+    return false;
+  }
   if (count_range_low < 0 || count_range_low > 1) {
     *error = "index count_range_low must be in [0, 1]";
     return false;
@@ -46,8 +50,8 @@ void LandmarkIndex::Add(const Landmark& landmark) {
 void LandmarkIndex::AddPlace(const Place& place) {
   CHECK(place.id.IsValid());
   auto [it, inserted] = robot_number_.emplace(place.robot, static_cast<int>(robot_number_.size()));
-  place_info_[place.id] = {it->second, place.sequence};
-  place_by_sequence_[{it->second, place.sequence}] = place.id;
+  place_info_[place.id] = {it->second, place.utime};
+  place_by_time_.insert({{it->second, place.utime}, place.id});
 }
 
 bool LandmarkIndex::SameLocation(PlaceId a, PlaceId b) const {
@@ -56,7 +60,7 @@ bool LandmarkIndex::SameLocation(PlaceId a, PlaceId b) const {
   const auto ib = place_info_.find(b);
   if (ia == place_info_.end() || ib == place_info_.end()) return false;
   return ia->second.robot == ib->second.robot &&
-         std::abs(ia->second.sequence - ib->second.sequence) <= options_.vote_window;
+         std::abs(ia->second.utime - ib->second.utime) <= VoteWindowUs();
 }
 
 int32_t LandmarkIndex::SlotOf(LandmarkId id) const {
@@ -205,7 +209,7 @@ IndexResult LandmarkIndex::Query(const std::vector<IndexQuery>& objects,
   if (options_.vote_places > 0) {
     // Distinctive votes: a query row votes for the place of its nearest allowed neighbour when
     // that neighbour passes the ratio test against the nearest neighbour of another location
-    // (not the same robot within vote_window frames, which shows the same scene).
+    // (not the same robot within vote_window_seconds, which shows the same scene).
     const float ratio_squared =
         static_cast<float>(options_.matching.ratio * options_.matching.ratio);
     std::unordered_map<PlaceId, int> votes;
@@ -235,10 +239,9 @@ IndexResult LandmarkIndex::Query(const std::vector<IndexQuery>& objects,
       matched_places[place] = true;
       // Votes merge neighbouring frames; let the geometric check choose among them.
       const PlaceInfo& info = place_info_.at(place);
-      for (auto it =
-               place_by_sequence_.lower_bound({info.robot, info.sequence - options_.vote_window});
-           it != place_by_sequence_.end() && it->first.first == info.robot &&
-           it->first.second <= info.sequence + options_.vote_window;
+      for (auto it = place_by_time_.lower_bound({info.robot, info.utime - VoteWindowUs()});
+           it != place_by_time_.end() && it->first.first == info.robot &&
+           it->first.second <= info.utime + VoteWindowUs();
            ++it) {
         if (place_allowed(it->second)) matched_places[it->second] = true;
       }

@@ -49,9 +49,9 @@ struct LandmarkIndexOptions {
   // votes for the place of its nearest neighbour when it passes the ratio test against the
   // nearest neighbour seen at another location.
   int vote_places = 10;
-  // Places of one robot within this many frames of each other count as one location for the
-  // votes (consecutive frames see the same scene).
-  int vote_window = 3;
+  // Places of one robot taken within this many seconds of each other (capture time) count as
+  // one location for the votes: they see the same scene, at any frame rate.
+  double vote_window_seconds = 3.0;
 
   bool Check(std::string* error) const;
 };
@@ -135,17 +135,18 @@ class LandmarkIndex {
  private:
   bool CandidateByColour(const IndexQuery& object, int32_t slot) const;
   bool SameLocation(PlaceId a, PlaceId b) const;
+  int64_t VoteWindowUs() const { return static_cast<int64_t>(options_.vote_window_seconds * 1e6); }
 
   struct PlaceInfo {
     int robot = -1;
-    int64_t sequence = 0;
+    int64_t utime = 0;
   };
   LandmarkIndexOptions options_;
   std::vector<Landmark> landmarks_;
   std::vector<int32_t> slot_of_id_;  // landmark id -> slot, -1 where absent
   std::unordered_map<PlaceId, std::vector<int32_t>> slots_of_place_;
   std::unordered_map<PlaceId, PlaceInfo> place_info_;
-  std::map<std::pair<int, int64_t>, PlaceId> place_by_sequence_;  // (robot, sequence) -> place
+  std::multimap<std::pair<int, int64_t>, PlaceId> place_by_time_;  // (robot, utime) -> place
   std::unordered_map<std::string, int> robot_number_;
   RangeTree<int32_t> by_count_;
   DescriptorIndex descriptors_;

@@ -37,6 +37,10 @@ bool LoopDecisionOptions::Check(std::string* error) const {
     *error = "loop max_verified_places and max_matches must be at least 1";
     return false;
   }
+  if (localization_window_seconds < 0) {
+    *error = "loop localization_window_seconds must be >= 0";
+    return false;
+  }
   if (min_score < 0) {
     *error = "loop min_score must be non-negative";
     return false;
@@ -92,21 +96,31 @@ double CappedScore(const PlaceMatch& match, const LoopDecisionOptions& options) 
   return score;
 }
 
+// Seconds from `b`'s capture to `a`'s (exact for whole seconds).
+double SecondsApart(const Place& a, const Place& b) {
+  return static_cast<double>(a.utime - b.utime) / 1e6;
+}
+
+// Whether `a` is a neighbour of `b` for localization: the same robot, within the window.
+bool LocalizationNeighbour(const Place& a, const Place& b, const LoopDecisionOptions& options) {
+  const int64_t window_us = std::llround(options.localization_window_seconds * 1e6);
+  return a.robot == b.robot && std::abs(a.utime - b.utime) <= window_us;
+}
+
 // Which of `ranked` (best first) answers. The best place's neighbours (same robot, within the
 // window) with a clear score tell how the scale of the query's features compares with theirs:
-// where a weighted line through (sequence, median log scale ratio) crosses 0 is where the query
+// where a weighted line through (capture time, median log scale ratio) crosses 0 is where the query
 // was taken. Without a clear trend, the neighbour with the scale ratio closest to 0 answers.
 size_t Localize(const std::vector<PlaceMatch>& ranked, const LoopDecisionOptions& options) {
   const PlaceMatch& best = ranked.front();
   const auto neighbour = [&](const PlaceMatch& m) {
-    return m.place.robot == best.place.robot &&
-           std::abs(m.place.sequence - best.place.sequence) <= options.localization_window;
+    return LocalizationNeighbour(m.place, best.place, options);
   };
   double sw = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
   int fitted = 0;
   for (const PlaceMatch& m : ranked) {
     if (!neighbour(m) || m.inliers <= 0 || m.score < options.noise_inliers) continue;
-    const double x = static_cast<double>(m.place.sequence - best.place.sequence);
+    const double x = SecondsApart(m.place, best.place);
     const double w = m.score;
     sw += w;
     sx += w * x;
@@ -120,15 +134,13 @@ size_t Localize(const std::vector<PlaceMatch>& ranked, const LoopDecisionOptions
     const double slope = (sw * sxy - sx * sy) / denominator;
     const double intercept = (sy - slope * sx) / sw;
     if (std::abs(slope) >= options.min_scale_slope) {
-      const double crossing =
-          std::clamp(-intercept / slope, -static_cast<double>(options.localization_window),
-                     static_cast<double>(options.localization_window));
+      const double crossing = std::clamp(-intercept / slope, -options.localization_window_seconds,
+                                         options.localization_window_seconds);
       size_t chosen = 0;
       double nearest = std::abs(crossing);
       for (size_t i = 1; i < ranked.size(); ++i) {
         if (!neighbour(ranked[i])) continue;
-        const double d = std::abs(
-            static_cast<double>(ranked[i].place.sequence - best.place.sequence) - crossing);
+        const double d = std::abs(SecondsApart(ranked[i].place, best.place) - crossing);
         if (d < nearest - 1e-9) {
           nearest = d;
           chosen = i;
@@ -262,10 +274,10 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
     const auto best = std::max_element(ranked.begin(), ranked.end(), by_score);
     for (PlaceMatch& match : ranked) {
       if (match.inliers >= 0) continue;
-      const bool neighbour =
-          best != ranked.end() && best->score > 0 && match.place.robot == best->place.robot &&
-          std::abs(match.place.sequence - best->place.sequence) <= options.localization_window &&
-          match.point_pairs.size() >= min_points;
+      const bool neighbour = best != ranked.end() && best->score > 0 &&
+                             match.place.robot == best->place.robot &&
+                             LocalizationNeighbour(match.place, best->place, options) &&
+                             match.point_pairs.size() >= min_points;
       if (neighbour) {
         verify(match);
       } else {
@@ -274,7 +286,8 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
     }
     std::sort(ranked.begin(), ranked.end(), by_score);
   }
-  if (options.geometric_verification && options.localization_window > 0 && ranked.size() > 1) {
+  if (options.geometric_verification && options.localization_window_seconds > 0 &&
+      ranked.size() > 1) {
     const size_t chosen = Localize(ranked, options);
     if (chosen != 0) {
       // The chosen place answers with the evidence of its neighbourhood: the best score.

@@ -47,17 +47,18 @@ struct LoopDecisionOptions {
   int inlier_cell_size = 48;
   // Places verified geometrically, best by matched descriptors first.
   int max_verified_places = 20;
-  // Localization among the best place's neighbours (same robot, within this many frames, score
+  // Localization among the best place's neighbours (same robot, taken within this many seconds
+  // of it, so that the neighbourhood is the same at any frame rate; score
   // at least `localization_score_fraction` of the best and above `noise_inliers`): the answer is
   // the neighbour whose matched features have the same scale as in the query (median log scale
   // ratio closest to 0), i.e. the frame taken at the same distance from the scene. Neighbouring
   // frames share most matches, and distant structure matches equally well from several of
   // them, so the best score alone often answers a few frames too early or too late.
   // 0 answers with the best place.
-  int localization_window = 3;
+  double localization_window_seconds = 3.0;
   double localization_score_fraction = 0.5;
   // With at least three such neighbours whose log scale ratio changes by at least this much per
-  // frame, the answer is the neighbour nearest the frame where the fitted ratio crosses 0.
+  // second, the answer is the neighbour nearest the time where the fitted ratio crosses 0.
   double min_scale_slope = 0.01;
   // Inliers a wrong place typically reaches by chance; only the excess weighs in localization.
   double noise_inliers = 8.0;
