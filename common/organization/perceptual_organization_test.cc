@@ -1,16 +1,20 @@
 // Tests of the Perceptual Organization model (perceptual_organization.h; seed §3.5, §3.7) on
-// small synthetic partitions: boundary complexity, the boundary energy, Algorithm 1
-// (DetectObject) and Algorithm 2 with the final merges (OrganizeScene).
+// small synthetic partitions: boundary complexity, the part graph, link strengths, the boundary
+// energy, Algorithm 1 (DetectObject) and Algorithm 2 with the final merges (OrganizeScene).
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 
 #include "common/organization/perceptual_organization.h"
+#include "common/util/options_test_util.h"
 
 namespace placerec {
 namespace {
@@ -84,6 +88,41 @@ TEST(OrganizationOptionsTest, DefaultsPassAndBadValuesAreRejected) {
   bad = OrganizationOptions();
   bad.background_merge_colour_distance = -1.0;
   EXPECT_FALSE(bad.Check(&error));
+}
+
+// Every out-of-range field is refused with a message that names it.
+TEST(OrganizationOptionsTest, EachBadValueIsNamedInTheError) {
+  options_test::ExpectEachRefusedByName<OrganizationOptions>({
+      {"theta_complexity", [](OrganizationOptions* o) { o->theta_complexity = -0.5; }},
+      // Not finite is not a weight either.
+      {"theta_complexity",
+       [](OrganizationOptions* o) {
+         o->theta_complexity = std::numeric_limits<double>::quiet_NaN();
+       }},
+      {"theta_cohesion",
+       [](OrganizationOptions* o) { o->theta_cohesion = std::numeric_limits<double>::infinity(); }},
+      {"theta_cohesion", [](OrganizationOptions* o) { o->theta_cohesion = -1; }},
+      {"alpha", [](OrganizationOptions* o) { o->alpha = -20; }},
+      {"symmetry_tolerance", [](OrganizationOptions* o) { o->symmetry_tolerance = -0.1; }},
+      {"alignment_extension", [](OrganizationOptions* o) { o->alignment_extension = -1; }},
+      {"round_colour_merge_distance",
+       [](OrganizationOptions* o) { o->round_colour_merge_distance = -5; }},
+      {"complexity_step", [](OrganizationOptions* o) { o->complexity_step = 0; }},
+      {"complexity_window", [](OrganizationOptions* o) { o->complexity_window = 1; }},
+      {"alignment_tolerance", [](OrganizationOptions* o) { o->alignment_tolerance = 1.5; }},
+      {"enclosed_fraction", [](OrganizationOptions* o) { o->enclosed_fraction = 0; }},
+      {"max_subset", [](OrganizationOptions* o) { o->max_subset = 3; }},
+      {"max_rounds", [](OrganizationOptions* o) { o->max_rounds = -1; }},
+  });
+  // The edges of the ranges are allowed.
+  OrganizationOptions edges;
+  edges.alpha = 0;
+  edges.alignment_tolerance = 1;
+  edges.enclosed_fraction = 1;
+  edges.max_subset = 1;
+  edges.max_rounds = 0;
+  std::string error;
+  EXPECT_TRUE(edges.Check(&error)) << error;
 }
 
 // ---- Boundary complexity (eq. 3.7-3.9) ----
@@ -286,6 +325,144 @@ TEST(PerceptualOrganizationTest, AdjacentBackgroundRegionsOfOneClassAndColourMer
   OrganizationOptions keep;
   keep.merge_background = false;
   EXPECT_EQ(OrganizeScene(labels, classes, same_sky, keep).size(), 3);
+}
+
+// ---- Part graph and link strength (eq. 3.10-3.13, Lemma 1) ----
+
+// A 10 x 6 partition: part 0 the left 4 columns, part 1 the right 6.
+TEST(PartGraphTest, TwoRectanglesHaveExactAreasPerimetersAndCommonBoundary) {
+  cv::Mat labels = Canvas({10, 6});
+  Fill(&labels, {4, 0, 6, 6}, 1);
+  const OrganizationOptions options;
+  const PartGraph graph =
+      BuildPartGraph(labels, 2, PartColours(labels),
+                     {SegmentClass::kStructured, SegmentClass::kStructured}, options);
+  ASSERT_EQ(graph.size(), 2);
+  EXPECT_EQ(graph.image_size, cv::Size(10, 6));
+  EXPECT_EQ(graph.parts[0].area, 24);
+  EXPECT_EQ(graph.parts[1].area, 36);
+  // Crack edges, the image border included.
+  EXPECT_EQ(graph.parts[0].perimeter, 20);
+  EXPECT_EQ(graph.parts[1].perimeter, 24);
+  EXPECT_EQ(graph.parts[0].box, cv::Rect(0, 0, 4, 6));
+  EXPECT_EQ(graph.parts[1].box, cv::Rect(4, 0, 6, 6));
+  EXPECT_DOUBLE_EQ(graph.parts[0].centroid.x, 1.5);
+  EXPECT_DOUBLE_EQ(graph.parts[0].centroid.y, 2.5);
+  EXPECT_DOUBLE_EQ(graph.parts[1].centroid.x, 6.5);
+  // Rectangles are convex: no boundary complexity.
+  EXPECT_NEAR(graph.parts[0].complexity, 0.0, 1e-12);
+  EXPECT_NEAR(graph.parts[1].complexity, 0.0, 1e-12);
+
+  ASSERT_EQ(graph.links[0].size(), 1u);
+  ASSERT_EQ(graph.links[1].size(), 1u);
+  const PartLink* link = graph.Link(0, 1);
+  ASSERT_NE(link, nullptr);
+  EXPECT_EQ(link->other, 1);
+  EXPECT_EQ(graph.Link(1, 0)->other, 0);
+  EXPECT_EQ(link->shared, 6);
+  EXPECT_EQ(graph.Link(1, 0)->shared, 6);
+  EXPECT_DOUBLE_EQ(link->cos_omega, 0.0);  // a vertical common boundary
+  EXPECT_TRUE(link->symmetric);            // centroids at the same height
+  EXPECT_DOUBLE_EQ(link->strength, 1.0);
+  EXPECT_EQ(graph.Link(0, 0), nullptr);
+
+  // E = -sum f |i| / L(dR) with L(d(A u B)) = L(dA) + L(dB) - 2 L(dAB) (seed Lemma 1): the
+  // whole 10 x 6 image, -60 / 32.
+  EXPECT_DOUBLE_EQ(BoundaryEnergy(graph, 0, {0}, options), -24.0 / 20.0);
+  EXPECT_DOUBLE_EQ(BoundaryEnergy(graph, 1, {1}, options), -36.0 / 24.0);
+  EXPECT_DOUBLE_EQ(BoundaryEnergy(graph, 0, {0, 1}, options), -60.0 / 32.0);
+  // Outside the region, no cohesiveness.
+  EXPECT_EQ(Cohesiveness(graph, 0, {0}), (std::vector<double>{1.0, 0.0}));
+  EXPECT_EQ(Cohesiveness(graph, 0, {0, 1}), (std::vector<double>{1.0, 1.0}));
+}
+
+// exp(-phi psi lambda) with lambda = beta exp(-alpha cos(omega) L(dij) / (L(di) + L(dj))).
+TEST(LinkStrengthTest, FollowsEquation313) {
+  const OrganizationOptions options;  // alpha 20, beta 3
+  PartLink link;
+  link.shared = 10;
+  // A vertical common boundary (cos 0) is no attachment at all: lambda = beta.
+  link.cos_omega = 0.0;
+  EXPECT_NEAR(LinkStrength(link, 40, 60, options), std::exp(-3.0), 1e-12);
+  // A horizontal one sharing a tenth of the two boundaries: lambda = 3 exp(-2).
+  link.cos_omega = 1.0;
+  EXPECT_NEAR(LinkStrength(link, 40, 60, options), std::exp(-3.0 * std::exp(-2.0)), 1e-12);
+  // Sharing more attaches more strongly.
+  link.shared = 30;
+  EXPECT_GT(LinkStrength(link, 40, 60, options), std::exp(-3.0 * std::exp(-2.0)));
+  // Symmetric (phi = 0) or aligned (psi = 0) parts are fully cohesive.
+  link.cos_omega = 0.0;
+  link.symmetric = true;
+  EXPECT_EQ(LinkStrength(link, 40, 60, options), 1.0);
+  link.symmetric = false;
+  link.aligned = true;
+  EXPECT_EQ(LinkStrength(link, 40, 60, options), 1.0);
+}
+
+// ---- Algorithm 1 and Algorithm 2 ----
+
+// Parts the caller marks unavailable (taken by an earlier object, or background) are never
+// added; the reference itself always is.
+TEST(DetectObjectTest, UnavailablePartsAreNeverTaken) {
+  const Figure31 f = MakeFigure31();
+  const OrganizationOptions options;
+  const PartGraph graph = BuildPartGraph(f.labels, 5, f.lab, f.classes, options);
+  std::vector<char> available = StructuredAvailable(graph);
+  available[2] = 0;  // b already belongs to another object
+  EXPECT_EQ(DetectObject(graph, 1, available, options), (std::vector<int>{1}));
+  // Nothing available: the reference alone, even an unavailable one.
+  const std::vector<char> none(5, 0);
+  for (int part = 0; part < 5; ++part) {
+    EXPECT_EQ(DetectObject(graph, part, none, options), (std::vector<int>{part})) << part;
+  }
+}
+
+// Without grouping rounds every part stays a segment of its own, classes kept; the summary
+// counts what happened.
+TEST(OrganizeSceneTest, ZeroRoundsKeepEveryPartAsItsOwnSegment) {
+  const Figure31 f = MakeFigure31();
+  OrganizationOptions options;
+  options.max_rounds = 0;
+  OrganizationSummary summary;
+  const SceneSegmentation scene = OrganizeScene(f.labels, f.classes, f.lab, options, &summary);
+  EXPECT_EQ(scene.size(), 5);
+  EXPECT_EQ(summary.rounds, 0);
+  EXPECT_TRUE(summary.parts.empty());
+  EXPECT_EQ(summary.background_parts, 1);
+  EXPECT_EQ(summary.segments, 5);
+  // One segment per input part, and one part per segment.
+  std::vector<std::set<int>> segments_of(5);
+  for (int y = 0; y < f.labels.rows; ++y) {
+    for (int x = 0; x < f.labels.cols; ++x) {
+      segments_of[f.labels.at<int>(y, x)].insert(scene.labels.at<int>(y, x));
+    }
+  }
+  std::set<int> all;
+  for (int part = 0; part < 5; ++part) {
+    ASSERT_EQ(segments_of[part].size(), 1u) << part;
+    const int segment = *segments_of[part].begin();
+    all.insert(segment);
+    EXPECT_EQ(scene.classes[segment], f.classes[part]) << part;
+  }
+  EXPECT_EQ(all.size(), 5u);
+}
+
+// A scene of background alone groups nothing: one round finds no structured part, and the
+// final merge joins the two sky regions of one colour.
+TEST(OrganizeSceneTest, BackgroundAloneIsOneSegmentAfterOneEmptyRound) {
+  cv::Mat labels = Canvas({40, 30});
+  Fill(&labels, {0, 15, 40, 15}, 1);
+  cv::Mat lab(labels.size(), CV_32FC3, cv::Scalar(80, 0, -30));
+  OrganizationSummary summary;
+  const SceneSegmentation scene = OrganizeScene(labels, {SegmentClass::kSky, SegmentClass::kSky},
+                                                lab, OrganizationOptions(), &summary);
+  EXPECT_EQ(scene.size(), 1);
+  EXPECT_EQ(scene.classes, std::vector<SegmentClass>{SegmentClass::kSky});
+  EXPECT_EQ(cv::countNonZero(scene.labels), 0);
+  EXPECT_EQ(summary.rounds, 1);
+  EXPECT_EQ(summary.parts, std::vector<int>{0});
+  EXPECT_EQ(summary.background_parts, 2);
+  EXPECT_EQ(summary.segments, 1);
 }
 
 }  // namespace
