@@ -1,8 +1,11 @@
 // Tests of the loop decision (loop_decision.h; seed §5.7 step 6): candidate places ranked by
-// geometric inliers, the orientation filter, the per-landmark inlier cap and localization among
-// the best place's neighbours.
+// matched descriptors or by geometric inliers, the orientation filter, the inlier caps,
+// localization among the best place's neighbours, and what is (not) verified.
 #include <cmath>
 #include <random>
+#include <set>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -10,6 +13,7 @@
 #include "common/recognition/landmark_index.h"
 #include "common/recognition/loop_decision.h"
 #include "common/recognition/recognition_test_util.h"
+#include "common/util/options_test_util.h"
 
 namespace placerec {
 namespace {
@@ -175,6 +179,193 @@ TEST(LoopDecisionTest, LocalizesAtTheNeighbourWithTheQueryScale) {
   const std::vector<PlaceMatch> best = RankPlaces(
       found, {query}, 640, index, [&](PlaceId id) { return &places[id.value()]; }, options);
   EXPECT_EQ(best[0].place.sequence, 1);
+}
+
+// Every out-of-range option is refused, with a message that names it.
+TEST(LoopDecisionTest, EachBadValueIsNamedInTheError) {
+  options_test::ExpectEachRefusedByName<LoopDecisionOptions>({
+      {"orientation_tolerance", [](LoopDecisionOptions* o) { o->orientation_tolerance = -1; }},
+      {"orientation_tolerance", [](LoopDecisionOptions* o) { o->orientation_tolerance = 181; }},
+      {"ransac_threshold", [](LoopDecisionOptions* o) { o->ransac_threshold = -2; }},
+      {"ransac_confidence", [](LoopDecisionOptions* o) { o->ransac_confidence = 1; }},
+      {"ransac_confidence", [](LoopDecisionOptions* o) { o->ransac_confidence = 0; }},
+      {"max_inliers_per_landmark",
+       [](LoopDecisionOptions* o) { o->max_inliers_per_landmark = -1; }},
+      {"ransac_iterations", [](LoopDecisionOptions* o) { o->ransac_iterations = 0; }},
+      {"min_verification_points", [](LoopDecisionOptions* o) { o->min_verification_points = -1; }},
+      {"max_verified_places", [](LoopDecisionOptions* o) { o->max_verified_places = 0; }},
+      {"max_matches", [](LoopDecisionOptions* o) { o->max_matches = 0; }},
+      {"min_score", [](LoopDecisionOptions* o) { o->min_score = -1; }},
+  });
+}
+
+// One place per robot (so no place neighbours another), each with one landmark whose keypoints
+// are the query's shifted sideways; query row i matches row i for the first counts[p] rows.
+struct SeparatePlaces {
+  std::vector<cv::KeyPoint> query;
+  LandmarkIndex index{LandmarkIndexOptions()};
+  std::vector<Place> places;
+  IndexResult found;
+
+  SeparatePlaces(const std::vector<int>& counts, std::mt19937* rng)
+      : query(QueryKeypoints(60, rng)) {
+    for (int p = 0; p < static_cast<int>(counts.size()); ++p) {
+      places.push_back({PlaceId(p), "robot" + std::to_string(p), 0, 0, 1});
+      index.AddPlace(places.back());
+      index.Add(ShiftedLandmark(p, p, query, rng));
+      MatchAll(&found, p, p, LandmarkId(p), counts[p]);
+    }
+  }
+  std::vector<PlaceMatch> Rank(const LoopDecisionOptions& options) const {
+    return RankPlaces(
+        found, {query}, 0, index, [this](PlaceId id) { return &places[id.value()]; }, options);
+  }
+};
+
+// Without the geometric check a place scores its matched descriptors; more is better, and a
+// tie goes to the lower place id. At most max_matches places come back.
+TEST(LoopDecisionTest, WithoutVerificationPlacesRankByMatchedDescriptors) {
+  std::mt19937 rng(11);
+  const SeparatePlaces places({30, 50, 40, 50}, &rng);
+  LoopDecisionOptions options;
+  options.geometric_verification = false;
+  const std::vector<PlaceMatch> ranked = places.Rank(options);
+  ASSERT_EQ(ranked.size(), 4u);
+  const int64_t order[] = {1, 3, 2, 0};
+  const double scores[] = {50, 50, 40, 30};
+  for (size_t i = 0; i < 4; ++i) {
+    EXPECT_EQ(ranked[i].place.id, PlaceId(order[i])) << i;
+    EXPECT_EQ(ranked[i].score, scores[i]) << i;
+    EXPECT_EQ(ranked[i].matched_descriptors, static_cast<int>(scores[i])) << i;
+    EXPECT_EQ(ranked[i].point_pairs.size(), static_cast<size_t>(scores[i])) << i;
+    EXPECT_EQ(ranked[i].inliers, -1) << i;  // not verified
+    EXPECT_EQ(ranked[i].matched_landmarks, 1) << i;
+  }
+  options.max_matches = 2;
+  const std::vector<PlaceMatch> two = places.Rank(options);
+  ASSERT_EQ(two.size(), 2u);
+  EXPECT_EQ(two[0].place.id, PlaceId(1));
+  EXPECT_EQ(two[1].place.id, PlaceId(3));
+}
+
+// A place with fewer orientation-consistent matches than min_verification_points is not
+// checked and scores 0, however consistent its matches; so is a place beyond
+// max_verified_places.
+TEST(LoopDecisionTest, PlacesNotVerifiedScoreZero) {
+  std::mt19937 rng(12);
+  const SeparatePlaces places({40, 9, 35}, &rng);
+  LoopDecisionOptions options;
+  options.max_inliers_per_landmark = 0;
+  std::vector<PlaceMatch> ranked = places.Rank(options);
+  ASSERT_EQ(ranked.size(), 3u);
+  EXPECT_EQ(ranked[0].place.id, PlaceId(0));
+  EXPECT_GE(ranked[0].inliers, 38);
+  EXPECT_EQ(ranked[0].score, ranked[0].inliers);
+  EXPECT_EQ(ranked[1].place.id, PlaceId(2));
+  EXPECT_GE(ranked[1].inliers, 33);
+  EXPECT_EQ(ranked[2].place.id, PlaceId(1));
+  EXPECT_EQ(ranked[2].matched_descriptors, 9);
+  EXPECT_EQ(ranked[2].inliers, 0);
+  EXPECT_EQ(ranked[2].score, 0);
+  EXPECT_TRUE(ranked[2].point_pairs.empty());
+
+  options.max_verified_places = 1;
+  ranked = places.Rank(options);
+  ASSERT_EQ(ranked.size(), 3u);
+  EXPECT_EQ(ranked[0].place.id, PlaceId(0));
+  EXPECT_GE(ranked[0].inliers, 38);
+  for (size_t i = 1; i < 3; ++i) {
+    EXPECT_EQ(ranked[i].score, 0) << i;
+    EXPECT_EQ(ranked[i].inliers, 0) << i;
+  }
+  EXPECT_EQ(ranked[1].place.id, PlaceId(1));  // ties at 0 go to the lower id
+}
+
+// The object pairs of a place list every (query object, landmark) match with the landmark's
+// box; matched_landmarks counts distinct landmarks. A place found by place-level matches only
+// (distinctive votes) has none.
+TEST(LoopDecisionTest, ObjectPairsAndBoxesComeFromTheIndex) {
+  std::mt19937 rng(13);
+  const std::vector<cv::KeyPoint> query = QueryKeypoints(30, &rng);
+  LandmarkIndex index{LandmarkIndexOptions()};
+  const Place places[2] = {{PlaceId(0), "a", 0, 0, 2}, {PlaceId(1), "b", 0, 0, 1}};
+  index.AddPlace(places[0]);
+  index.AddPlace(places[1]);
+  Landmark first = ShiftedLandmark(0, 0, query, &rng);
+  first.box = cv::Rect(10, 20, 30, 40);
+  Landmark second = ShiftedLandmark(1, 0, query, &rng);
+  second.box = cv::Rect(100, 20, 50, 60);
+  index.Add(first);
+  index.Add(second);
+  index.Add(ShiftedLandmark(2, 1, query, &rng));
+  IndexResult found;
+  const std::vector<std::pair<int, int64_t>> object_pairs = {{0, 0}, {1, 1}, {2, 0}};
+  for (const auto& [object, landmark] : object_pairs) {
+    LandmarkMatch match;
+    match.query_object = object;
+    match.landmark = LandmarkId(landmark);
+    match.place = PlaceId(0);
+    found.objects.push_back(match);
+  }
+  for (int i = 0; i < 30; ++i) {
+    found.place_points[PlaceId(0)].push_back({0, i, 0, i, 0.0f});
+    found.place_points[PlaceId(1)].push_back({0, i, 2, i, 0.0f});
+  }
+  LoopDecisionOptions options;
+  options.geometric_verification = false;
+  const std::vector<PlaceMatch> ranked = RankPlaces(
+      found, {query}, 0, index, [&places](PlaceId id) { return &places[id.value()]; }, options);
+  ASSERT_EQ(ranked.size(), 2u);
+  const PlaceMatch& a = ranked[0];
+  EXPECT_EQ(a.place.id, PlaceId(0));
+  EXPECT_EQ(a.matched_landmarks, 2);
+  EXPECT_EQ(a.object_pairs, (std::vector<std::pair<int, LandmarkId>>{
+                                {0, LandmarkId(0)}, {1, LandmarkId(1)}, {2, LandmarkId(0)}}));
+  EXPECT_EQ(a.landmark_boxes, (std::vector<cv::Rect>{first.box, second.box, first.box}));
+  const PlaceMatch& b = ranked[1];
+  EXPECT_EQ(b.place.id, PlaceId(1));
+  EXPECT_EQ(b.matched_landmarks, 0);
+  EXPECT_TRUE(b.object_pairs.empty());
+  EXPECT_TRUE(b.landmark_boxes.empty());
+  EXPECT_EQ(b.matched_descriptors, 30);
+  EXPECT_EQ(b.point_landmarks, std::vector<LandmarkId>(30, LandmarkId(2)));
+}
+
+// With max_inliers_per_cell = 1 a place scores the grid cells of the query frame its inliers
+// fall in, not the inliers: here two keypoints share each cell.
+TEST(LoopDecisionTest, InliersCrowdedInOneCellCountOnce) {
+  std::mt19937 rng(14);
+  std::uniform_real_distribution<float> jitter(2.0f, 46.0f);
+  std::vector<cv::KeyPoint> query;
+  for (int cell = 0; cell < 20; ++cell) {
+    const cv::Point2f corner(48.0f * static_cast<float>(cell % 10),
+                             48.0f * static_cast<float>(3 * (cell / 10)));
+    for (int k = 0; k < 2; ++k) {
+      query.emplace_back(corner + cv::Point2f(jitter(rng), jitter(rng)), 4.0f, 30.0f);
+    }
+  }
+  LandmarkIndex index{LandmarkIndexOptions()};
+  const Place place{PlaceId(0), "a", 0, 0, 1};
+  index.AddPlace(place);
+  index.Add(ShiftedLandmark(0, 0, query, &rng));
+  IndexResult found;
+  MatchAll(&found, 0, 0, LandmarkId(0), 40);
+  LoopDecisionOptions options;
+  options.max_inliers_per_landmark = 0;
+  options.max_inliers_per_cell = 1;
+  const std::vector<PlaceMatch> ranked = RankPlaces(
+      found, {query}, 0, index, [&](PlaceId) { return &place; }, options);
+  ASSERT_EQ(ranked.size(), 1u);
+  EXPECT_GE(ranked[0].inliers, 38);
+  std::set<std::pair<int, int>> cells;
+  for (const auto& [p, q] : ranked[0].point_pairs) {
+    cells.emplace(static_cast<int>(p.x) / options.inlier_cell_size,
+                  static_cast<int>(p.y) / options.inlier_cell_size);
+  }
+  EXPECT_LE(cells.size(), 20u);
+  EXPECT_GE(cells.size(), 18u);
+  EXPECT_EQ(ranked[0].score, static_cast<double>(cells.size()));
+  EXPECT_LT(ranked[0].score, ranked[0].inliers);
 }
 
 }  // namespace
