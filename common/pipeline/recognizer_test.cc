@@ -1,10 +1,15 @@
+// Tests of the recognizer (recognizer.h; seed §5.7) on frames of a synthetic street: request
+// checks, a second robot recognising the places the first mapped, a map reopened from its file,
+// and a robot standing still.
 #include <cstdio>
+#include <memory>
 #include <random>
+#include <string>
 
 #include <gtest/gtest.h>
-#include <opencv2/imgproc.hpp>
+#include <opencv2/core.hpp>
 
-#include "common/pipeline/frame_analyzer.h"
+#include "common/pipeline/pipeline_test_util.h"
 #include "common/pipeline/place_map.h"
 #include "common/pipeline/recognizer.h"
 #include "common/storage/sqlite_store.h"
@@ -12,97 +17,16 @@
 namespace placerec {
 namespace {
 
-// A synthetic street, 3200 x 240: sky, ground and 60 textured "buildings" of random colours,
-// each sprinkled with darker and brighter spots so that SIFT finds keypoints inside them.
-constexpr int kViewWidth = 320;
-constexpr int kStep = 80;  // robots move a quarter view per frame
-
-cv::Mat World(unsigned seed) {
-  std::mt19937 rng(seed);
-  cv::Mat world(240, 3200, CV_8UC3);
-  world.rowRange(0, 100).setTo(cv::Scalar(230, 200, 150));
-  world.rowRange(100, 240).setTo(cv::Scalar(90, 100, 100));
-  std::uniform_int_distribution<int> colour(30, 230);
-  std::uniform_int_distribution<int> x(0, 3150);
-  std::uniform_int_distribution<int> width(40, 110);
-  std::uniform_int_distribution<int> height(40, 130);
-  std::uniform_int_distribution<int> shade(-60, 60);
-  std::uniform_int_distribution<int> radius(1, 3);
-  for (int i = 0; i < 60; ++i) {
-    cv::Rect r(x(rng), 30 + colour(rng) / 4, width(rng), height(rng));
-    r &= cv::Rect(0, 0, world.cols, world.rows);
-    const cv::Scalar base(colour(rng), colour(rng), colour(rng));
-    world(r).setTo(base);
-    std::uniform_int_distribution<int> px(r.x, r.x + r.width - 1);
-    std::uniform_int_distribution<int> py(r.y, r.y + r.height - 1);
-    for (int k = 0; k < r.area() / 80; ++k) {
-      cv::circle(world, cv::Point(px(rng), py(rng)), radius(rng),
-                 base + cv::Scalar::all(shade(rng)), cv::FILLED);
-    }
-  }
-  return world;
-}
-
-cv::Mat View(const cv::Mat& world, int x) {
-  return world(cv::Rect(x, 0, kViewWidth, world.rows)).clone();
-}
-
-// The synthetic street is not a scene the background classifiers were trained on (flat sky and
-// ground colours, rectangles touching each other), so these tests of the stages downstream of
-// segmentation use superpixels as objects; Perceptual Organization is tested in
-// common/organization and on real frames in tests/.
-AnalyzerOptions SyntheticAnalyzerOptions() {
-  AnalyzerOptions options;
-  options.segmentation = SegmentationMethod::kSuperpixels;
-  return options;
-}
+using pipeline_test::kStep;
+using pipeline_test::kViewWidth;
+using pipeline_test::SyntheticAnalyzerOptions;
+using pipeline_test::View;
+using pipeline_test::World;
 
 RecognizerOptions TestOptions() {
   RecognizerOptions options;
   options.analyzer = SyntheticAnalyzerOptions();
   return options;
-}
-
-TEST(PipelineOptionsTest, DefaultsPass) {
-  std::string error;
-  EXPECT_TRUE(RecognizerOptions().Check(&error)) << error;
-  RecognizerOptions bad;
-  bad.analyzer.max_image_width = 10;
-  EXPECT_FALSE(bad.Check(&error));
-  EXPECT_NE(error.find("max_image_width"), std::string::npos);
-}
-
-TEST(FrameAnalyzerTest, MissingModelsSayWhatToDo) {
-  AnalyzerOptions options;
-  options.organization.models_dir = ::testing::TempDir() + "/no_such_models_dir";
-  const StatusOr<std::unique_ptr<Segmenter>> organization = MakeSegmenter(options);
-  ASSERT_FALSE(organization.ok());
-  EXPECT_NE(organization.status().message().find("placerec-train background"), std::string::npos)
-      << organization.status().message();
-  options.segmentation = SegmentationMethod::kSuperpixels;
-  const StatusOr<std::unique_ptr<Segmenter>> superpixels = MakeSegmenter(options);
-  ASSERT_TRUE(superpixels.ok()) << superpixels.status().message();
-  EXPECT_EQ((*superpixels)->name(), "superpixels");
-}
-
-TEST(FrameAnalyzerTest, FindsObjectsOnTexturedBuildings) {
-  const cv::Mat world = World(1);
-  const FrameAnalyzer analyzer{SyntheticAnalyzerOptions()};
-  const FrameObservation observation = analyzer.Analyze(View(world, 300));
-  EXPECT_GT(observation.features.size(), 50);
-  EXPECT_GE(observation.objects.size(), 3u);
-  EXPECT_FALSE(observation.colourless);
-  for (const SceneObject& object : observation.objects) {
-    EXPECT_GE(object.sift_count(), 9);
-    EXPECT_TRUE(object.colour.known());
-  }
-  // A grey copy of the frame carries no colour: no object gets a colour signature.
-  cv::Mat grey;
-  cv::cvtColor(View(world, 300), grey, cv::COLOR_BGR2GRAY);
-  cv::cvtColor(grey, grey, cv::COLOR_GRAY2BGR);
-  const FrameObservation grey_observation = analyzer.Analyze(grey);
-  EXPECT_TRUE(grey_observation.colourless);
-  for (const SceneObject& object : grey_observation.objects) EXPECT_FALSE(object.colour.known());
 }
 
 std::unique_ptr<PlaceMap> OpenMap(const std::string& path, const RecognizerOptions& options) {
@@ -111,6 +35,15 @@ std::unique_ptr<PlaceMap> OpenMap(const std::string& path, const RecognizerOptio
   StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
   EXPECT_TRUE(map.ok()) << map.status().ToString();
   return std::move(*map);
+}
+
+TEST(RecognizerOptionsTest, DefaultsPass) {
+  std::string error;
+  EXPECT_TRUE(RecognizerOptions().Check(&error)) << error;
+  RecognizerOptions bad;
+  bad.analyzer.max_image_width = 10;
+  EXPECT_FALSE(bad.Check(&error));
+  EXPECT_NE(error.find("max_image_width"), std::string::npos);
 }
 
 TEST(RecognizerTest, RejectsBadRequestsWithoutChangingAnything) {
