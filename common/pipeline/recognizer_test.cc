@@ -1,6 +1,8 @@
 // Tests of the recognizer (recognizer.h; seed §5.7) on frames of a synthetic street: request
 // checks, a second robot recognising the places the first mapped, a map reopened from its file,
 // and a robot standing still.
+#include <unistd.h>
+
 #include <cstdio>
 #include <memory>
 #include <random>
@@ -63,13 +65,20 @@ TEST(RecognizerTest, RejectsBadRequestsWithoutChangingAnything) {
   EXPECT_TRUE(recognizer.Process({"a", 1, 0, false}, frame).status.ok());
 }
 
+// Removes a SQLite map file and its WAL companions.
+void RemoveMapFiles(const std::string& path) {
+  for (const char* suffix : {"", "-wal", "-shm"}) std::remove((path + suffix).c_str());
+}
+
 // Robot "a" drives along the street; robot "b" drives it again 13 pixels to the side. Every frame
 // of "b" should be recognised as the frame of "a" taken at the nearest position.
 TEST(RecognizerTest, SecondRobotRecognisesThePlacesTheFirstMapped) {
   const cv::Mat world = World(3);
   const RecognizerOptions options = TestOptions();
-  const std::string path = ::testing::TempDir() + "/placerec_pipeline_test.db";
-  std::remove(path.c_str());
+  // A file of this process's own: other runs of the suite on the machine share the temp folder.
+  const std::string path =
+      ::testing::TempDir() + "/placerec_recognizer_test_" + std::to_string(getpid()) + ".db";
+  RemoveMapFiles(path);
   std::unique_ptr<PlaceMap> map = OpenMap(path, options);
   Recognizer recognizer(options, map.get());
   const int step = kStep;
@@ -135,7 +144,8 @@ TEST(RecognizerTest, SecondRobotRecognisesThePlacesTheFirstMapped) {
   ASSERT_FALSE(after.matches.empty());
   EXPECT_EQ(after.matches.front().place.id, before_close.matches.front().place.id);
   EXPECT_EQ(after.matches.front().score, before_close.matches.front().score);
-  std::remove(path.c_str());
+  reopened.reset();
+  RemoveMapFiles(path);
 }
 
 // A robot that stands still for 30 s at 10 frames per second sends the same view 300 times: no
