@@ -1,12 +1,15 @@
-// Tests of the recognizer (recognizer.h; seed §5.7) on frames of a synthetic street: request
-// checks, a second robot recognising the places the first mapped, a map reopened from its file,
-// and a robot standing still.
+// Tests of the recognizer (recognizer.h; seed §5.7): request checks, landmark selection and
+// storage, lookups by other robots and by the robot itself, query-only frames; on frames of a
+// synthetic street, and on synthetic observations (objects of random descriptors, no images)
+// where exact counts are wanted.
 #include <unistd.h>
 
 #include <cstdio>
 #include <memory>
 #include <random>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
@@ -14,6 +17,7 @@
 #include "common/pipeline/pipeline_test_util.h"
 #include "common/pipeline/place_map.h"
 #include "common/pipeline/recognizer.h"
+#include "common/recognition/recognition_test_util.h"
 #include "common/storage/sqlite_store.h"
 
 namespace placerec {
@@ -24,6 +28,8 @@ using pipeline_test::kViewWidth;
 using pipeline_test::SyntheticAnalyzerOptions;
 using pipeline_test::View;
 using pipeline_test::World;
+using recognition_test::Noisy;
+using recognition_test::RandomDescriptors;
 
 RecognizerOptions TestOptions() {
   RecognizerOptions options;
@@ -182,6 +188,250 @@ TEST(RecognizerTest, StandingStillIsNeverALoopClosureComingBackIs) {
   EXPECT_TRUE(back.loop_closure);
   EXPECT_EQ(back.matches.front().place.robot, "a");
   EXPECT_LE(back.matches.front().place.sequence, 302);  // the start, or the view 80 px on
+}
+
+// ---- Synthetic observations ----
+
+// A frame as the analyzer would observe it, built from its objects' descriptors (CV_8U x 128,
+// one matrix per object, in this order): every keypoint belongs to its object, keypoints are
+// strongest first in object order (response 1 / (1 + index)) and all turned 30 degrees.
+FrameObservation Observation(const std::vector<cv::Mat>& objects) {
+  FrameObservation observation;
+  observation.original_size = cv::Size(640, 480);
+  observation.processed_size = observation.original_size;
+  std::mt19937 rng(static_cast<unsigned>(objects.size()));
+  std::uniform_real_distribution<float> coordinate(0.0f, 1.0f);
+  for (size_t o = 0; o < objects.size(); ++o) {
+    SceneObject object;
+    object.segment = static_cast<int>(o);
+    object.box = cv::Rect(static_cast<int>(o) * 100, 100, 100, 200);
+    object.working_box = object.box;
+    object.descriptors = objects[o];
+    for (int r = 0; r < objects[o].rows; ++r) {
+      const int k = observation.features.size();
+      const cv::Point2f pt(object.box.x + 100.0f * coordinate(rng),
+                           object.box.y + 200.0f * coordinate(rng));
+      observation.features.keypoints.emplace_back(pt, 4.0f, 30.0f, 1.0f / (1.0f + k));
+      observation.features.descriptors.push_back(objects[o].row(r));
+      object.keypoints.push_back(k);
+    }
+    observation.objects.push_back(std::move(object));
+  }
+  return observation;
+}
+
+// The rows of `parts`, one matrix under the other.
+cv::Mat Rows(const std::vector<cv::Mat>& parts) {
+  cv::Mat out;
+  cv::vconcat(parts, out);
+  return out;
+}
+
+// Two frames of robot "a": frame 0 shows objects A and B; frame 1 shows C and A again, 12 of A's
+// 20 features seen anew (its other 8 are new), so A is frame 1's one landmark. The objects'
+// descriptors and the generator stay at hand for other views of them.
+struct TwoFrames {
+  explicit TwoFrames(unsigned seed) : rng(seed) {
+    a = RandomDescriptors(20, &rng);
+    b = RandomDescriptors(20, &rng);
+    c = RandomDescriptors(20, &rng);
+    a_again = Rows({Noisy(a.rowRange(0, 12), &rng), RandomDescriptors(8, &rng)});
+  }
+  FrameObservation First() const { return Observation({a, b}); }
+  FrameObservation Second() const { return Observation({c, a_again}); }
+
+  std::mt19937 rng;
+  cv::Mat a, b, c, a_again;
+};
+
+// Landmark selection (seed §5.7 step 4) decides what a frame stores: nothing for a robot's first
+// frame; then its landmarks, by default only their features tracked from the previous frames,
+// topped up with the landmarks' strongest other features to min_descriptors_per_place.
+TEST(RecognizerTest, StoresOnlyLandmarksWithTheirTrackedFeaturesToppedUp) {
+  struct Case {
+    int min_descriptors_per_place;
+    bool tracked_only;
+    int stored;  // descriptors frame 1 stores
+  };
+  for (const Case& c :
+       {Case{0, true, 12}, Case{15, true, 15}, Case{100, true, 20}, Case{0, false, 20}}) {
+    SCOPED_TRACE("min_descriptors_per_place " + std::to_string(c.min_descriptors_per_place) +
+                 (c.tracked_only ? ", tracked only" : ", every row"));
+    const TwoFrames frames(41);
+    RecognizerOptions options = TestOptions();
+    options.min_descriptors_per_place = c.min_descriptors_per_place;
+    options.store_tracked_descriptors_only = c.tracked_only;
+    std::unique_ptr<PlaceMap> map = OpenMap(":memory:", options);
+    Recognizer recognizer(options, map.get());
+
+    const RecognitionResult first = recognizer.Recognize({"a", 0, 0, true}, frames.First());
+    ASSERT_TRUE(first.status.ok()) << first.status.ToString();
+    EXPECT_EQ(first.objects, 2);
+    EXPECT_EQ(first.keypoints, 40);
+    EXPECT_EQ(first.landmarks, 0);
+    EXPECT_EQ(first.stored_descriptors, 0);
+    EXPECT_FALSE(first.place.IsValid());  // no landmarks, no place
+    EXPECT_EQ(first.map.places, 0);
+
+    const RecognitionResult second = recognizer.Recognize({"a", 1, 1000000, true}, frames.Second());
+    ASSERT_TRUE(second.status.ok()) << second.status.ToString();
+    EXPECT_FALSE(second.duplicate);
+    EXPECT_EQ(second.landmarks, 1);
+    EXPECT_EQ(second.stored_descriptors, c.stored);
+    EXPECT_TRUE(second.place.IsValid());
+    EXPECT_EQ(second.map.places, 1);
+    EXPECT_EQ(second.map.landmarks, 1);
+    EXPECT_EQ(second.map.descriptors, c.stored);
+    EXPECT_EQ(map->Counts().descriptors, c.stored);
+  }
+}
+
+// A query-only frame is answered but changes neither the map nor the robot: the inserted frame
+// after it is answered and stored exactly as without it, and its sequence number stays free.
+TEST(RecognizerTest, QueryOnlyFramesChangeNeitherTheMapNorTheRobot) {
+  TwoFrames frames(42);
+  RecognizerOptions options = TestOptions();
+  options.min_descriptors_per_place = 0;
+  std::unique_ptr<PlaceMap> map = OpenMap(":memory:", options);
+  Recognizer recognizer(options, map.get());
+  ASSERT_TRUE(recognizer.Recognize({"a", 0, 0, true}, frames.First()).status.ok());
+  const StatusOr<uint64_t> before = map->Checksum();
+  ASSERT_TRUE(before.ok());
+  // The query shows C, which frame 1 shows too, and has the sequence number frame 1 will take.
+  const RecognitionResult query = recognizer.Recognize(
+      {"a", 1, 500000, false},
+      Observation({Noisy(frames.c, &frames.rng), RandomDescriptors(20, &frames.rng)}));
+  ASSERT_TRUE(query.status.ok()) << query.status.ToString();
+  EXPECT_EQ(query.landmarks, 0);
+  EXPECT_EQ(query.stored_descriptors, 0);
+  EXPECT_FALSE(query.place.IsValid());
+  EXPECT_EQ(*map->Checksum(), *before);
+  // Stages of a query: no insert.
+  std::vector<std::string> stages;
+  for (const auto& [stage, ms] : query.timings) stages.push_back(stage);
+  EXPECT_EQ(stages, (std::vector<std::string>{"landmarks", "recent_past", "index", "decision"}));
+
+  // Had the query been remembered among the robot's previous frames, C would be a landmark too.
+  const RecognitionResult second = recognizer.Recognize({"a", 1, 1000000, true}, frames.Second());
+  ASSERT_TRUE(second.status.ok()) << second.status.ToString();
+  EXPECT_EQ(second.landmarks, 1);
+  EXPECT_EQ(second.stored_descriptors, 12);
+  stages.clear();
+  for (const auto& [stage, ms] : second.timings) stages.push_back(stage);
+  EXPECT_EQ(stages,
+            (std::vector<std::string>{"landmarks", "recent_past", "index", "decision", "insert"}));
+}
+
+// Checks come before any work: ids of 1..64 printable bytes, and for inserts a sequence after
+// the robot's last one. Validate itself changes nothing.
+TEST(RecognizerTest, ValidateNamesWhatIsWrong) {
+  const RecognizerOptions options = TestOptions();
+  std::unique_ptr<PlaceMap> map = OpenMap(":memory:", options);
+  Recognizer recognizer(options, map.get());
+  EXPECT_TRUE(recognizer.Validate({std::string(kMaxRobotIdLength, 'r'), 0, 0, true}).ok());
+  const Status long_id = recognizer.Validate({std::string(kMaxRobotIdLength + 1, 'r'), 0, 0, true});
+  EXPECT_EQ(long_id.code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(long_id.message(), "robot id is 65 bytes; the limit is 64");
+  EXPECT_EQ(recognizer.Validate({"", 0, 0, false}).message(), "robot id is empty");
+  for (const std::string& robot :
+       {std::string("ro\tbot"), std::string("ro\x7f"), std::string("a\0b", 3)}) {
+    const Status bad = recognizer.Validate({robot, 0, 0, true});
+    EXPECT_EQ(bad.code(), StatusCode::kInvalidArgument);
+    EXPECT_EQ(bad.message(), "robot id contains a control character");
+  }
+  // Validating does not take the sequence number; inserting does.
+  EXPECT_TRUE(recognizer.Validate({"a", 3, 0, true}).ok());
+  EXPECT_TRUE(recognizer.Validate({"a", 3, 0, true}).ok());
+  const TwoFrames frames(43);
+  ASSERT_TRUE(recognizer.Recognize({"a", 3, 0, true}, frames.First()).status.ok());
+  const Status again = recognizer.Validate({"a", 3, 0, true});
+  EXPECT_EQ(again.message(), "sequence 3 of robot 'a' is not after 3");
+  // A rejected frame reports the map as it is.
+  const RecognitionResult rejected = recognizer.Recognize({"a", 2, 0, true}, frames.Second());
+  EXPECT_EQ(rejected.status.code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(rejected.landmarks, 0);
+  EXPECT_EQ(rejected.map.places, map->Counts().places);
+  // Another robot has its own sequence.
+  EXPECT_TRUE(recognizer.Validate({"b", 0, 0, true}).ok());
+}
+
+// Robot "b" sees the object robot "a" stored: every object is looked up by default, so b's
+// first frame finds a's place; with QueryObjects::kLandmarks only b's landmarks are, so the
+// first frame finds nothing and the second finds a's place through its landmark, reported with
+// its index among the frame's objects.
+TEST(RecognizerTest, OtherRobotsFindStoredLandmarksThroughTheQueriedObjects) {
+  for (const QueryObjects which : {QueryObjects::kAll, QueryObjects::kLandmarks}) {
+    const bool all = which == QueryObjects::kAll;
+    SCOPED_TRACE(all ? "every object" : "landmarks only");
+    TwoFrames frames(44);
+    RecognizerOptions options = TestOptions();
+    options.min_descriptors_per_place = 0;
+    options.query_objects = which;
+    options.loop.geometric_verification = false;  // random keypoint positions
+    std::unique_ptr<PlaceMap> map = OpenMap(":memory:", options);
+    Recognizer recognizer(options, map.get());
+    ASSERT_TRUE(recognizer.Recognize({"a", 0, 0, true}, frames.First()).status.ok());
+    const RecognitionResult stored = recognizer.Recognize({"a", 1, 1000000, true}, frames.Second());
+    ASSERT_EQ(stored.landmarks, 1);
+    ASSERT_TRUE(stored.place.IsValid());
+
+    // b's frame 0: an unknown object D and A (the 12 tracked rows, seen again, and 8 others).
+    std::mt19937& rng = frames.rng;
+    const cv::Mat d = RandomDescriptors(20, &rng);
+    const cv::Mat a_by_b =
+        Rows({Noisy(frames.a.rowRange(0, 12), &rng), RandomDescriptors(8, &rng)});
+    const RecognitionResult first =
+        recognizer.Recognize({"b", 0, 0, true}, Observation({d, a_by_b}));
+    ASSERT_TRUE(first.status.ok());
+    if (all) {
+      ASSERT_EQ(first.matches.size(), 1u);
+      EXPECT_EQ(first.matches[0].place.id, stored.place);
+      EXPECT_EQ(first.matches[0].place.robot, "a");
+      EXPECT_EQ(first.matches[0].matched_descriptors, 12);
+      EXPECT_EQ(
+          first.matches[0].object_pairs,
+          (std::vector<std::pair<int, LandmarkId>>{{1, first.matches[0].object_pairs[0].second}}));
+    } else {
+      EXPECT_TRUE(first.matches.empty());
+    }
+    // b's frame 1: two unknown objects, then A once more: A is b's landmark, object 2.
+    const cv::Mat a_once_more = Noisy(a_by_b, &rng);
+    const RecognitionResult second = recognizer.Recognize(
+        {"b", 1, 1000000, true},
+        Observation({RandomDescriptors(20, &rng), RandomDescriptors(20, &rng), a_once_more}));
+    ASSERT_TRUE(second.status.ok());
+    EXPECT_EQ(second.landmarks, 1);
+    ASSERT_FALSE(second.matches.empty());
+    EXPECT_EQ(second.matches[0].place.id, stored.place);
+    ASSERT_EQ(second.matches[0].object_pairs.size(), 1u);
+    EXPECT_EQ(second.matches[0].object_pairs[0].first, 2);
+  }
+}
+
+// max_query_descriptors searches only the frame's strongest keypoints: here the first 10 rows of
+// the object showing the stored landmark, so 10 of its 12 matches remain.
+TEST(RecognizerTest, LooksUpOnlyTheStrongestDescriptorsWhenCapped) {
+  for (const int cap : {0, 10}) {
+    SCOPED_TRACE("max_query_descriptors " + std::to_string(cap));
+    TwoFrames frames(45);
+    RecognizerOptions options = TestOptions();
+    options.min_descriptors_per_place = 0;
+    options.max_query_descriptors = cap;
+    options.loop.geometric_verification = false;
+    std::unique_ptr<PlaceMap> map = OpenMap(":memory:", options);
+    Recognizer recognizer(options, map.get());
+    ASSERT_TRUE(recognizer.Recognize({"a", 0, 0, true}, frames.First()).status.ok());
+    ASSERT_EQ(recognizer.Recognize({"a", 1, 1000000, true}, frames.Second()).landmarks, 1);
+    std::mt19937& rng = frames.rng;
+    // The stored rows first (strongest), then another object.
+    const cv::Mat a_by_b =
+        Rows({Noisy(frames.a.rowRange(0, 12), &rng), RandomDescriptors(8, &rng)});
+    const RecognitionResult found = recognizer.Recognize(
+        {"b", 0, 0, false}, Observation({a_by_b, RandomDescriptors(20, &rng)}));
+    ASSERT_TRUE(found.status.ok());
+    ASSERT_EQ(found.matches.size(), 1u);
+    EXPECT_EQ(found.matches[0].matched_descriptors, cap == 0 ? 12 : 10);
+  }
 }
 
 }  // namespace
