@@ -38,13 +38,50 @@ class Gate {
   bool open_ = false;
 };
 
+// Waits are on events, never on a fixed time, so that the tests neither flake on a loaded
+// machine nor wait longer than they must. This bound only turns a hang into a failure.
+constexpr auto kTimeout = std::chrono::seconds(30);
+
+// Counts events (a handler started, a job finished) and wakes whoever waits for a count.
+class Counter {
+ public:
+  void Increment() {
+    std::lock_guard lock(mutex_);
+    ++count_;
+    cv_.notify_all();
+  }
+  int value() {
+    std::lock_guard lock(mutex_);
+    return count_;
+  }
+  // Whether the count reached `n` within kTimeout.
+  ::testing::AssertionResult WaitFor(int n) {
+    std::unique_lock lock(mutex_);
+    if (cv_.wait_for(lock, kTimeout, [&] { return count_ >= n; })) {
+      return ::testing::AssertionSuccess();
+    }
+    return ::testing::AssertionFailure()
+           << "waited " << kTimeout.count() << " s for " << n << " events, saw " << count_;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  int count_ = 0;
+};
+
+// Polls `done` (state the queue offers no event for) until it holds or kTimeout passes.
 template <typename Predicate>
-bool WaitUntil(Predicate done) {
-  for (int i = 0; i < 5000; ++i) {
-    if (done()) return true;
+::testing::AssertionResult Eventually(Predicate done, const std::string& what) {
+  const auto deadline = std::chrono::steady_clock::now() + kTimeout;
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > deadline) {
+      return ::testing::AssertionFailure()
+             << "waited " << kTimeout.count() << " s for " << what << "; it never happened";
+    }
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
   }
-  return done();
+  return ::testing::AssertionSuccess();
 }
 
 TEST(LaneWorkQueueTest, EachLaneInOrderAndNeverTwiceAtOnce) {
@@ -54,6 +91,11 @@ TEST(LaneWorkQueueTest, EachLaneInOrderAndNeverTwiceAtOnce) {
   bool overlap = false;
   std::atomic<int> max_running{0};
   std::atomic<int> now_running{0};
+  // The first job of each lane waits until all three run (three workers, three lanes), so that
+  // "lanes ran at once" does not depend on timing; a queue that ran lanes one after the other
+  // would let the wait time out and max_running stay 1.
+  Counter first_jobs;
+  Counter finished;
   {
     LaneWorkQueue<TestJob> queue(3, 1000, [&](TestJob& job) {
       {
@@ -64,11 +106,18 @@ TEST(LaneWorkQueueTest, EachLaneInOrderAndNeverTwiceAtOnce) {
       int seen = max_running.load();
       while (n > seen && !max_running.compare_exchange_weak(seen, n)) {
       }
-      std::this_thread::sleep_for(std::chrono::microseconds(200));
+      if (job.index == 0) {
+        first_jobs.Increment();
+        EXPECT_TRUE(first_jobs.WaitFor(3)) << "the first jobs of the three lanes never ran at once";
+      }
+      std::this_thread::yield();
       --now_running;
-      std::lock_guard lock(mutex);
-      --running[job.lane];
-      order[job.lane].push_back(job.index);
+      {
+        std::lock_guard lock(mutex);
+        --running[job.lane];
+        order[job.lane].push_back(job.index);
+      }
+      finished.Increment();
     });
     for (int i = 0; i < 60; ++i) {
       for (const char* lane : {"a", "b", "c"}) {
@@ -76,10 +125,7 @@ TEST(LaneWorkQueueTest, EachLaneInOrderAndNeverTwiceAtOnce) {
         ASSERT_TRUE(queue.Push(lane, &job));
       }
     }
-    ASSERT_TRUE(WaitUntil([&] {
-      std::lock_guard lock(mutex);
-      return order["a"].size() + order["b"].size() + order["c"].size() == 180;
-    }));
+    ASSERT_TRUE(finished.WaitFor(180));
   }
   EXPECT_FALSE(overlap);
   EXPECT_GT(max_running.load(), 1);  // lanes ran at once
@@ -91,16 +137,19 @@ TEST(LaneWorkQueueTest, EachLaneInOrderAndNeverTwiceAtOnce) {
 
 TEST(LaneWorkQueueTest, RefusesJobsBeyondCapacity) {
   Gate gate;
-  std::atomic<int> done{0};
+  Counter started;
+  Counter done;
   LaneWorkQueue<TestJob> queue(2, 3, [&](TestJob&) {
+    started.Increment();
     gate.Wait();
-    ++done;
+    done.Increment();
   });
   TestJob a{"a", 0};
   TestJob b{"b", 0};
   ASSERT_TRUE(queue.Push("a", &a));
   ASSERT_TRUE(queue.Push("b", &b));
-  ASSERT_TRUE(WaitUntil([&] { return queue.running() == 2; }));
+  ASSERT_TRUE(started.WaitFor(2));
+  EXPECT_EQ(queue.running(), 2);
   for (int i = 1; i <= 3; ++i) {
     TestJob job{"a", i};
     ASSERT_TRUE(queue.Push("a", &job));
@@ -111,7 +160,7 @@ TEST(LaneWorkQueueTest, RefusesJobsBeyondCapacity) {
   EXPECT_EQ(refused.lane, "c");  // left untouched
   EXPECT_EQ(refused.index, 9);
   gate.Open();
-  ASSERT_TRUE(WaitUntil([&] { return done.load() == 5; }));
+  ASSERT_TRUE(done.WaitFor(5));
   EXPECT_EQ(queue.depth(), 0);
   TestJob again{"c", 10};
   EXPECT_TRUE(queue.Push("c", &again));
@@ -119,23 +168,29 @@ TEST(LaneWorkQueueTest, RefusesJobsBeyondCapacity) {
 
 TEST(LaneWorkQueueTest, ShutdownReturnsWhatNeverStarted) {
   Gate gate;
-  std::atomic<int> done{0};
+  Counter started;
+  Counter done;
   LaneWorkQueue<TestJob> queue(1, 10, [&](TestJob&) {
+    started.Increment();
     gate.Wait();
-    ++done;
+    done.Increment();
   });
   for (int i = 0; i < 4; ++i) {
     TestJob job{"a", i};
     ASSERT_TRUE(queue.Push("a", &job));
   }
-  ASSERT_TRUE(WaitUntil([&] { return queue.running() == 1; }));
+  ASSERT_TRUE(started.WaitFor(1));
+  EXPECT_EQ(queue.running(), 1);
+  EXPECT_EQ(queue.depth(), 3);
+  // The running job is let go only once Shutdown has taken the waiting ones (the depth drops to
+  // 0 then; the one worker is blocked, so nothing else empties the queue).
   std::thread opener([&] {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    EXPECT_TRUE(Eventually([&] { return queue.depth() == 0; }, "Shutdown to take the jobs"));
     gate.Open();
   });
   const std::vector<TestJob> pending = queue.Shutdown();
   opener.join();
-  EXPECT_EQ(done.load(), 1);  // the running job finished
+  EXPECT_EQ(done.value(), 1);  // the running job finished
   ASSERT_EQ(pending.size(), 3u);
   for (int i = 0; i < 3; ++i) EXPECT_EQ(pending[i].index, i + 1);
   TestJob late{"a", 5};

@@ -9,8 +9,10 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
 #include <fstream>
+#include <future>
 #include <map>
 #include <mutex>
 #include <random>
@@ -195,41 +197,83 @@ class AnswerSpy {
   }
   bool good() { return lcm_.good(); }
   int Publish(const std::string& channel, const void* data, size_t size) {
-    std::lock_guard lock(mutex_);
+    std::lock_guard lock(publish_mutex_);
     return lcm_.publish(channel, data, static_cast<unsigned>(size));
   }
   int Publish(const frame_t& frame) {
-    std::lock_guard lock(mutex_);
+    std::lock_guard lock(publish_mutex_);
     return lcm_.publish("PLACEREC_FRAME", &frame);
   }
+  // The answers heard so far, markers (see Flush) left out.
   std::vector<std::pair<std::string, result_t>> answers() {
     std::lock_guard lock(mutex_);
     return answers_;
   }
-  // Waits until `count` answers arrived (or the timeout); true when they did.
+  // Waits until `count` answers (markers left out) arrived; true when they did in time.
   bool WaitFor(size_t count, double timeout_s) {
-    const auto deadline = std::chrono::steady_clock::now() +
-                          std::chrono::milliseconds(static_cast<int64_t>(timeout_s * 1000));
-    while (std::chrono::steady_clock::now() < deadline) {
-      {
-        std::lock_guard lock(mutex_);
-        if (answers_.size() >= count) return true;
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    std::unique_lock lock(mutex_);
+    return arrived_.wait_for(lock, Seconds(timeout_s), [&] { return answers_.size() >= count; });
+  }
+  // Waits until the server has answered everything sent before this call on the lanes of
+  // `robots`: sends each robot a marker (a query-only frame with an undecodable image, which
+  // changes nothing and is answered "bad image") and waits for the markers' answers. The server
+  // runs a robot's frames one at a time in the order they came (server/work_queue.h), and it
+  // answers bad robot ids and drops non-frames on receipt, so any answer to the earlier messages
+  // is heard before the last marker's. False, saying which marker is missing, on timeout.
+  ::testing::AssertionResult Flush(const std::vector<std::string>& robots, double timeout_s) {
+    std::vector<int64_t> markers;
+    for (const std::string& robot : robots) {
+      frame_t marker;
+      marker.request_id = next_marker_--;  // senders choose ids; the client's are >= 0
+      marker.insert = false;
+      marker.encoding = frame_t::ENCODING_JPEG;
+      marker.robot = robot;
+      marker.data.assign(64, 0x42);
+      marker.size = static_cast<int32_t>(marker.data.size());
+      if (Publish(marker) != 0) return ::testing::AssertionFailure() << "cannot publish a marker";
+      markers.push_back(marker.request_id);
     }
-    return false;
+    std::unique_lock lock(mutex_);
+    const bool all = arrived_.wait_for(lock, Seconds(timeout_s), [&] {
+      for (const int64_t id : markers) {
+        if (marker_answers_.count(id) == 0) return false;
+      }
+      return true;
+    });
+    if (all) return ::testing::AssertionSuccess();
+    ::testing::AssertionResult failure = ::testing::AssertionFailure();
+    failure << "no answer within " << timeout_s << " s to the marker frame of robot";
+    for (size_t i = 0; i < markers.size(); ++i) {
+      if (marker_answers_.count(markers[i]) == 0) failure << " '" << robots[i] << "'";
+    }
+    return failure;
   }
 
  private:
+  static std::chrono::milliseconds Seconds(double s) {
+    return std::chrono::milliseconds(static_cast<int64_t>(s * 1000));
+  }
+
   void OnAnswer(const lcm::ReceiveBuffer* buffer, const std::string& channel,
                 const result_t* answer) {
-    std::lock_guard lock(mutex_);
-    answers_.emplace_back(channel, *answer);
+    {
+      std::lock_guard lock(mutex_);
+      if (answer->request_id < 0) {
+        marker_answers_.insert(answer->request_id);
+      } else {
+        answers_.emplace_back(channel, *answer);
+      }
+    }
+    arrived_.notify_all();
   }
 
   lcm::LCM lcm_;
+  std::mutex publish_mutex_;
   std::mutex mutex_;
+  std::condition_variable arrived_;
   std::vector<std::pair<std::string, result_t>> answers_;
+  std::set<int64_t> marker_answers_;
+  int64_t next_marker_ = -1;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };
@@ -515,9 +559,10 @@ TEST_F(ServiceTest, BadInputGetsErrorAnswersAndTheServerGoesOn) {
   ASSERT_EQ(spy.Publish("PLACEREC_FRAME", forged.data(), forged.size()), 0);
   ++dropped;
 
-  // The spy also heard the answers to the three good frames.
+  // The spy also heard the answers to the three good frames. Once the markers sent after every
+  // case are answered, any extra answer would be here too.
   ASSERT_TRUE(spy.WaitFor(3 + cases.size(), 60)) << ServerLog();
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // any extra answer would be here
+  ASSERT_TRUE(spy.Flush({"bad", "robot"}, 60)) << ServerLog();
   const auto answers = spy.answers();
   ASSERT_EQ(answers.size(), 3 + cases.size()) << "exactly one answer per request";
   for (const Case& c : cases) {
@@ -575,13 +620,18 @@ TEST_F(ServiceTest, TwoRobotsAtOnceShareTheMap) {
   std::vector<FrameResult> left(kLeftFrames);
   std::vector<FrameResult> right(kRightFrames);
   std::atomic<int> left_done{0};
+  std::promise<void> head_start;  // left has its first kHeadStart answers
   std::thread left_sender([&] {
     for (int i = 0; i < kLeftFrames; ++i) {
       left[i] = client_->Send(FrameOf(run, i, "left", i));
-      ++left_done;
+      if (++left_done == kHeadStart) head_start.set_value();
     }
   });
-  while (left_done.load() < kHeadStart) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  if (head_start.get_future().wait_for(std::chrono::seconds(300)) != std::future_status::ready) {
+    left_sender.join();
+    FAIL() << "robot left had " << left_done.load() << " of its first " << kHeadStart
+           << " answers after 300 s" << ServerLog();
+  }
   std::atomic<int> overlapped{0};
   for (int i = 0; i < kRightFrames; ++i) {
     if (left_done.load() < kLeftFrames) ++overlapped;
@@ -610,7 +660,7 @@ TEST_F(ServiceTest, TwoRobotsAtOnceShareTheMap) {
   RecordProperty("right_loop_closures_on_left", std::to_string(right_revisits_left));
 
   // On the wire: each robot's channel carried exactly its own answers, one per frame.
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ASSERT_TRUE(spy.Flush({"left", "right"}, 60)) << ServerLog();
   std::map<std::string, std::multiset<int64_t>> by_channel;
   for (const auto& [channel, a] : spy.answers()) {
     EXPECT_EQ(channel, "PLACEREC_RESULT_" + a.robot);

@@ -19,13 +19,16 @@
 namespace placerec {
 namespace {
 
-// The shipped textons and background classifiers (models/); the tests that need them skip
-// when they are missing.
+// The shipped textons and background classifiers (models/, part of the repository); null, with
+// a failure saying why, when they do not load: the tests that need them fail then.
 std::shared_ptr<const BackgroundModel> ShippedModel() {
-  const std::string dir = PLACEREC_MODELS_DIR;
-  if (!std::filesystem::exists(dir + "/background.yml")) return nullptr;
-  StatusOr<std::shared_ptr<const BackgroundModel>> model = LoadBackgroundModel(dir);
-  return model.ok() ? *model : nullptr;
+  StatusOr<std::shared_ptr<const BackgroundModel>> model = LoadBackgroundModel(PLACEREC_MODELS_DIR);
+  if (!model.ok()) {
+    ADD_FAILURE() << "the shipped models in " << PLACEREC_MODELS_DIR
+                  << " do not load: " << model.status().ToString();
+    return nullptr;
+  }
+  return *model;
 }
 
 // A 64 x 48 CIE Lab image of four noisy colour blocks and its labels: the blocks, each cut
@@ -90,7 +93,7 @@ cv::Mat BoundaryField(cv::Size size) {
 
 TEST(MergeStateTest, PairFeaturesAreSymmetric) {
   const std::shared_ptr<const BackgroundModel> model = ShippedModel();
-  if (!model) GTEST_SKIP() << "no trained models in " << PLACEREC_MODELS_DIR;
+  ASSERT_NE(model, nullptr);
   const Scene scene = MakeScene();
   const MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions);
   const std::vector<std::pair<int, int>> pairs = state.Pairs();
@@ -111,7 +114,7 @@ TEST(MergeStateTest, PairFeaturesAreSymmetric) {
 // scores) agree.
 TEST(MergeStateTest, MergedStateEqualsStateBuiltFromMergedLabels) {
   const std::shared_ptr<const BackgroundModel> model = ShippedModel();
-  if (!model) GTEST_SKIP() << "no trained models in " << PLACEREC_MODELS_DIR;
+  ASSERT_NE(model, nullptr);
   const Scene scene = MakeScene();
   const cv::Mat boundary = BoundaryField(scene.labels.size());
   MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions, boundary);
@@ -155,7 +158,7 @@ TEST(MergeStateTest, MergedStateEqualsStateBuiltFromMergedLabels) {
 // mean of its two pixels) and the share of cracks scoring above 0; zeros without scores.
 TEST(MergeStateTest, BoundaryFeaturesReadTheCrackScores) {
   const std::shared_ptr<const BackgroundModel> model = ShippedModel();
-  if (!model) GTEST_SKIP() << "no trained models in " << PLACEREC_MODELS_DIR;
+  ASSERT_NE(model, nullptr);
   const Scene scene = MakeScene();
   // Regions 0 and 1 (the top-left block's halves) meet along the vertical crack between
   // columns 15 and 16, rows 0..23.
@@ -186,7 +189,7 @@ TEST(MergeStateTest, BoundaryFeaturesReadTheCrackScores) {
 
 TEST(MergeStateTest, ResultCoversEveryPixelAndFollowsMerges) {
   const std::shared_ptr<const BackgroundModel> model = ShippedModel();
-  if (!model) GTEST_SKIP() << "no trained models in " << PLACEREC_MODELS_DIR;
+  ASSERT_NE(model, nullptr);
   const Scene scene = MakeScene();
   MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions);
   state.Merge(3, 2);
@@ -239,14 +242,13 @@ TEST(BoostedForestTest, SumsEqualOpenCvPredict) {
   std::vector<cv::Ptr<cv::ml::Boost>> boosts = {
       TrainGentleBoost(features, responses, weights, 40, 4, 0.95)};
   const StatusOr<RegionMergeModel> shipped = RegionMergeModel::Load(DefaultModelsDir());
-  if (shipped.ok()) {
-    cv::FileStorage fs(DefaultModelsDir() + "/" + RegionMergeModel::kFileName,
-                       cv::FileStorage::READ);
-    cv::Ptr<cv::ml::Boost> member = cv::ml::Boost::create();
-    member->read(fs["member_0"]);
-    ASSERT_TRUE(member->isTrained());
-    boosts.push_back(member);
-  }
+  ASSERT_TRUE(shipped.ok()) << "the shipped grouping model does not load: "
+                            << shipped.status().ToString();
+  cv::FileStorage fs(DefaultModelsDir() + "/" + RegionMergeModel::kFileName, cv::FileStorage::READ);
+  cv::Ptr<cv::ml::Boost> member = cv::ml::Boost::create();
+  member->read(fs["member_0"]);
+  ASSERT_TRUE(member->isTrained());
+  boosts.push_back(member);
   for (const cv::Ptr<cv::ml::Boost>& boost : boosts) {
     const BoostedForest forest(*boost);
     ASSERT_EQ(forest.var_count(), boost->getVarCount());
@@ -406,7 +408,7 @@ TEST(RegionMergeModelTest, Version3ModelsOnTheLeadingFeaturesStillLoad) {
 // the classifiers give them for each region (zeros for structured classes the models lack).
 TEST(MergeStateTest, SemanticFeaturesFollowTheStructuredClassifiers) {
   const std::shared_ptr<const BackgroundModel> model = ShippedModel();
-  if (!model) GTEST_SKIP() << "no trained models in " << PLACEREC_MODELS_DIR;
+  ASSERT_NE(model, nullptr);
   const Scene scene = MakeScene();
   const MergeState state = StateOf(*model, scene.lab, scene.labels, scene.regions);
   const cv::Mat appearance = AppearanceOf(*model, scene.lab, scene.labels, scene.regions, 2);
@@ -447,7 +449,7 @@ TEST(MergeStateTest, SemanticFeaturesFollowTheStructuredClassifiers) {
 
 TEST(MergeRegionsTest, ThresholdDecidesHowFarMergingGoes) {
   const std::shared_ptr<const BackgroundModel> model = ShippedModel();
-  if (!model) GTEST_SKIP() << "no trained models in " << PLACEREC_MODELS_DIR;
+  ASSERT_NE(model, nullptr);
   const Scene scene = MakeScene();
   const RegionMergeModel colour = ColourRuleModel();
   RegionMergeOptions options;
@@ -474,9 +476,10 @@ TEST(MergeRegionsTest, ThresholdDecidesHowFarMergingGoes) {
 // above every pair of halves from two different blocks.
 TEST(ShippedGroupingModelTest, JoinsHalvesOfOneSurfaceAndKeepsDifferentSurfacesApart) {
   const std::shared_ptr<const BackgroundModel> model = ShippedModel();
-  if (!model || model->grouping.empty()) {
-    GTEST_SKIP() << "no trained grouping model in " << PLACEREC_MODELS_DIR;
-  }
+  ASSERT_NE(model, nullptr);
+  ASSERT_FALSE(model->grouping.empty())
+      << "the shipped grouping model " << PLACEREC_MODELS_DIR << "/" << RegionMergeModel::kFileName
+      << " is missing (models/ is part of the repository)";
   const Scene scene = MakeScene();
   // The learned boundary scores the model reads, as SceneOrganizer computes them.
   const cv::Mat boundary =

@@ -1,0 +1,52 @@
+// Tests of the frame analyzer (frame_analyzer.h): the segmenter it is given or makes, and the
+// objects it finds on a synthetic street.
+#include <memory>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "common/pipeline/frame_analyzer.h"
+#include "common/pipeline/pipeline_test_util.h"
+
+namespace placerec {
+namespace {
+
+using pipeline_test::SyntheticAnalyzerOptions;
+using pipeline_test::View;
+using pipeline_test::World;
+
+TEST(FrameAnalyzerTest, MissingModelsSayWhatToDo) {
+  AnalyzerOptions options;
+  options.organization.models_dir = ::testing::TempDir() + "/no_such_models_dir";
+  const StatusOr<std::unique_ptr<Segmenter>> organization = MakeSegmenter(options);
+  ASSERT_FALSE(organization.ok());
+  EXPECT_NE(organization.status().message().find("placerec-train background"), std::string::npos)
+      << organization.status().message();
+  options.segmentation = SegmentationMethod::kSuperpixels;
+  const StatusOr<std::unique_ptr<Segmenter>> superpixels = MakeSegmenter(options);
+  ASSERT_TRUE(superpixels.ok()) << superpixels.status().message();
+  EXPECT_EQ((*superpixels)->name(), "superpixels");
+}
+
+TEST(FrameAnalyzerTest, FindsObjectsOnTexturedBuildings) {
+  const cv::Mat world = World(1);
+  const FrameAnalyzer analyzer{SyntheticAnalyzerOptions()};
+  const FrameObservation observation = analyzer.Analyze(View(world, 300));
+  EXPECT_GT(observation.features.size(), 50);
+  EXPECT_GE(observation.objects.size(), 3u);
+  EXPECT_FALSE(observation.colourless);
+  for (const SceneObject& object : observation.objects) {
+    EXPECT_GE(object.sift_count(), 9);
+    EXPECT_TRUE(object.colour.known());
+  }
+  // A grey copy of the frame carries no colour: no object gets a colour signature.
+  cv::Mat grey;
+  cv::cvtColor(View(world, 300), grey, cv::COLOR_BGR2GRAY);
+  cv::cvtColor(grey, grey, cv::COLOR_GRAY2BGR);
+  const FrameObservation grey_observation = analyzer.Analyze(grey);
+  EXPECT_TRUE(grey_observation.colourless);
+  for (const SceneObject& object : grey_observation.objects) EXPECT_FALSE(object.colour.known());
+}
+
+}  // namespace
+}  // namespace placerec

@@ -1,0 +1,269 @@
+// Tests of the landmark index (landmark_index.h; seed §5.6): retrieval of stored objects through
+// the texture range and the colour filter, object-level and place-level matches, distinctive
+// votes, slots and counts, with both searches where they must agree.
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "common/recognition/landmark_index.h"
+#include "common/recognition/recognition_test_util.h"
+
+namespace placerec {
+namespace {
+
+using recognition_test::MakeLandmark;
+using recognition_test::Noisy;
+using recognition_test::RandomDescriptors;
+
+// Ten places of one robot, 100 frames apart, each with four landmarks of 30 random descriptors
+// (landmark i at place i / 4, coloured `peaks`); their descriptors go to *stored, in id order.
+void AddTenPlaces(LandmarkIndex* index, std::mt19937* rng, std::vector<cv::Mat>* stored,
+                  const std::vector<float>& peaks = {}) {
+  for (int p = 0; p < 10; ++p) index->AddPlace({PlaceId(p), "robot", p * 100, p * 100000000LL, 4});
+  for (int i = 0; i < 40; ++i) {
+    stored->push_back(RandomDescriptors(30, rng));
+    index->Add(MakeLandmark(i, i / 4, stored->back(), 30, peaks));
+  }
+}
+
+class LandmarkIndexTest : public ::testing::TestWithParam<IndexSearch> {};
+
+TEST_P(LandmarkIndexTest, RetrievesTheRightLandmarkAndRespectsFilters) {
+  std::mt19937 rng(5);
+  LandmarkIndexOptions options;
+  options.search = GetParam();
+  LandmarkIndex index(options);
+  std::vector<cv::Mat> stored;
+  AddTenPlaces(&index, &rng, &stored, {0.1f});
+  EXPECT_EQ(index.num_landmarks(), 40u);
+  EXPECT_EQ(index.num_descriptors(), 1200u);
+
+  IndexQuery query;
+  query.sift_count = 30;
+  query.colour.peaks = {0.15f};
+  query.descriptors = Noisy(stored[13].rowRange(0, 20), &rng);
+  auto all_places = [](PlaceId) { return true; };
+  IndexResult found = index.Query({query}, all_places);
+  ASSERT_EQ(found.objects.size(), 1u);
+  EXPECT_EQ(found.objects[0].landmark, LandmarkId(13));
+  EXPECT_EQ(found.objects[0].place, PlaceId(3));
+  EXPECT_EQ(found.objects[0].matches.size(), 20u);
+  EXPECT_EQ(index.Candidates(query).size(), 40u);
+  // The place's descriptors match at place level too: every query row, to landmark 13's rows.
+  ASSERT_EQ(found.place_points.size(), 1u);
+  ASSERT_EQ(found.place_points.at(PlaceId(3)).size(), 20u);
+  for (const PointMatch& p : found.place_points.at(PlaceId(3))) {
+    EXPECT_EQ(index.landmark(p.slot).id, LandmarkId(13));
+    EXPECT_EQ(p.train, p.query_row);
+  }
+
+  // The place filter removes it.
+  EXPECT_TRUE(index.Query({query}, [](PlaceId p) { return p != PlaceId(3); }).objects.empty());
+
+  // Out of the texture range: 30 keypoints are outside [2n/3, 4n/3] for n = 60.
+  IndexQuery far = query;
+  far.sift_count = 60;
+  EXPECT_TRUE(index.Candidates(far).empty());
+  EXPECT_TRUE(index.Query({far}, all_places).objects.empty());
+
+  // Another colour.
+  IndexQuery blue = query;
+  blue.colour.peaks = {-2.0f};
+  EXPECT_TRUE(index.Query({blue}, all_places).objects.empty());
+
+  // Fewer than 7 matching descriptors is not a match.
+  IndexQuery few = query;
+  few.descriptors = Noisy(stored[13].rowRange(0, 6), &rng);
+  EXPECT_TRUE(index.Query({few}, all_places).objects.empty());
+}
+
+TEST(LandmarkIndexOptionsTest, DefaultsPassAndBadValuesAreNamed) {
+  std::string error;
+  EXPECT_TRUE(LandmarkIndexOptions().Check(&error)) << error;
+  // The seed's texture range (§5.6) is the default.
+  EXPECT_DOUBLE_EQ(LandmarkIndexOptions().count_range_low, 2.0 / 3.0);
+  EXPECT_DOUBLE_EQ(LandmarkIndexOptions().count_range_high, 4.0 / 3.0);
+  EXPECT_EQ(LandmarkIndexOptions().matching.min_matches, 7);
+  for (const double low : {-0.1, 1.5}) {
+    LandmarkIndexOptions bad;
+    bad.count_range_low = low;
+    EXPECT_FALSE(bad.Check(&error)) << low;
+    EXPECT_NE(error.find("count_range_low"), std::string::npos) << error;
+  }
+  LandmarkIndexOptions bad;
+  bad.count_range_high = 0.5;
+  EXPECT_FALSE(bad.Check(&error));
+  EXPECT_NE(error.find("count_range_high"), std::string::npos) << error;
+  bad = LandmarkIndexOptions();
+  bad.matching.ratio = 1.5;
+  EXPECT_FALSE(bad.Check(&error));
+  EXPECT_NE(error.find("ratio"), std::string::npos) << error;
+}
+
+// Slots are insertion order whatever the ids; counts grow with every landmark added.
+TEST(LandmarkIndexSlotsTest, SlotsFollowInsertionAndUnknownIdsHaveNone) {
+  std::mt19937 rng(21);
+  LandmarkIndex index{LandmarkIndexOptions()};
+  EXPECT_EQ(index.num_landmarks(), 0u);
+  EXPECT_EQ(index.num_descriptors(), 0u);
+  index.AddPlace({PlaceId(1), "robot", 0, 0, 2});
+  index.Add(MakeLandmark(7, 1, RandomDescriptors(30, &rng), 30));
+  EXPECT_EQ(index.num_landmarks(), 1u);
+  EXPECT_EQ(index.num_descriptors(), 30u);
+  index.Add(MakeLandmark(3, 1, RandomDescriptors(20, &rng), 25));
+  EXPECT_EQ(index.num_landmarks(), 2u);
+  EXPECT_EQ(index.num_descriptors(), 50u);
+  EXPECT_EQ(index.SlotOf(LandmarkId(7)), 0);
+  EXPECT_EQ(index.SlotOf(LandmarkId(3)), 1);
+  EXPECT_EQ(index.landmark(1).id, LandmarkId(3));
+  EXPECT_EQ(index.landmark(1).sift_count, 25);
+  EXPECT_EQ(index.SlotOf(LandmarkId(5)), -1);    // between the two
+  EXPECT_EQ(index.SlotOf(LandmarkId(100)), -1);  // beyond every id
+  EXPECT_EQ(index.SlotOf(LandmarkId()), -1);     // the invalid id
+}
+
+// Candidates (seed §5.6): SIFT counts in [2n/3, 4n/3], both ends included, and a compatible
+// colour; each filter can be turned off.
+TEST(LandmarkIndexCandidatesTest, TextureRangeIsInclusiveAndFiltersCanBeTurnedOff) {
+  std::mt19937 rng(22);
+  const int counts[] = {19, 20, 30, 40, 41};
+  auto build = [&](const LandmarkIndexOptions& options) {
+    auto index = std::make_unique<LandmarkIndex>(options);
+    index->AddPlace({PlaceId(0), "robot", 0, 0, 5});
+    for (int i = 0; i < 5; ++i) {
+      index->Add(MakeLandmark(i, 0, RandomDescriptors(10, &rng), counts[i], {0.1f}));
+    }
+    return index;
+  };
+  IndexQuery query;
+  query.sift_count = 30;  // range 20..40
+  query.colour.peaks = {0.15f};
+  EXPECT_EQ(build(LandmarkIndexOptions())->Candidates(query), (std::vector<int32_t>{1, 2, 3}));
+  IndexQuery blue = query;
+  blue.colour.peaks = {-2.0f};
+  EXPECT_TRUE(build(LandmarkIndexOptions())->Candidates(blue).empty());
+  // A query without a colour signature passes the colour filter.
+  IndexQuery colourless = query;
+  colourless.colour.peaks.clear();
+  EXPECT_EQ(build(LandmarkIndexOptions())->Candidates(colourless), (std::vector<int32_t>{1, 2, 3}));
+
+  LandmarkIndexOptions any_count;
+  any_count.use_count_range = false;
+  EXPECT_EQ(build(any_count)->Candidates(query), (std::vector<int32_t>{0, 1, 2, 3, 4}));
+  LandmarkIndexOptions any_colour;
+  any_colour.use_colour_filter = false;
+  EXPECT_EQ(build(any_colour)->Candidates(blue), (std::vector<int32_t>{1, 2, 3}));
+}
+
+TEST_P(LandmarkIndexTest, EmptyIndexOrEmptyQueryFindsNothing) {
+  std::mt19937 rng(23);
+  LandmarkIndexOptions options;
+  options.search = GetParam();
+  LandmarkIndex index(options);
+  auto all_places = [](PlaceId) { return true; };
+  IndexQuery query;
+  query.sift_count = 30;
+  query.descriptors = RandomDescriptors(30, &rng);
+  IndexResult found = index.Query({query}, all_places);
+  EXPECT_TRUE(found.objects.empty());
+  EXPECT_TRUE(found.place_points.empty());
+  index.AddPlace({PlaceId(0), "robot", 0, 0, 1});
+  index.Add(MakeLandmark(0, 0, query.descriptors.clone(), 30));
+  found = index.Query({}, all_places);
+  EXPECT_TRUE(found.objects.empty());
+  EXPECT_TRUE(found.place_points.empty());
+}
+
+// Several query objects at once: each finds its own landmark, and the matches say which query
+// object and row they came from, sorted by query object.
+TEST_P(LandmarkIndexTest, EachQueryObjectFindsItsOwnLandmark) {
+  std::mt19937 rng(24);
+  LandmarkIndexOptions options;
+  options.search = GetParam();
+  LandmarkIndex index(options);
+  std::vector<cv::Mat> stored;
+  AddTenPlaces(&index, &rng, &stored);
+  std::vector<IndexQuery> queries(2);
+  queries[0].sift_count = 30;
+  queries[0].descriptors = Noisy(stored[22].rowRange(0, 15), &rng);  // place 5
+  queries[1].sift_count = 30;
+  queries[1].descriptors = Noisy(stored[5].rowRange(5, 17), &rng);  // place 1
+  const IndexResult found = index.Query(queries, [](PlaceId) { return true; });
+  ASSERT_EQ(found.objects.size(), 2u);
+  EXPECT_EQ(found.objects[0].query_object, 0);
+  EXPECT_EQ(found.objects[0].landmark, LandmarkId(22));
+  EXPECT_EQ(found.objects[0].place, PlaceId(5));
+  EXPECT_EQ(found.objects[0].matches.size(), 15u);
+  EXPECT_EQ(found.objects[1].query_object, 1);
+  EXPECT_EQ(found.objects[1].landmark, LandmarkId(5));
+  EXPECT_EQ(found.objects[1].place, PlaceId(1));
+  ASSERT_EQ(found.objects[1].matches.size(), 12u);
+  for (const DescriptorMatch& m : found.objects[1].matches) EXPECT_EQ(m.train, m.query + 5);
+  ASSERT_EQ(found.place_points.count(PlaceId(5)), 1u);
+  ASSERT_EQ(found.place_points.count(PlaceId(1)), 1u);
+  EXPECT_EQ(found.place_points.at(PlaceId(5)).size(), 15u);
+  EXPECT_EQ(found.place_points.at(PlaceId(1)).size(), 12u);
+  for (const PointMatch& p : found.place_points.at(PlaceId(1))) {
+    EXPECT_EQ(p.query_object, 1);
+    EXPECT_EQ(p.slot, index.SlotOf(LandmarkId(5)));
+    EXPECT_EQ(p.train, p.query_row + 5);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Searches, LandmarkIndexTest,
+                         ::testing::Values(IndexSearch::kFlann, IndexSearch::kExhaustive));
+
+// Descriptors outside every object of the frame form no object pair; with FLANN they still
+// vote for the place they show, which then matches at place level (a corridor without objects
+// is still recognised). Votes respect the place filter and can be turned off.
+TEST(LandmarkIndexVotesTest, DescriptorsOutsideObjectsFindTheirPlaceByVotesOnly) {
+  std::mt19937 rng(25);
+  auto build = [&](const LandmarkIndexOptions& options, std::vector<cv::Mat>* stored) {
+    auto index = std::make_unique<LandmarkIndex>(options);
+    AddTenPlaces(index.get(), &rng, stored);
+    return index;
+  };
+  std::vector<cv::Mat> stored;
+  const std::unique_ptr<LandmarkIndex> index = build(LandmarkIndexOptions(), &stored);
+  IndexQuery rest;
+  // In the texture range of the stored objects: only is_object keeps it from pairing with them.
+  rest.sift_count = 30;
+  rest.is_object = false;
+  rest.descriptors = Noisy(stored[13].rowRange(0, 20), &rng);  // place 3
+  const IndexResult found = index->Query({rest}, [](PlaceId) { return true; });
+  EXPECT_TRUE(found.objects.empty());
+  ASSERT_EQ(found.place_points.count(PlaceId(3)), 1u);
+  EXPECT_EQ(found.place_points.at(PlaceId(3)).size(), 20u);
+  for (const PointMatch& p : found.place_points.at(PlaceId(3))) {
+    EXPECT_EQ(index->landmark(p.slot).id, LandmarkId(13));
+    EXPECT_EQ(p.train, p.query_row);
+  }
+  const IndexResult filtered = index->Query({rest}, [](PlaceId p) { return p != PlaceId(3); });
+  EXPECT_TRUE(filtered.objects.empty());
+  EXPECT_EQ(filtered.place_points.count(PlaceId(3)), 0u);
+
+  LandmarkIndexOptions no_votes;
+  no_votes.vote_places = 0;
+  std::vector<cv::Mat> stored_again;
+  const std::unique_ptr<LandmarkIndex> without = build(no_votes, &stored_again);
+  rest.descriptors = Noisy(stored_again[13].rowRange(0, 20), &rng);
+  const IndexResult unvoted = without->Query({rest}, [](PlaceId) { return true; });
+  EXPECT_TRUE(unvoted.objects.empty());
+  EXPECT_TRUE(unvoted.place_points.empty());
+
+  // kExhaustive is the seed's retrieval: objects only.
+  LandmarkIndexOptions exhaustive;
+  exhaustive.search = IndexSearch::kExhaustive;
+  std::vector<cv::Mat> stored_exhaustive;
+  const std::unique_ptr<LandmarkIndex> seed = build(exhaustive, &stored_exhaustive);
+  rest.descriptors = Noisy(stored_exhaustive[13].rowRange(0, 20), &rng);
+  const IndexResult literal = seed->Query({rest}, [](PlaceId) { return true; });
+  EXPECT_TRUE(literal.objects.empty());
+  EXPECT_TRUE(literal.place_points.empty());
+}
+
+}  // namespace
+}  // namespace placerec
