@@ -11,7 +11,7 @@ packages=(
   libflann-dev liblz4-dev
   libsqlite3-dev sqlite3
   libgoogle-glog-dev libboost-program-options-dev nlohmann-json3-dev
-  libgtest-dev libgmock-dev libbenchmark-dev
+  libgtest-dev libgmock-dev libbenchmark-dev clang-format
   iproute2 util-linux procps
 )
 

@@ -8,5 +8,6 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 build_dir=${BUILD_DIR:-$root/build}
 
 bash "$root/scripts/build.sh"
+bash "$root/scripts/check-format.sh"
 cd "$build_dir"
 ctest --output-on-failure -j "${TEST_JOBS:-2}" "$@"

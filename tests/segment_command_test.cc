@@ -147,7 +147,8 @@ TEST_F(SegmentCommandTest, ImagesAndSplitOnlyGiveValidSegmentsAndClasses) {
   const Command run = RunSegment((root_ / "bare").string(), out);
   ASSERT_EQ(run.code, 0) << run.output;
   for (const char* id : kIds) {
-    ExpectOutputContract((root_ / "bare" / "images" / (std::string(id) + ".jpg")).string(), out, id);
+    ExpectOutputContract((root_ / "bare" / "images" / (std::string(id) + ".jpg")).string(), out,
+                         id);
   }
   // --overlays 1 draws the first image: itself and its segments side by side, a legend below.
   const cv::Mat first =
@@ -225,8 +226,8 @@ TEST_F(SegmentCommandTest, ReportedIouIsWhatTheWrittenSegmentsScore) {
   for (const char* id : kIds) {
     const cv::Mat truth = cv::imread((labelled / "objects" / (std::string(id) + ".png")).string(),
                                      cv::IMREAD_UNCHANGED);
-    const cv::Mat classes = cv::imread(
-        (labelled / "classes" / (std::string(id) + ".png")).string(), cv::IMREAD_UNCHANGED);
+    const cv::Mat classes = cv::imread((labelled / "classes" / (std::string(id) + ".png")).string(),
+                                       cv::IMREAD_UNCHANGED);
     ASSERT_EQ(truth.cols, 320) << id;
     std::map<int, std::pair<int, int>> pixels;  // object -> (area, labelled pixels)
     for (int y = 0; y < truth.rows; ++y) {

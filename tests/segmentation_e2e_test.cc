@@ -8,8 +8,8 @@
 #include <gtest/gtest.h>
 
 #include "common/organization/scene_organizer.h"
-#include "common/util/paths.h"
 #include "common/training/labelled_dataset.h"
+#include "common/util/paths.h"
 #include "tools/segment_command.h"
 
 namespace placerec {

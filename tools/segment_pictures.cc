@@ -48,7 +48,7 @@ cv::Vec3b RandomColour(int id) {
 // colours. Right: the ground-truth objects in random colours (or the segments when there is no
 // ground truth).
 cv::Mat DrawSegmentOverlay(const cv::Mat& bgr, const cv::Mat& segments,
-                    const std::vector<SegmentClass>& classes, const cv::Mat& objects) {
+                           const std::vector<SegmentClass>& classes, const cv::Mat& objects) {
   cv::Mat left = bgr.clone();
   for (int y = 0; y < bgr.rows; ++y) {
     const int* s = segments.ptr<int>(y);
@@ -104,7 +104,7 @@ cv::Mat DrawSegmentOverlay(const cv::Mat& bgr, const cv::Mat& segments,
 // OUT/summary.png: the mean object IoU over every scored object and per class (most objects
 // first), the segmentation under test beside the best superpixel setting when it was scored.
 Status WriteSegmentSummaryChart(const nlohmann::json& report, const std::string& method,
-                         const std::string& path) {
+                                const std::string& path) {
   const nlohmann::json& scored = report["perceptual_organization"];
   std::vector<std::pair<int, std::string>> classes;
   for (auto it = scored["classes"].begin(); it != scored["classes"].end(); ++it) {

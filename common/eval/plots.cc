@@ -417,8 +417,8 @@ Status WriteBarChartPng(const std::string& path, const std::string& title,
     }
     for (const double v : s.values) {
       if (!std::isnan(v) && (v < 0 || v > 100)) {
-        return Status::InvalidArgument("bar chart value " + std::to_string(v) + " of '" +
-                                       s.label + "' is outside 0..100");
+        return Status::InvalidArgument("bar chart value " + std::to_string(v) + " of '" + s.label +
+                                       "' is outside 0..100");
       }
     }
   }
@@ -460,10 +460,10 @@ Status WriteBarChartPng(const std::string& path, const std::string& title,
     cv::line(image, {box.x + 1, y}, {box.br().x - 2, y}, kGrid, 1, cv::LINE_AA);
     cv::line(image, {box.x - tick, y}, {box.x, y}, kAxis, 1, cv::LINE_AA);
     const std::string text = std::to_string(v);
-    tick_font.Draw(image, text,
-                   {box.x - tick - pad / 2 - tick_font.Measure(text).width,
-                    y - tick_font.Ascent() / 2},
-                   kText);
+    tick_font.Draw(
+        image, text,
+        {box.x - tick - pad / 2 - tick_font.Measure(text).width, y - tick_font.Ascent() / 2},
+        kText);
   }
 
   // Bars: each group gets an equal slot, its bars fill the middle 80 % of it.
@@ -494,8 +494,7 @@ Status WriteBarChartPng(const std::string& path, const std::string& title,
         char text[16];
         std::snprintf(text, sizeof(text), "%.1f", v);
         const cv::Size size = value_font.Measure(text);
-        value_font.Draw(image, text, {(xa + xb) / 2 - size.width / 2, y - size.height - 2},
-                        kText);
+        value_font.Draw(image, text, {(xa + xb) / 2 - size.width / 2, y - size.height - 2}, kText);
       }
     }
     const std::string label = Fit(groups[g], group_font, label_room);

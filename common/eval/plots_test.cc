@@ -97,10 +97,10 @@ TEST(PlotsTest, BarChartRefusesWhatItCannotDraw) {
   EXPECT_EQ(WriteBarChartPng(path, "t", "y", {}, {}).code(), StatusCode::kInvalidArgument);
   EXPECT_EQ(WriteBarChartPng(path, "t", "y", {"a"}, {{"s", {1.0}}}, 100, 100).code(),
             StatusCode::kInvalidArgument);
-  EXPECT_EQ(WriteBarChartPng(::testing::TempDir() + "/no_such_dir/b.png", "t", "y", {"a"},
-                             {{"s", {1.0}}})
-                .code(),
-            StatusCode::kIoError);
+  EXPECT_EQ(
+      WriteBarChartPng(::testing::TempDir() + "/no_such_dir/b.png", "t", "y", {"a"}, {{"s", {1.0}}})
+          .code(),
+      StatusCode::kIoError);
 }
 
 }  // namespace

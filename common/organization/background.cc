@@ -135,14 +135,12 @@ StatusOr<BackgroundClassifier> BackgroundClassifier::Train(
   for (int c = 0; c < classes; ++c) {
     for (int i = 0; i < features.rows; ++i) {
       if (labels[i] < 0) continue;
-      const bool positive = c < kBackgroundClasses
-                                ? labels[i] == c
-                                : structured_labels[i] == c - kBackgroundClasses;
+      const bool positive =
+          c < kBackgroundClasses ? labels[i] == c : structured_labels[i] == c - kBackgroundClasses;
       (positive ? positives_of[c] : negatives_of[c]).push_back(i);
     }
-    const std::string name = c < kBackgroundClasses
-                                 ? SegmentClassName(BackgroundClassOf(c))
-                                 : structured_names[c - kBackgroundClasses];
+    const std::string name = c < kBackgroundClasses ? SegmentClassName(BackgroundClassOf(c))
+                                                    : structured_names[c - kBackgroundClasses];
     if (positives_of[c].empty() || negatives_of[c].empty()) {
       const std::string what = positives_of[c].empty() ? "no" : "only";
       return Status::InvalidArgument(what + " training regions of class " + name +
@@ -267,11 +265,10 @@ SegmentClass BackgroundClassifier::Decide(const float* scores, double threshold,
     if (scores[c] > scores[best]) best = c;
   }
   return scores[best] > threshold && scores[best] > rival ? BackgroundClassOf(best)
-                                                           : SegmentClass::kStructured;
+                                                          : SegmentClass::kStructured;
 }
 
-std::vector<SegmentClass> BackgroundClassifier::Classify(const cv::Mat& features,
-                                                         double threshold,
+std::vector<SegmentClass> BackgroundClassifier::Classify(const cv::Mat& features, double threshold,
                                                          bool one_per_class) const {
   const cv::Mat scores = Scores(features);
   const std::vector<float> rivals = Rivals(features, one_per_class);

@@ -77,11 +77,13 @@ class BackgroundClassifier {
   // rows with a label >= 0 are its negatives). Classifiers train two at a time; the result is
   // deterministic for the same input. A class without rows of its own, or with every labelled
   // row, is InvalidArgument naming it (its classifier would have nothing to separate).
-  static StatusOr<BackgroundClassifier> Train(
-      const cv::Mat& features, const std::vector<int>& labels, const std::vector<float>& weights,
-      const BackgroundTrainingOptions& options, BackgroundTrainingSummary* summary,
-      const std::vector<std::string>& structured_names = {},
-      const std::vector<int>& structured_labels = {});
+  static StatusOr<BackgroundClassifier> Train(const cv::Mat& features,
+                                              const std::vector<int>& labels,
+                                              const std::vector<float>& weights,
+                                              const BackgroundTrainingOptions& options,
+                                              BackgroundTrainingSummary* summary,
+                                              const std::vector<std::string>& structured_names = {},
+                                              const std::vector<int>& structured_labels = {});
 
   static StatusOr<BackgroundClassifier> Load(const std::string& directory);
   Status Save(const std::string& directory) const;

@@ -297,13 +297,13 @@ void MergeState::Decide(Region* r) const {
   const auto structured =
       std::max_element(r->structured_scores.begin(), r->structured_scores.end());
   const bool has_structured = structured != r->structured_scores.end();
-  r->best_class = has_structured && *structured > *background
-                      ? kBackgroundClasses +
-                            static_cast<int>(structured - r->structured_scores.begin())
-                      : static_cast<int>(background - r->scores.begin());
+  r->best_class =
+      has_structured && *structured > *background
+          ? kBackgroundClasses + static_cast<int>(structured - r->structured_scores.begin())
+          : static_cast<int>(background - r->scores.begin());
   r->margin = has_structured ? *background - *structured : 0.0f;
-  const float rival = one_per_class_ && has_structured ? *structured
-                                                       : -std::numeric_limits<float>::infinity();
+  const float rival =
+      one_per_class_ && has_structured ? *structured : -std::numeric_limits<float>::infinity();
   r->segment_class = BackgroundClassifier::Decide(r->scores.data(), background_threshold_, rival);
 }
 
@@ -493,8 +493,7 @@ StatusOr<RegionMergeModel> RegionMergeModel::Load(const std::string& directory) 
     const int most = version == kFormatVersion ? kMergeFeatures
                      : version == 3            ? kMergeBoundaryOffset
                                                : kMergeRelationFeatures;
-    if (version < 1 || version > kFormatVersion || features < 1 || features > most ||
-        members < 1) {
+    if (version < 1 || version > kFormatVersion || features < 1 || features > most || members < 1) {
       return Status::InvalidArgument(
           path + ": format version " + std::to_string(version) + " with " +
           std::to_string(features) + " features; this build reads version " +

@@ -174,7 +174,7 @@ TEST(LoopDecisionTest, LocalizesAtTheNeighbourWithTheQueryScale) {
   ASSERT_FALSE(ranked.empty());
   EXPECT_EQ(ranked[0].place.sequence, 2);
   EXPECT_NEAR(ranked[0].log_scale, 0.0, 1e-6);
-  EXPECT_GE(ranked[0].score, 58);   // place 1's inliers
+  EXPECT_GE(ranked[0].score, 58);           // place 1's inliers
   options.localization_window_seconds = 0;  // off: the best place answers
   const std::vector<PlaceMatch> best = RankPlaces(
       found, {query}, 640, index, [&](PlaceId id) { return &places[id.value()]; }, options);

@@ -106,9 +106,15 @@ TEST(FlagParserTest, ReportsUnknownFlagsAndHelp) {
 }
 
 TEST(CommandLineTest, DropsTheDirectoryAndQuotesWhatAShellWouldSplit) {
-  const char* argv[] = {"/work/build/bin/placerec-train", "background",   "--dataset",
-                        "../data/msrc_v2",               "--out",        "my models",
-                        "--structured-classes",          "a,b",          "it's",
+  const char* argv[] = {"/work/build/bin/placerec-train",
+                        "background",
+                        "--dataset",
+                        "../data/msrc_v2",
+                        "--out",
+                        "my models",
+                        "--structured-classes",
+                        "a,b",
+                        "it's",
                         ""};
   EXPECT_EQ(CommandLine(10, argv),
             "placerec-train background --dataset ../data/msrc_v2 --out 'my models' "
