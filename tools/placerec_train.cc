@@ -12,6 +12,7 @@
 #include <fstream>
 #include <optional>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include <opencv2/core/utility.hpp>
@@ -38,15 +39,78 @@ constexpr char kUsage[] =
     "               one grouping model that averages the scores of trained ones\n\n"
     "'placerec-train COMMAND --help' lists the options of a command.";
 
-// Parses --leave-out-fold's text into *fold; on an error prints it for `command` and returns
-// the exit code.
-std::optional<int> ParseFoldFlag(const char* command, const std::string& text, Fold* fold) {
-  StatusOr<Fold> parsed = ParseFold(text);
-  if (!parsed.ok()) {
-    std::fprintf(stderr, "%s: --leave-out-fold: %s\n", command, parsed.status().ToString().c_str());
+// The flags of a training command that are text (or a switch) on the command line and reach
+// the config only once parsed, by FinishConfig. Their defaults are the config's (MakeTextFlags).
+struct TextFlags {
+  std::string leave_out_fold;      // --leave-out-fold I/K (background, boundary)
+  std::string structured_classes;  // --structured-classes a,b,... / all / none (background)
+  std::string cross_fit;           // --cross-fit DIR,...,DIR (grouping)
+  bool quiet = false;              // --quiet: no progress lines
+};
+
+// `items` joined with commas; `none` when there are none.
+std::string JoinList(const std::vector<std::string>& items, const std::string& none) {
+  if (items.empty()) return none;
+  std::string text;
+  for (const std::string& item : items) text += (text.empty() ? "" : ",") + item;
+  return text;
+}
+
+// The non-empty items of a comma-separated list.
+std::vector<std::string> SplitList(const std::string& text) {
+  std::vector<std::string> items;
+  for (const std::string& item : SplitString(text, ',')) {
+    if (!item.empty()) items.push_back(item);
+  }
+  return items;
+}
+
+// The text flags' defaults: the values of a default `config`.
+template <typename Config>
+TextFlags MakeTextFlags(const Config& config) {
+  TextFlags flags;
+  if constexpr (std::is_same_v<Config, GroupingTrainingConfig>) {
+    flags.cross_fit = JoinList(config.cross_fit, "");
+  } else {
+    flags.leave_out_fold = config.leave_out_fold.ToString();
+  }
+  if constexpr (std::is_same_v<Config, BackgroundTrainingConfig>) {
+    flags.structured_classes = JoinList(config.structured_classes, "none");
+  }
+  flags.quiet = !config.progress;
+  return flags;
+}
+
+// Moves the parsed text flags and the invocation into *config, then checks it. On an error
+// prints it for `command` and returns the exit code (2: bad flags).
+template <typename Config>
+std::optional<int> FinishConfig(const char* command, const TextFlags& flags, int argc, char** argv,
+                                Config* config) {
+  if constexpr (std::is_same_v<Config, GroupingTrainingConfig>) {
+    config->cross_fit = SplitList(flags.cross_fit);
+  } else {
+    StatusOr<Fold> fold = ParseFold(flags.leave_out_fold);
+    if (!fold.ok()) {
+      std::fprintf(stderr, "%s: --leave-out-fold: %s\n", command, fold.status().ToString().c_str());
+      return 2;
+    }
+    config->leave_out_fold = *fold;
+  }
+  if constexpr (std::is_same_v<Config, BackgroundTrainingConfig>) {
+    config->structured_classes.clear();
+    if (flags.structured_classes != "none") {
+      config->structured_classes = SplitList(flags.structured_classes);
+    }
+    config->textons.seed = config->seed;
+    config->boost.seed = config->seed;
+  }
+  config->progress = !flags.quiet;
+  config->command_line = CommandLine(argc, argv);
+  std::string error;
+  if (!config->Check(&error)) {
+    std::fprintf(stderr, "%s: %s\n", command, error.c_str());
     return 2;
   }
-  *fold = *parsed;
   return std::nullopt;
 }
 
@@ -62,7 +126,7 @@ int ReportTraining(const char* command, const StatusOr<nlohmann::json>& manifest
 
 int BackgroundCommand(int argc, char** argv) {
   BackgroundTrainingConfig config;
-  bool quiet = false;
+  TextFlags flags = MakeTextFlags(config);
   FlagParser parser(
       "placerec-train background --dataset DIR --out DIR [options]\n\n"
       "Learns k-means textons on filter-bank responses of pixels sampled from DIR's training\n"
@@ -100,41 +164,29 @@ int BackgroundCommand(int argc, char** argv) {
   parser.Add("seed", &config.seed, "random seed (pixel sampling, negatives)");
   parser.Add("holdout", &config.holdout,
              "leave the first N images of --split out of training (validation)");
-  std::string leave_out_fold;
-  parser.Add("leave-out-fold", &leave_out_fold,
+  parser.Add("leave-out-fold", &flags.leave_out_fold,
              "I/K: also leave out fold I of the images after the holdout, cut into K contiguous "
              "folds (models for placerec-train grouping --cross-fit)");
-  std::string structured = "all";
-  parser.Add("structured-classes", &structured,
+  parser.Add("structured-classes", &flags.structured_classes,
              "comma-separated dataset classes that get a classifier of their own for the "
              "one-per-class decision ('all': every labelled non-background class; 'none')");
   AddBackgroundDecisionFlags(&parser, &config.organizer);  // of the reported accuracy
-  parser.AddSwitch("quiet", &quiet, "no progress lines");
+  parser.AddSwitch("quiet", &flags.quiet, "no progress lines");
   if (const std::optional<int> exit =
           parser.ParseOrExit(argc, argv, 2, "placerec-train background")) {
     return *exit;
   }
   if (const std::optional<int> exit =
-          ParseFoldFlag("placerec-train background", leave_out_fold, &config.leave_out_fold)) {
+          FinishConfig("placerec-train background", flags, argc, argv, &config)) {
     return *exit;
   }
-  config.structured_classes.clear();
-  if (structured != "none") {
-    for (const std::string& name : SplitString(structured, ',')) {
-      if (!name.empty()) config.structured_classes.push_back(name);
-    }
-  }
-  config.textons.seed = config.seed;
-  config.boost.seed = config.seed;
-  config.progress = !quiet;
-  config.command_line = CommandLine(argc, argv);
   cv::setNumThreads(1);  // deterministic k-means, and a fair share of a shared machine
   return ReportTraining("placerec-train background", TrainBackgroundModels(config));
 }
 
 int BoundaryCommand(int argc, char** argv) {
   BoundaryTrainingConfig config;
-  bool quiet = false;
+  TextFlags flags = MakeTextFlags(config);
   FlagParser parser(
       "placerec-train boundary --dataset DIR --out DIR [options]\n\n"
       "Learns the object-boundary classifier (common/organization/boundary.h): the pixels on\n"
@@ -151,8 +203,7 @@ int BoundaryCommand(int argc, char** argv) {
              "split whose accuracy goes into the manifest ('' to skip)");
   parser.Add("holdout", &config.holdout,
              "leave the first N images of --split out of training (their accuracy is reported)");
-  std::string leave_out_fold;
-  parser.Add("leave-out-fold", &leave_out_fold,
+  parser.Add("leave-out-fold", &flags.leave_out_fold,
              "I/K: also leave out fold I of the images after the holdout (a boundary model for "
              "the fold's directory of placerec-train grouping --cross-fit)");
   parser.Add("samples-per-image", &config.samples_per_image,
@@ -164,24 +215,22 @@ int BoundaryCommand(int argc, char** argv) {
   parser.Add("weak-count", &config.boost.weak_count, "boosted trees");
   parser.Add("max-depth", &config.boost.max_depth, "depth of each tree");
   parser.Add("seed", &config.seed, "random seed (pixel sampling)");
-  parser.AddSwitch("quiet", &quiet, "no progress lines");
+  parser.AddSwitch("quiet", &flags.quiet, "no progress lines");
   if (const std::optional<int> exit =
           parser.ParseOrExit(argc, argv, 2, "placerec-train boundary")) {
     return *exit;
   }
   if (const std::optional<int> exit =
-          ParseFoldFlag("placerec-train boundary", leave_out_fold, &config.leave_out_fold)) {
+          FinishConfig("placerec-train boundary", flags, argc, argv, &config)) {
     return *exit;
   }
-  config.progress = !quiet;
-  config.command_line = CommandLine(argc, argv);
   cv::setNumThreads(1);
   return ReportTraining("placerec-train boundary", TrainBoundaryModel(config));
 }
 
 int GroupingCommand(int argc, char** argv) {
   GroupingTrainingConfig config;
-  bool quiet = false;
+  TextFlags flags = MakeTextFlags(config);
   FlagParser parser(
       "placerec-train grouping --dataset DIR --out DIR [options]\n\n"
       "Learns the region-merge classifier: pairs of adjacent regions (the superpixels of DIR's\n"
@@ -196,8 +245,7 @@ int GroupingCommand(int argc, char** argv) {
   parser.Add("split", &config.split, "split to train on");
   parser.Add("holdout", &config.holdout,
              "leave the first N images of the split out (to tune the threshold on them)");
-  std::string cross_fit;
-  parser.Add("cross-fit", &cross_fit,
+  parser.Add("cross-fit", &flags.cross_fit,
              "DIR_0,...,DIR_K-1: describe fold k of the images after the holdout with the "
              "background models in DIR_k, trained with --holdout N --leave-out-fold k/K (so the "
              "pairs' background scores are those of unseen images; --out then only receives "
@@ -224,15 +272,14 @@ int GroupingCommand(int argc, char** argv) {
   parser.Add("weak-count", &config.boost.weak_count, "boosted trees");
   parser.Add("max-depth", &config.boost.max_depth, "depth of each tree");
   parser.Add("seed", &config.seed, "random seed (order of the ground-truth merges)");
-  parser.AddSwitch("quiet", &quiet, "no progress lines");
+  parser.AddSwitch("quiet", &flags.quiet, "no progress lines");
   if (const std::optional<int> exit =
           parser.ParseOrExit(argc, argv, 2, "placerec-train grouping")) {
     return *exit;
   }
-  config.progress = !quiet;
-  config.command_line = CommandLine(argc, argv);
-  for (const std::string& dir : SplitString(cross_fit, ',')) {
-    if (!dir.empty()) config.cross_fit.push_back(dir);
+  if (const std::optional<int> exit =
+          FinishConfig("placerec-train grouping", flags, argc, argv, &config)) {
+    return *exit;
   }
   cv::setNumThreads(1);
   return ReportTraining("placerec-train grouping", TrainGroupingModel(config));

@@ -325,316 +325,394 @@ nlohmann::json OptionsJson(const SceneOrganizerOptions& options,
   return opts;
 }
 
-}  // namespace
-
-int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
-  std::string dataset;
-  std::string split = "test";
-  std::string out;
-  SceneOrganizerOptions options = SceneOrganizerOptions::ForSegmentation();
-  int overlays = 12;
-  int max_images = 0;
-  double min_object_fraction = 0.005;
-  std::string grid_k = "125,250,500,1000";
-  std::string grid_min = "50,150,300";
-  bool baseline = true;
-  bool quiet = false;
-  bool verbose = false;
-  bool oracle_classes = false;
-  bool oracle_grouping = false;
-  FlagParser parser(
-      "placerec-eval segment --dataset DIR --split test --out OUT [options]\n\n"
-      "Segments every image of DIR/<split>.txt (superpixels, background classes, the learned\n"
-      "region merging, then Perceptual Organization as configured; seed Ch. 3) and\n"
-      "writes OUT/segments/<id>.png (16-bit segment ids 1..n, every pixel in one segment),\n"
-      "OUT/classes/<id>.png (8-bit: 0 sky, 1 tree, 2 road, 3 grass, 4 water, 7 structured) and\n"
-      "OUT/overlays/<id>.png; with ground truth in DIR (classes/, objects/, classes.txt) it also\n"
-      "writes OUT/segmentation.json: object-level accuracy (seed eq. 6.2) for Perceptual\n"
-      "Organization and for superpixels alone over a grid of FH settings, and background\n"
-      "classification accuracy (seed Table 6.4) on all ground-truth regions and on those the\n"
-      "object score counts, and OUT/summary.png, a bar chart of the object IoU overall and per\n"
-      "class beside the superpixel baseline. OUT/per_image.csv lists every image's segments,\n"
-      "time and (with ground truth) scored objects and mean IoU, to find the worst.");
-  parser.AddRequired("dataset", &dataset,
-                     "dataset directory, or its name under PLACEREC_DATA / ../shared/data");
-  parser.AddRequired("out", &out, "output directory (created if missing)");
-  parser.Add("split", &split, "split list DIR/<split>.txt");
-  parser.Add("overlays", &overlays, "overlay pictures to draw (evenly spread over the split)");
-  parser.Add("max-images", &max_images, "segment only the first N images (0: all)");
-  parser.Add("min-object-fraction", &min_object_fraction,
-             "ground-truth objects smaller than this fraction of the image are not scored "
-             "(seed §6.1.3: 0.5 %)");
-  parser.Add("baseline", &baseline, "also score superpixels alone over the FH grid");
-  parser.Add("grid-k", &grid_k, "superpixel baseline: FH k values at 320x240, comma-separated");
-  parser.Add("grid-min", &grid_min,
-             "superpixel baseline: FH minimum sizes at 320x240 (pixels), comma-separated");
-  AddOrganizerFlags(&parser, &options);
-  parser.Add("oracle-classes", &oracle_classes,
-             "diagnosis only: superpixels take the background class of their ground-truth "
-             "majority class instead of the classifiers' decision, then the --po-* grouping "
-             "runs without the learned merging (shows what perfect background identification "
-             "would give the seed's rule)");
-  parser.Add("oracle-grouping", &oracle_grouping,
-             "diagnosis only: the initial partition's regions are grouped by their majority "
-             "ground-truth object (the best any grouping of that partition can score)");
-  parser.AddSwitch("quiet", &quiet, "no progress line");
-  parser.AddSwitch("verbose", &verbose, "one line per image: parts per round, segments, IoU");
-  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-eval segment")) {
-    return *exit;
-  }
-  std::string error;
-  if (!options.Check(&error)) {
-    std::fprintf(stderr, "placerec-eval segment: %s\n", error.c_str());
-    return 2;
-  }
+// The superpixel baseline's FH grid (settings at 320x240) from --grid-k and --grid-min; false
+// when either list is not numbers a,b,c.
+bool ParseGrid(const SegmentCommandOptions& options, std::vector<double>* ks,
+               std::vector<double>* mins) {
   bool ok_k = false;
   bool ok_min = false;
-  const std::vector<double> ks = ParseList(grid_k, &ok_k);
-  const std::vector<double> mins = ParseList(grid_min, &ok_min);
-  if (baseline && (!ok_k || !ok_min)) {
-    std::fprintf(stderr, "placerec-eval segment: --grid-k and --grid-min take numbers a,b,c\n");
-    return 2;
+  *ks = ParseList(options.grid_k, &ok_k);
+  *mins = ParseList(options.grid_min, &ok_min);
+  return ok_k && ok_min;
+}
+
+constexpr char kSegmentUsage[] =
+    "placerec-eval segment --dataset DIR --split test --out OUT [options]\n\n"
+    "Segments every image of DIR/<split>.txt (superpixels, background classes, the learned\n"
+    "region merging, then Perceptual Organization as configured; seed Ch. 3) and\n"
+    "writes OUT/segments/<id>.png (16-bit segment ids 1..n, every pixel in one segment),\n"
+    "OUT/classes/<id>.png (8-bit: 0 sky, 1 tree, 2 road, 3 grass, 4 water, 7 structured) and\n"
+    "OUT/overlays/<id>.png; with ground truth in DIR (classes/, objects/, classes.txt) it also\n"
+    "writes OUT/segmentation.json: object-level accuracy (seed eq. 6.2) for Perceptual\n"
+    "Organization and for superpixels alone over a grid of FH settings, and background\n"
+    "classification accuracy (seed Table 6.4) on all ground-truth regions and on those the\n"
+    "object score counts, and OUT/summary.png, a bar chart of the object IoU overall and per\n"
+    "class beside the superpixel baseline. OUT/per_image.csv lists every image's segments,\n"
+    "time and (with ground truth) scored objects and mean IoU, to find the worst.";
+
+// Binds every flag of the command to its field of *options (whose values are the defaults).
+void AddSegmentCommandFlags(FlagParser* parser, SegmentCommandOptions* options) {
+  parser->AddRequired("dataset", &options->dataset,
+                      "dataset directory, or its name under PLACEREC_DATA / ../shared/data");
+  parser->AddRequired("out", &options->out, "output directory (created if missing)");
+  parser->Add("split", &options->split, "split list DIR/<split>.txt");
+  parser->Add("overlays", &options->overlays,
+              "overlay pictures to draw (evenly spread over the split)");
+  parser->Add("max-images", &options->max_images, "segment only the first N images (0: all)");
+  parser->Add("min-object-fraction", &options->min_object_fraction,
+              "ground-truth objects smaller than this fraction of the image are not scored "
+              "(seed §6.1.3: 0.5 %)");
+  parser->Add("baseline", &options->baseline, "also score superpixels alone over the FH grid");
+  parser->Add("grid-k", &options->grid_k,
+              "superpixel baseline: FH k values at 320x240, comma-separated");
+  parser->Add("grid-min", &options->grid_min,
+              "superpixel baseline: FH minimum sizes at 320x240 (pixels), comma-separated");
+  AddOrganizerFlags(parser, &options->organizer);
+  parser->Add("oracle-classes", &options->oracle_classes,
+              "diagnosis only: superpixels take the background class of their ground-truth "
+              "majority class instead of the classifiers' decision, then the --po-* grouping "
+              "runs without the learned merging (shows what perfect background identification "
+              "would give the seed's rule)");
+  parser->Add("oracle-grouping", &options->oracle_grouping,
+              "diagnosis only: the initial partition's regions are grouped by their majority "
+              "ground-truth object (the best any grouping of that partition can score)");
+  parser->AddSwitch("quiet", &options->quiet, "no progress line");
+  parser->AddSwitch("verbose", &options->verbose,
+                    "one line per image: parts per round, segments, IoU");
+}
+
+// One run of the command, in stages: ReadInputs, SegmentImages (which writes each image's
+// pictures as it goes), Score (the report) and WriteOutputs. A stage that fails sets *error to
+// the message (without the "placerec-eval segment: " prefix) and returns false; the run then
+// stops with exit code 1.
+class SegmentRun {
+ public:
+  // `options` pass Check; options.dataset not found as given is looked for under
+  // `default_data_dir`.
+  SegmentRun(const SegmentCommandOptions& options, const std::string& default_data_dir);
+
+  // Reads the split, the class table and the models, and every listed image and ground-truth
+  // layer, so that a bad file stops the run before anything is written.
+  bool ReadInputs(std::string* error);
+  // Creates the output directories, segments every image, writes its pictures and scores it.
+  bool SegmentImages(std::string* error);
+  // The contents of segmentation.json.
+  nlohmann::json Score() const;
+  // Writes segmentation.json, per_image.csv and (with ground truth) summary.png, then prints
+  // the summary lines to standard output.
+  bool WriteOutputs(const nlohmann::json& report, std::string* error) const;
+
+ private:
+  // The image's segmentation by the organiser, or by an oracle when one is asked for.
+  SceneSegmentation Organize(const WorkingImage& working, const LabelledImage& image,
+                             SceneOrganizerSummary* summary) const;
+  bool SegmentImage(size_t i, ProgressLine* progress, std::string* error);
+  // Scores one image that has object ground truth (`objects`, `gt_classes` at its size).
+  void ScoreImage(const std::string& id, const LabelledImage& image, const WorkingImage& working,
+                  const cv::Mat& segments, const SceneSegmentation& segmentation,
+                  const cv::Mat& objects, const cv::Mat& gt_classes,
+                  const SceneOrganizerSummary& summary, double image_ms, ProgressLine* progress);
+  // Adds a per_image.csv row: `objects` < 0: not scored; `iou_sum` the scored objects' IoUs
+  // added up.
+  void AddRow(const std::string& id, int segments, double ms, int objects, double iou_sum);
+  void PrintSummary(const nlohmann::json& report) const;
+
+  const SegmentCommandOptions options_;
+  std::string dataset_;  // the directory read
+  std::vector<std::string> ids_;
+  ClassTable table_;
+  std::optional<SceneOrganizer> organizer_;
+  std::vector<GridSetting> grid_;
+  std::vector<size_t> overlay_at_;
+  ObjectScoreSummary po_score_;
+  BackgroundAccuracy background_;
+  // The same on the regions the object score counts (at least min_object_fraction of the image).
+  BackgroundAccuracy salient_background_;
+  PixelClassAccuracy pixels_;
+  std::map<std::string, double> stage_ms_;
+  int scored_images_ = 0;
+  int64_t segments_total_ = 0;
+  // One row per image; objects and mean_iou stay empty without ground truth.
+  std::string per_image_ = "id,segments,ms,objects,mean_iou\n";
+  Timer total_timer_;
+};
+
+SegmentRun::SegmentRun(const SegmentCommandOptions& options, const std::string& default_data_dir)
+    : options_(options), dataset_(options.dataset) {
+  if (!PathExists(dataset_)) {
+    const std::string under = default_data_dir + "/" + dataset_;
+    if (PathExists(under)) dataset_ = under;
   }
-  if (!PathExists(dataset)) {
-    const std::string under = default_data_dir + "/" + dataset;
-    if (PathExists(under)) dataset = under;
-  }
-  StatusOr<std::vector<std::string>> ids = ReadSplit(dataset, split);
-  StatusOr<ClassTable> table = ReadClassTable(dataset);
+}
+
+bool SegmentRun::ReadInputs(std::string* error) {
+  StatusOr<std::vector<std::string>> ids = ReadSplit(dataset_, options_.split);
+  StatusOr<ClassTable> table = ReadClassTable(dataset_);
   if (!ids.ok() || !table.ok()) {
-    std::fprintf(stderr, "placerec-eval segment: %s\n",
-                 (!ids.ok() ? ids.status() : table.status()).ToString().c_str());
-    return 1;
+    *error = (!ids.ok() ? ids.status() : table.status()).ToString();
+    return false;
   }
-  if (max_images > 0 && static_cast<int>(ids->size()) > max_images) ids->resize(max_images);
-  StatusOr<SceneOrganizer> organizer = SceneOrganizer::Create(options);
+  ids_ = std::move(*ids);
+  table_ = std::move(*table);
+  if (options_.max_images > 0 && static_cast<int>(ids_.size()) > options_.max_images) {
+    ids_.resize(options_.max_images);
+  }
+  StatusOr<SceneOrganizer> organizer = SceneOrganizer::Create(options_.organizer);
   if (!organizer.ok()) {
-    std::fprintf(stderr, "placerec-eval segment: %s\n", organizer.status().ToString().c_str());
-    return 1;
+    *error = organizer.status().ToString();
+    return false;
   }
-  // Every listed image and ground-truth layer must read before anything is written, so that a
-  // bad file stops the run with nothing half-written.
-  for (size_t i = 0; i < ids->size(); ++i) {
-    const StatusOr<LabelledImage> image = ReadLabelledImage(dataset, (*ids)[i]);
+  organizer_.emplace(std::move(*organizer));
+  for (const std::string& id : ids_) {
+    const StatusOr<LabelledImage> image = ReadLabelledImage(dataset_, id);
     if (!image.ok()) {
-      std::fprintf(stderr,
-                   "placerec-eval segment: %s\n  %s/%s.txt lists '%s': fix the file or remove the "
-                   "id from the split. Nothing was written.\n",
-                   image.status().ToString().c_str(), dataset.c_str(), split.c_str(),
-                   (*ids)[i].c_str());
-      return 1;
+      *error = image.status().ToString() + "\n  " + dataset_ + "/" + options_.split +
+               ".txt lists '" + id +
+               "': fix the file or remove the id from the split. Nothing was written.";
+      return false;
     }
   }
+  return true;
+}
+
+bool SegmentRun::SegmentImages(std::string* error) {
   for (const char* sub : {"segments", "classes", "overlays"}) {
-    if (!MakeDirectories(out + "/" + sub)) {
-      std::fprintf(stderr, "placerec-eval segment: cannot create %s/%s\n", out.c_str(), sub);
-      return 1;
+    if (!MakeDirectories(options_.out + "/" + sub)) {
+      *error = "cannot create " + options_.out + "/" + sub;
+      return false;
     }
   }
   cv::setNumThreads(1);
-
-  std::vector<GridSetting> grid;
-  if (baseline) {
+  if (options_.baseline) {
+    std::vector<double> ks;
+    std::vector<double> mins;
+    ParseGrid(options_, &ks, &mins);
     for (const double k : ks) {
-      for (const double m : mins) grid.push_back({k, static_cast<int>(m), {}});
+      for (const double m : mins) grid_.push_back({k, static_cast<int>(m), {}});
     }
   }
-  ObjectScoreSummary po_score;
-  BackgroundAccuracy background;
-  // The same on the regions the object score counts (at least min_object_fraction of the image).
-  BackgroundAccuracy salient_background;
-  PixelClassAccuracy pixels;
-  std::map<std::string, double> stage_ms;
-  int scored_images = 0;
-  int64_t segments_total = 0;
-  // One row per image; objects and mean_iou stay empty without ground truth.
-  std::string per_image = "id,segments,ms,objects,mean_iou\n";
-  // `objects` < 0: not scored; `iou_sum` the scored objects' IoUs added up.
-  auto add_row = [&per_image](const std::string& id, int segments, double ms, int objects,
-                              double iou_sum) {
-    char numbers[64];
-    std::snprintf(numbers, sizeof(numbers), ",%d,%.1f,", segments, ms);
-    per_image += id + numbers;
-    if (objects >= 0) per_image += std::to_string(objects);
-    per_image += ",";
-    if (objects > 0) {
-      std::snprintf(numbers, sizeof(numbers), "%.2f", 100.0 * iou_sum / objects);
-      per_image += numbers;
-    }
-    per_image += "\n";
-  };
-  std::vector<size_t> overlay_at;
-  for (int i = 0; i < overlays && !ids->empty(); ++i) {
-    overlay_at.push_back(static_cast<size_t>(i) * ids->size() / static_cast<size_t>(overlays));
+  for (int i = 0; i < options_.overlays && !ids_.empty(); ++i) {
+    overlay_at_.push_back(static_cast<size_t>(i) * ids_.size() /
+                          static_cast<size_t>(options_.overlays));
   }
-  Timer total_timer;
-  ProgressLine progress(ids->size(), kLogProgressEvery);
-  for (size_t i = 0; i < ids->size(); ++i) {
-    const std::string& id = (*ids)[i];
-    StatusOr<LabelledImage> image = ReadLabelledImage(dataset, id);
-    if (!image.ok()) {
+  total_timer_.Restart();
+  ProgressLine progress(ids_.size(), kLogProgressEvery);
+  for (size_t i = 0; i < ids_.size(); ++i) {
+    if (!SegmentImage(i, &progress, error)) {
       progress.Clear();
-      std::fprintf(stderr, "placerec-eval segment: %s\n", image.status().ToString().c_str());
-      return 1;
+      return false;
     }
-    Timer timer;
-    const WorkingImage working = MakeWorkingImage(image->bgr, options.superpixels.working_width);
-    SceneOrganizerSummary summary;
-    SceneSegmentation segmentation;
-    if (oracle_classes && !image->classes.empty()) {
-      segmentation = OrganizeOnTrueClasses(*organizer, working, image->classes, *table,
-                                           options.organization, &summary.organization);
-    } else if (oracle_grouping && !image->objects.empty()) {
-      segmentation = GroupByTrueObjects(organizer->ClassifiedSuperpixels(working),
-                                        LayerAtSize(image->objects, working.bgr.size()));
-    } else {
-      segmentation = organizer->Segment(working, &summary);
-    }
-    const double image_ms = timer.ElapsedMs();
-    stage_ms["total"] += image_ms;
-    for (const auto& [stage, ms] : summary.timings) stage_ms[stage] += ms;
-    segments_total += segmentation.size();
-    if (segmentation.size() > 65535) {
-      progress.Clear();
-      std::fprintf(stderr, "placerec-eval segment: %s has more than 65535 segments\n", id.c_str());
-      return 1;
-    }
-    const cv::Mat segments = ToOriginal(segmentation.labels, image->bgr.size());
-    cv::Mat ids16(segments.size(), CV_16U);
-    cv::Mat classes8(segments.size(), CV_8U);
-    for (int y = 0; y < segments.rows; ++y) {
-      const int* s = segments.ptr<int>(y);
-      uint16_t* o16 = ids16.ptr<uint16_t>(y);
-      uint8_t* o8 = classes8.ptr<uint8_t>(y);
-      for (int x = 0; x < segments.cols; ++x) {
-        o16[x] = static_cast<uint16_t>(s[x] + 1);
-        o8[x] = static_cast<uint8_t>(segmentation.classes[s[x]]);
-      }
-    }
-    if (!cv::imwrite(out + "/segments/" + id + ".png", ids16) ||
-        !cv::imwrite(out + "/classes/" + id + ".png", classes8)) {
-      progress.Clear();
-      std::fprintf(stderr, "placerec-eval segment: cannot write %s's pictures\n", id.c_str());
-      return 1;
-    }
-    const cv::Mat objects =
-        image->objects.empty() ? cv::Mat() : LayerAtSize(image->objects, segments.size());
-    const cv::Mat gt_classes =
-        image->classes.empty() ? cv::Mat() : LayerAtSize(image->classes, segments.size());
-    if (std::find(overlay_at.begin(), overlay_at.end(), i) != overlay_at.end()) {
-      cv::imwrite(out + "/overlays/" + id + ".png",
-                  DrawSegmentOverlay(image->bgr, segments, segmentation.classes, objects));
-    }
-    if (objects.empty()) {
-      add_row(id, segmentation.size(), image_ms, -1, 0.0);
-    } else {
-      ++scored_images;
-      const std::vector<ObjectScore> scores =
-          ScoreObjects(segments, objects, gt_classes, *table, min_object_fraction);
-      po_score.Add(scores, *table);
-      double sum = 0;
-      for (const ObjectScore& s : scores) sum += s.iou;
-      add_row(id, segmentation.size(), image_ms, static_cast<int>(scores.size()), sum);
-      if (verbose) {
-        progress.Clear();
-        std::string rounds;
-        for (const int p : summary.organization.parts) rounds += " " + std::to_string(p);
-        std::fprintf(stderr,
-                     "%s: %d superpixels (%d background), structured parts per round:%s,"
-                     " %d segments, mean IoU %.1f over %zu objects\n",
-                     id.c_str(), summary.superpixels, summary.background_superpixels,
-                     rounds.c_str(), segmentation.size(),
-                     scores.empty() ? 0.0 : 100.0 * sum / scores.size(), scores.size());
-      }
-      for (GridSetting& setting : grid) {
-        SuperpixelOptions baseline_options = options.superpixels;
-        // Settings are given at 320x240; SuperpixelOptions are at 640x480, scaled by area.
-        baseline_options.k = setting.k * 4.0;
-        baseline_options.min_size = setting.min_size * 4;
-        const SceneSegmentation superpixels = ComputeSuperpixels(working, baseline_options);
-        setting.score.Add(ScoreObjects(ToOriginal(superpixels.labels, image->bgr.size()), objects,
-                                       gt_classes, *table, min_object_fraction),
-                          *table);
-      }
-      if (!gt_classes.empty() && !table->empty()) {
-        TallyTrueRegions(*organizer, working, *image, *table, options, min_object_fraction,
-                         &background, &salient_background);
-        pixels.Add(segments, segmentation.classes, gt_classes, *table);
-      }
-    }
-    if (!quiet) progress.Report(i + 1, "segmented %zu/%zu", i + 1, ids->size());
+    if (!options_.quiet) progress.Report(i + 1, "segmented %zu/%zu", i + 1, ids_.size());
   }
+  return true;
+}
 
-  nlohmann::json report;
-  report["dataset"] = dataset;
-  report["split"] = split;
-  report["images"] = static_cast<int>(ids->size());
-  report["scored_images"] = scored_images;
-  report["mean_segments_per_image"] =
-      ids->empty() ? 0.0 : static_cast<double>(segments_total) / static_cast<double>(ids->size());
-  report["min_object_fraction"] = min_object_fraction;
-  report["options"] = OptionsJson(options, organizer->model().classifier.structured_names());
-  report["options"]["oracle_classes"] = oracle_classes;
-  report["options"]["oracle_grouping"] = oracle_grouping;
-  for (const auto& [stage, ms] : stage_ms) {
-    report["mean_ms"][stage] = ids->empty() ? 0.0 : ms / static_cast<double>(ids->size());
+SceneSegmentation SegmentRun::Organize(const WorkingImage& working, const LabelledImage& image,
+                                       SceneOrganizerSummary* summary) const {
+  if (options_.oracle_classes && !image.classes.empty()) {
+    return OrganizeOnTrueClasses(*organizer_, working, image.classes, table_,
+                                 options_.organizer.organization, &summary->organization);
   }
-  if (scored_images > 0) {
-    report["perceptual_organization"] = po_score.ToJson();
-    if (!grid.empty()) {
-      const GridSetting* best = &grid[0];
-      nlohmann::json settings = nlohmann::json::array();
-      for (const GridSetting& setting : grid) {
-        settings.push_back({{"k_320x240", setting.k},
-                            {"min_size_320x240", setting.min_size},
-                            {"mean_iou", setting.score.Mean()}});
-        if (setting.score.Mean() > best->score.Mean()) best = &setting;
-      }
-      report["superpixels"]["grid"] = settings;
-      report["superpixels"]["best"] = best->score.ToJson();
-      report["superpixels"]["best"]["k_320x240"] = best->k;
-      report["superpixels"]["best"]["min_size_320x240"] = best->min_size;
+  if (options_.oracle_grouping && !image.objects.empty()) {
+    return GroupByTrueObjects(organizer_->ClassifiedSuperpixels(working),
+                              LayerAtSize(image.objects, working.bgr.size()));
+  }
+  return organizer_->Segment(working, summary);
+}
+
+bool SegmentRun::SegmentImage(size_t i, ProgressLine* progress, std::string* error) {
+  const std::string& id = ids_[i];
+  StatusOr<LabelledImage> image = ReadLabelledImage(dataset_, id);
+  if (!image.ok()) {
+    *error = image.status().ToString();
+    return false;
+  }
+  Timer timer;
+  const WorkingImage working =
+      MakeWorkingImage(image->bgr, options_.organizer.superpixels.working_width);
+  SceneOrganizerSummary summary;
+  const SceneSegmentation segmentation = Organize(working, *image, &summary);
+  const double image_ms = timer.ElapsedMs();
+  stage_ms_["total"] += image_ms;
+  for (const auto& [stage, ms] : summary.timings) stage_ms_[stage] += ms;
+  segments_total_ += segmentation.size();
+  if (segmentation.size() > 65535) {
+    *error = id + " has more than 65535 segments";
+    return false;
+  }
+  const cv::Mat segments = ToOriginal(segmentation.labels, image->bgr.size());
+  cv::Mat ids16(segments.size(), CV_16U);
+  cv::Mat classes8(segments.size(), CV_8U);
+  for (int y = 0; y < segments.rows; ++y) {
+    const int* s = segments.ptr<int>(y);
+    uint16_t* o16 = ids16.ptr<uint16_t>(y);
+    uint8_t* o8 = classes8.ptr<uint8_t>(y);
+    for (int x = 0; x < segments.cols; ++x) {
+      o16[x] = static_cast<uint16_t>(s[x] + 1);
+      o8[x] = static_cast<uint8_t>(segmentation.classes[s[x]]);
     }
-    if (background.total > 0) {
-      report["background"]["ground_truth_regions"] = background.ToJson();
-      report["background"]["salient_ground_truth_regions"] = salient_background.ToJson();
-      report["background"]["salient_ground_truth_regions"]["min_region_fraction"] =
-          min_object_fraction;
-      report["background"]["output_pixels"] = pixels.ToJson();
-    }
+  }
+  if (!cv::imwrite(options_.out + "/segments/" + id + ".png", ids16) ||
+      !cv::imwrite(options_.out + "/classes/" + id + ".png", classes8)) {
+    *error = "cannot write " + id + "'s pictures";
+    return false;
+  }
+  const cv::Mat objects =
+      image->objects.empty() ? cv::Mat() : LayerAtSize(image->objects, segments.size());
+  const cv::Mat gt_classes =
+      image->classes.empty() ? cv::Mat() : LayerAtSize(image->classes, segments.size());
+  if (std::find(overlay_at_.begin(), overlay_at_.end(), i) != overlay_at_.end()) {
+    cv::imwrite(options_.out + "/overlays/" + id + ".png",
+                DrawSegmentOverlay(image->bgr, segments, segmentation.classes, objects));
+  }
+  if (objects.empty()) {
+    AddRow(id, segmentation.size(), image_ms, -1, 0.0);
   } else {
-    report["note"] = "no ground truth (objects/) in the dataset: nothing scored";
+    ScoreImage(id, *image, working, segments, segmentation, objects, gt_classes, summary, image_ms,
+               progress);
   }
-  report["seconds"] = total_timer.ElapsedMs() / 1000.0;
+  return true;
+}
+
+void SegmentRun::ScoreImage(const std::string& id, const LabelledImage& image,
+                            const WorkingImage& working, const cv::Mat& segments,
+                            const SceneSegmentation& segmentation, const cv::Mat& objects,
+                            const cv::Mat& gt_classes, const SceneOrganizerSummary& summary,
+                            double image_ms, ProgressLine* progress) {
+  ++scored_images_;
+  const std::vector<ObjectScore> scores =
+      ScoreObjects(segments, objects, gt_classes, table_, options_.min_object_fraction);
+  po_score_.Add(scores, table_);
+  double sum = 0;
+  for (const ObjectScore& s : scores) sum += s.iou;
+  AddRow(id, segmentation.size(), image_ms, static_cast<int>(scores.size()), sum);
+  if (options_.verbose) {
+    progress->Clear();
+    std::string rounds;
+    for (const int p : summary.organization.parts) rounds += " " + std::to_string(p);
+    std::fprintf(stderr,
+                 "%s: %d superpixels (%d background), structured parts per round:%s,"
+                 " %d segments, mean IoU %.1f over %zu objects\n",
+                 id.c_str(), summary.superpixels, summary.background_superpixels, rounds.c_str(),
+                 segmentation.size(), scores.empty() ? 0.0 : 100.0 * sum / scores.size(),
+                 scores.size());
+  }
+  for (GridSetting& setting : grid_) {
+    SuperpixelOptions baseline_options = options_.organizer.superpixels;
+    // Settings are given at 320x240; SuperpixelOptions are at 640x480, scaled by area.
+    baseline_options.k = setting.k * 4.0;
+    baseline_options.min_size = setting.min_size * 4;
+    const SceneSegmentation superpixels = ComputeSuperpixels(working, baseline_options);
+    setting.score.Add(ScoreObjects(ToOriginal(superpixels.labels, image.bgr.size()), objects,
+                                   gt_classes, table_, options_.min_object_fraction),
+                      table_);
+  }
+  if (!gt_classes.empty() && !table_.empty()) {
+    TallyTrueRegions(*organizer_, working, image, table_, options_.organizer,
+                     options_.min_object_fraction, &background_, &salient_background_);
+    pixels_.Add(segments, segmentation.classes, gt_classes, table_);
+  }
+}
+
+void SegmentRun::AddRow(const std::string& id, int segments, double ms, int objects,
+                        double iou_sum) {
+  char numbers[64];
+  std::snprintf(numbers, sizeof(numbers), ",%d,%.1f,", segments, ms);
+  per_image_ += id + numbers;
+  if (objects >= 0) per_image_ += std::to_string(objects);
+  per_image_ += ",";
+  if (objects > 0) {
+    std::snprintf(numbers, sizeof(numbers), "%.2f", 100.0 * iou_sum / objects);
+    per_image_ += numbers;
+  }
+  per_image_ += "\n";
+}
+
+nlohmann::json SegmentRun::Score() const {
+  const double images = static_cast<double>(ids_.size());
+  nlohmann::json report;
+  report["dataset"] = dataset_;
+  report["split"] = options_.split;
+  report["images"] = static_cast<int>(ids_.size());
+  report["scored_images"] = scored_images_;
+  report["mean_segments_per_image"] =
+      ids_.empty() ? 0.0 : static_cast<double>(segments_total_) / images;
+  report["min_object_fraction"] = options_.min_object_fraction;
+  report["options"] =
+      OptionsJson(options_.organizer, organizer_->model().classifier.structured_names());
+  report["options"]["oracle_classes"] = options_.oracle_classes;
+  report["options"]["oracle_grouping"] = options_.oracle_grouping;
+  for (const auto& [stage, ms] : stage_ms_) {
+    report["mean_ms"][stage] = ids_.empty() ? 0.0 : ms / images;
+  }
+  if (scored_images_ == 0) {
+    report["note"] = "no ground truth (objects/) in the dataset: nothing scored";
+    return report;
+  }
+  report["perceptual_organization"] = po_score_.ToJson();
+  if (!grid_.empty()) {
+    const GridSetting* best = &grid_[0];
+    nlohmann::json settings = nlohmann::json::array();
+    for (const GridSetting& setting : grid_) {
+      settings.push_back({{"k_320x240", setting.k},
+                          {"min_size_320x240", setting.min_size},
+                          {"mean_iou", setting.score.Mean()}});
+      if (setting.score.Mean() > best->score.Mean()) best = &setting;
+    }
+    report["superpixels"]["grid"] = settings;
+    report["superpixels"]["best"] = best->score.ToJson();
+    report["superpixels"]["best"]["k_320x240"] = best->k;
+    report["superpixels"]["best"]["min_size_320x240"] = best->min_size;
+  }
+  if (background_.total > 0) {
+    report["background"]["ground_truth_regions"] = background_.ToJson();
+    report["background"]["salient_ground_truth_regions"] = salient_background_.ToJson();
+    report["background"]["salient_ground_truth_regions"]["min_region_fraction"] =
+        options_.min_object_fraction;
+    report["background"]["output_pixels"] = pixels_.ToJson();
+  }
+  return report;
+}
+
+bool SegmentRun::WriteOutputs(const nlohmann::json& scores, std::string* error) const {
+  nlohmann::json report = scores;
+  report["seconds"] = total_timer_.ElapsedMs() / 1000.0;
+  const std::string& out = options_.out;
   std::ofstream file(out + "/segmentation.json");
   file << report.dump(2) << "\n";
   std::ofstream rows(out + "/per_image.csv");
-  rows << per_image;
+  rows << per_image_;
   if (!file || !rows) {
-    std::fprintf(stderr,
-                 "placerec-eval segment: cannot write %s/segmentation.json or per_image.csv\n",
-                 out.c_str());
-    return 1;
+    *error = "cannot write " + out + "/segmentation.json or per_image.csv";
+    return false;
   }
-  if (scored_images > 0) {
-    char learned[64];
-    std::snprintf(learned, sizeof(learned), "learned merging (threshold %g)",
-                  options.merge.threshold);
-    const std::string method =
-        oracle_grouping         ? "superpixels grouped by the ground truth (oracle)"
-        : oracle_classes        ? "seed's Perceptual Organization on ground-truth classes (oracle)"
-        : options.learned_merge ? std::string(learned)
-                                : "seed's Perceptual Organization";
+  if (scored_images_ > 0) {
+    std::string method = "seed's Perceptual Organization";
+    if (options_.oracle_grouping) {
+      method = "superpixels grouped by the ground truth (oracle)";
+    } else if (options_.oracle_classes) {
+      method = "seed's Perceptual Organization on ground-truth classes (oracle)";
+    } else if (options_.organizer.learned_merge) {
+      char learned[64];
+      std::snprintf(learned, sizeof(learned), "learned merging (threshold %g)",
+                    options_.organizer.merge.threshold);
+      method = learned;
+    }
     const Status chart = WriteSegmentSummaryChart(report, method, out + "/summary.png");
     if (!chart.ok()) {
-      std::fprintf(stderr, "placerec-eval segment: %s\n", chart.ToString().c_str());
-      return 1;
+      *error = chart.ToString();
+      return false;
     }
   }
-  std::printf("%s: %zu images, %.1f segments per image, %.1f ms per image\n", split.c_str(),
-              ids->size(), report["mean_segments_per_image"].get<double>(),
+  PrintSummary(report);
+  return true;
+}
+
+void SegmentRun::PrintSummary(const nlohmann::json& report) const {
+  std::printf("%s: %zu images, %.1f segments per image, %.1f ms per image\n",
+              options_.split.c_str(), ids_.size(), report["mean_segments_per_image"].get<double>(),
               report["mean_ms"].value("total", 0.0));
-  if (scored_images > 0) {
+  if (scored_images_ > 0) {
     auto line = [](const char* name, const nlohmann::json& j) {
       const nlohmann::json& classes = j["classes"];
       auto of = [&classes](const char* c) {
@@ -664,7 +742,56 @@ int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
     }
   }
   std::printf("  wrote %s/segments, classes, overlays, segmentation.json, per_image.csv%s\n",
-              out.c_str(), scored_images > 0 ? ", summary.png" : "");
+              options_.out.c_str(), scored_images_ > 0 ? ", summary.png" : "");
+}
+
+}  // namespace
+
+bool SegmentCommandOptions::Check(std::string* error) const {
+  if (!organizer.Check(error)) return false;
+  std::vector<double> ks;
+  std::vector<double> mins;
+  if (baseline && !ParseGrid(*this, &ks, &mins)) {
+    *error = "--grid-k and --grid-min take numbers a,b,c";
+    return false;
+  }
+  if (dataset.empty() || out.empty() || split.empty()) {
+    *error = "--dataset, --out and --split must not be empty";
+    return false;
+  }
+  if (overlays < 0) {
+    *error = "--overlays must be at least 0, got " + std::to_string(overlays);
+    return false;
+  }
+  if (max_images < 0) {
+    *error = "--max-images must be at least 0 (0: all), got " + std::to_string(max_images);
+    return false;
+  }
+  if (!(min_object_fraction >= 0.0 && min_object_fraction < 1.0)) {
+    *error = "--min-object-fraction must be in [0, 1), got " + std::to_string(min_object_fraction);
+    return false;
+  }
+  return true;
+}
+
+int SegmentCommand(int argc, char** argv, const std::string& default_data_dir) {
+  SegmentCommandOptions options;
+  FlagParser parser(kSegmentUsage);
+  AddSegmentCommandFlags(&parser, &options);
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-eval segment")) {
+    return *exit;
+  }
+  std::string error;
+  if (!options.Check(&error)) {
+    std::fprintf(stderr, "placerec-eval segment: %s\n", error.c_str());
+    return 2;
+  }
+  SegmentRun run(options, default_data_dir);
+  if (!run.ReadInputs(&error) || !run.SegmentImages(&error) ||
+      !run.WriteOutputs(run.Score(), &error)) {
+    std::fprintf(stderr, "placerec-eval segment: %s\n", error.c_str());
+    return 1;
+  }
   return 0;
 }
 

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
+#include "common/organization/scene_organizer.h"
 #include "common/training/labelled_dataset.h"
 
 namespace placerec {
@@ -54,7 +55,42 @@ class ObjectScoreSummary {
   std::map<std::string, Sum> groups_;
 };
 
-// `placerec-eval segment ...`; argv[1] is "segment". Returns the process exit code.
+// The options of `placerec-eval segment`, one field per flag; the in-class defaults are the
+// flags' defaults.
+struct SegmentCommandOptions {
+  // Dataset directory (layout of shared/data/README.md), or its name under the default data
+  // directory (PLACEREC_DATA / ../shared/data); the images listed in <dataset>/<split>.txt.
+  std::string dataset;
+  std::string split = "test";
+  std::string out;  // output directory (created if missing)
+  // The segmentation: superpixels, background classes, learned merging, Perceptual
+  // Organization (seed Ch. 3).
+  SceneOrganizerOptions organizer = SceneOrganizerOptions::ForSegmentation();
+  int overlays = 12;   // overlay pictures to draw, evenly spread over the split
+  int max_images = 0;  // segment only the first N images of the split (0: all)
+  // Ground-truth objects smaller than this fraction of the image are not scored (seed §6.1.3:
+  // 0.5 %).
+  double min_object_fraction = 0.005;
+  // The superpixel baseline (when `baseline`): every pair of FH k and minimum size (pixels),
+  // both at 320x240, comma-separated; the best pair's score is reported.
+  bool baseline = true;
+  std::string grid_k = "125,250,500,1000";
+  std::string grid_min = "50,150,300";
+  bool quiet = false;    // no progress line
+  bool verbose = false;  // one line per image: parts per round, segments, IoU
+  // Diagnosis only: superpixels take the background class of their ground-truth majority
+  // class (oracle_classes), or the initial partition's regions are grouped by their majority
+  // ground-truth object (oracle_grouping).
+  bool oracle_classes = false;
+  bool oracle_grouping = false;
+
+  // Organizer options valid, grid lists numbers (with the baseline), dataset/out/split not
+  // empty, overlays and max_images >= 0, min_object_fraction in [0, 1).
+  bool Check(std::string* error) const;
+};
+
+// `placerec-eval segment ...`; argv[1] is "segment". Returns the process exit code: 0, 2 for
+// bad flags (SegmentCommandOptions::Check), 1 when reading, segmenting or writing fails.
 int SegmentCommand(int argc, char** argv, const std::string& default_data_dir);
 
 }  // namespace placerec

@@ -146,6 +146,13 @@ std::vector<int> RegionAreas(const cv::Mat& regions, int n) {
 
 namespace {
 
+// Sets *error to "<field> must not be empty" when `value` is.
+bool CheckNotEmpty(const char* field, const std::string& value, std::string* error) {
+  if (!value.empty()) return true;
+  *error = std::string(field) + " must not be empty";
+  return false;
+}
+
 // Ground-truth object ids as compact region ids 0..n-1 (pixels without an object: -1).
 cv::Mat ObjectRegions(const cv::Mat& objects, int* n) {
   cv::Mat regions(objects.size(), CV_32S);
@@ -513,6 +520,46 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
 }
 
 }  // namespace
+
+bool BackgroundTrainingConfig::Check(std::string* error) const {
+  if (!CheckNotEmpty("dataset", dataset, error) || !CheckNotEmpty("split", split, error) ||
+      !CheckNotEmpty("out", out, error)) {
+    return false;
+  }
+  if (pixels_per_image < 1) {
+    *error = "pixels_per_image must be at least 1, got " + std::to_string(pixels_per_image);
+    return false;
+  }
+  if (!(min_labelled_fraction >= 0.0 && min_labelled_fraction <= 1.0)) {
+    *error =
+        "min_labelled_fraction must be in [0, 1], got " + std::to_string(min_labelled_fraction);
+    return false;
+  }
+  if (min_region_pixels < 1) {
+    *error = "min_region_pixels must be at least 1, got " + std::to_string(min_region_pixels);
+    return false;
+  }
+  if (holdout < 0) {
+    *error = "holdout must be at least 0, got " + std::to_string(holdout);
+    return false;
+  }
+  if (check_images < 0) {
+    *error = "check_images must be at least 0, got " + std::to_string(check_images);
+    return false;
+  }
+  if (!std::isfinite(area_weight_power)) {
+    *error = "area_weight_power must be finite";
+    return false;
+  }
+  for (const std::string& name : structured_classes) {
+    if (name.empty()) {
+      *error = "structured_classes must not hold an empty name";
+      return false;
+    }
+  }
+  return leave_out_fold.Check(error) && textons.Check(error) && boost.Check(error) &&
+         organizer.Check(error);
+}
 
 StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& config) {
   namespace fs = std::filesystem;

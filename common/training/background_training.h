@@ -107,6 +107,13 @@ struct BackgroundTrainingConfig {
   // The invocation (CommandLine of util/options.h), recorded in the manifest so the models
   // can be retrained with exactly these options; empty when not run from the command line.
   std::string command_line;
+
+  // Non-empty dataset, split and out; pixels_per_image, min_region_pixels >= 1; holdout,
+  // check_images >= 0; min_labelled_fraction in [0, 1]; a finite area_weight_power; no empty
+  // structured class name; a valid fold; and the textons', boosting's and organizer's Check.
+  // What needs the dataset (the holdout leaving images, the classes existing) is checked by
+  // TrainBackgroundModels.
+  bool Check(std::string* error) const;
 };
 
 // Runs the whole training and writes OUT/textons.yml, OUT/background*.yml*,

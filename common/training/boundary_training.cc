@@ -19,6 +19,13 @@
 namespace placerec {
 namespace {
 
+// Sets *error to "<field> must not be empty" when `value` is.
+bool CheckNotEmpty(const char* field, const std::string& value, std::string* error) {
+  if (!value.empty()) return true;
+  *error = std::string(field) + " must not be empty";
+  return false;
+}
+
 struct PixelSample {
   cv::Mat features;  // rows of kBoundaryFeatures
   std::vector<int> labels;
@@ -120,6 +127,29 @@ nlohmann::json Accuracy(const BoundaryModel& model, const PixelSample& sample) {
 }
 
 }  // namespace
+
+bool BoundaryTrainingConfig::Check(std::string* error) const {
+  if (!CheckNotEmpty("dataset", dataset, error) || !CheckNotEmpty("split", split, error) ||
+      !CheckNotEmpty("out", out, error)) {
+    return false;
+  }
+  if (holdout < 0) {
+    *error = "holdout must be at least 0, got " + std::to_string(holdout);
+    return false;
+  }
+  if (samples_per_image < 1) {
+    *error = "samples_per_image must be at least 1, got " + std::to_string(samples_per_image);
+    return false;
+  }
+  if (!(positive_distance >= 0.0 && negative_distance > positive_distance)) {
+    *error =
+        "positive_distance and negative_distance must satisfy 0 <= positive_distance < "
+        "negative_distance, got " +
+        std::to_string(positive_distance) + " and " + std::to_string(negative_distance);
+    return false;
+  }
+  return leave_out_fold.Check(error) && boost.Check(error) && organizer.Check(error);
+}
 
 StatusOr<nlohmann::json> TrainBoundaryModel(const BoundaryTrainingConfig& config) {
   std::string error;

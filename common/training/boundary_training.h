@@ -42,6 +42,10 @@ struct BoundaryTrainingConfig {
   uint64_t seed = 2009;
   bool progress = true;
   std::string command_line;  // recorded in the manifest
+
+  // Non-empty dataset, split and out; samples_per_image >= 1; holdout >= 0; a valid fold;
+  // 0 <= positive_distance < negative_distance; and the boosting's and organizer's Check.
+  bool Check(std::string* error) const;
 };
 
 // Trains and writes OUT/boundary.yml.gz and OUT/boundary.json (the manifest); returns the

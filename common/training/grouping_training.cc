@@ -18,6 +18,13 @@
 namespace placerec {
 namespace {
 
+// Sets *error to "<field> must not be empty" when `value` is.
+bool CheckNotEmpty(const char* field, const std::string& value, std::string* error) {
+  if (!value.empty()) return true;
+  *error = std::string(field) + " must not be empty";
+  return false;
+}
+
 // Ground-truth object votes of a region and their majority.
 struct Votes {
   std::map<int, int> counts;  // object id (0: none) -> pixels
@@ -176,6 +183,52 @@ Status CheckCrossFitManifest(const std::string& path, const Fold& fold,
 }
 
 }  // namespace
+
+bool GroupingTrainingConfig::Check(std::string* error) const {
+  if (!CheckNotEmpty("dataset", dataset, error) || !CheckNotEmpty("split", split, error) ||
+      !CheckNotEmpty("out", out, error)) {
+    return false;
+  }
+  if (holdout < 0) {
+    *error = "holdout must be at least 0, got " + std::to_string(holdout);
+    return false;
+  }
+  if (levels < 0) {
+    *error = "levels must be at least 0, got " + std::to_string(levels);
+    return false;
+  }
+  if (!(level_fraction > 0.0 && level_fraction <= 1.0)) {
+    *error = "level_fraction must be in (0, 1], got " + std::to_string(level_fraction);
+    return false;
+  }
+  if (!(min_purity > 0.0 && min_purity <= 1.0)) {
+    *error = "min_purity must be in (0, 1], got " + std::to_string(min_purity);
+    return false;
+  }
+  if (!std::isfinite(policy_threshold)) {
+    *error = "policy_threshold must be finite";
+    return false;
+  }
+  if (max_pairs < 0) {
+    *error = "max_pairs must be at least 0 (0: all), got " + std::to_string(max_pairs);
+    return false;
+  }
+  if (features < 1 || features > kMergeFeatures) {
+    *error = "features must be in 1.." + std::to_string(kMergeFeatures) + ", got " +
+             std::to_string(features);
+    return false;
+  }
+  if (cross_fit.size() == 1) {
+    *error = "cross_fit needs at least two models directories";
+    return false;
+  }
+  for (const std::string& dir : cross_fit) {
+    if (!CheckNotEmpty("a cross_fit directory", dir, error)) return false;
+  }
+  SceneOrganizerOptions organizer_options = organizer;
+  organizer_options.learned_merge = false;
+  return boost.Check(error) && organizer_options.Check(error);
+}
 
 StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config) {
   std::string error;

@@ -59,6 +59,12 @@ struct GroupingTrainingConfig {
   // The invocation (CommandLine of util/options.h), recorded in the manifest; empty when not
   // run from the command line.
   std::string command_line;
+
+  // Non-empty dataset, split and out; holdout, levels, max_pairs >= 0; level_fraction and
+  // min_purity in (0, 1]; a finite policy_threshold; features in 1..kMergeFeatures; cross_fit
+  // empty or at least two non-empty directories; and the boosting's and organizer's Check (the
+  // organizer without the learned merging, which training does not use).
+  bool Check(std::string* error) const;
 };
 
 // Trains and writes OUT/grouping.yml.gz and OUT/grouping.json (the manifest); returns the

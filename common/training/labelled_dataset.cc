@@ -108,6 +108,13 @@ std::string Fold::ToString() const {
   return empty() ? std::string() : std::to_string(index) + "/" + std::to_string(count);
 }
 
+bool Fold::Check(std::string* error) const {
+  if (empty() || (count >= 2 && index >= 0 && index < count)) return true;
+  *error = "leave_out_fold must be empty or I/K with 0 <= I < K and K >= 2, got index " +
+           std::to_string(index) + " of " + std::to_string(count);
+  return false;
+}
+
 StatusOr<Fold> ParseFold(const std::string& text) {
   Fold fold;
   if (text.empty()) return fold;

@@ -57,6 +57,8 @@ struct Fold {
 
   bool empty() const { return count == 0; }
   std::string ToString() const;  // "I/K", or "" when empty
+  // Empty, or 0 <= index < count with count >= 2 (what ParseFold accepts).
+  bool Check(std::string* error) const;
 };
 
 // Parses "I/K" with 0 <= I < K and K >= 2; "" gives an empty fold.
