@@ -157,6 +157,24 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
       searched_objects.push_back(-1);
     }
   }
+  if (recent.duplicate && state->last_map_places == map_->Counts().places) {
+    // Nothing new in the frame and nothing new in the map: the same answer, at any frame rate.
+    result.duplicate = true;
+    result.repeated_answer = true;
+    result.landmarks = static_cast<int>(selection.landmarks.size());  // seen, not stored
+    result.matches = state->last_matches;
+    for (PlaceMatch& match : result.matches) {
+      match.object_pairs.clear();
+      match.landmark_boxes.clear();
+      match.point_pairs.clear();
+      match.point_landmarks.clear();
+    }
+    result.loop_closure =
+        !result.matches.empty() && result.matches.front().score >= options_.loop.min_score;
+    state->last_sequence = request.sequence;
+    result.map = map_->Counts();
+    return result;
+  }
   MapLookupResult found = map_->Lookup(lookup, options_.loop);
   VLOG(1) << request.robot << " #" << request.sequence << ": " << lookup.objects.size()
           << " query objects, " << found.stats.candidates << " candidates, "
@@ -270,6 +288,8 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   // The landmark history holds the robot's distinct frames: copies of a view would make every
   // object "widely visible" at a high frame rate.
   if (!result.duplicate) state->selector.Remember(object_descriptors);
+  state->last_matches = result.matches;
+  state->last_map_places = map_->Counts().places;
   state->last_sequence = request.sequence;
   result.timings.emplace_back("insert", timer.ElapsedMs());
   result.map = map_->Counts();

@@ -71,9 +71,11 @@ struct RecognitionResult {
   int landmarks = 0;           // this frame's landmarks (0 for query-only frames)
   int stored_descriptors = 0;  // descriptors this frame added to the map
   PlaceId place;               // the place inserted for this frame, if any
-  // The frame showed nothing new since the robot's last stored place (recent_past.h): its
-  // landmarks were not stored.
+  // The frame showed nothing new since the robot's last distinct frame (recent_past.h): its
+  // landmarks were not stored. When the map has not changed since that frame, its answer is
+  // given again (matches without the per-object pairs and points, which belong to that frame).
   bool duplicate = false;
+  bool repeated_answer = false;
   MapCounts map;             // map size after this frame
   double image_scale = 1.0;  // processed / original frame size (max_image_width)
   StageTimings timings;      // milliseconds
@@ -108,6 +110,10 @@ class Recognizer {
     LandmarkSelector selector;
     RecentPast recent_past;
     int64_t last_sequence = INT64_MIN;
+    // The answer to the robot's last distinct frame and the map's place count after it: a
+    // frame that shows nothing new while the map is unchanged gets that answer again.
+    std::vector<PlaceMatch> last_matches;
+    int64_t last_map_places = -1;
   };
   RobotState* StateOf(const std::string& robot);
 
