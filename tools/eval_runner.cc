@@ -64,39 +64,57 @@ nlohmann::json OptionsJson(const RecognizerOptions& o) {
   return j;
 }
 
-}  // namespace
-
-StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& options,
-                                 const EvalOptions& eval) {
-  std::string error;
-  if (!options.Check(&error)) return Status::InvalidArgument(error);
-  if (!eval.out_dir.empty() && !MakeDirectories(eval.out_dir)) {
-    return Status::IoError("cannot create output directory " + eval.out_dir);
-  }
-  SqliteStoreOptions store_options;
-  StatusOr<std::unique_ptr<LandmarkStore>> store =
-      OpenSqliteStore(eval.db_path.empty() ? ":memory:" : eval.db_path, store_options);
-  if (!store.ok()) return store.status();
-  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
-  if (!map.ok()) return map.status();
-  StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.analyzer);
-  if (!segmenter.ok()) return segmenter.status();
-  Recognizer recognizer(options, map->get(), std::move(*segmenter));
-
-  const int frames = eval.max_frames > 0 ? std::min<int>(eval.max_frames, run.frames.size())
-                                         : static_cast<int>(run.frames.size());
-  EvalReport report;
-  std::vector<FrameRecord> records(frames);
+// What feeding the frames gathers, beyond the answers.
+struct FeedTotals {
+  std::vector<FrameRecord> records;
   std::map<std::string, std::vector<double>> stage_ms;
   std::vector<double> total_ms;
-  std::vector<double> frame_scale(frames, 1.0);
+  std::vector<double> frame_scale;
   int64_t extracted = 0;
   int64_t stored = 0;
   int64_t objects = 0;
   int64_t landmarks = 0;
   int loop_closures = 0;
+};
+
+// Precision and recall at the decision threshold.
+struct DecisionCounts {
+  int tp = 0;
+  int fp = 0;
+  int fp_same_robot = 0;  // wrong loop closures to the robot's own frames
+};
+
+// The map the run builds (SQLite, in memory unless `eval.db_path` names a file).
+StatusOr<std::unique_ptr<PlaceMap>> OpenMap(const RecognizerOptions& options,
+                                            const EvalOptions& eval) {
+  SqliteStoreOptions store_options;
+  StatusOr<std::unique_ptr<LandmarkStore>> store =
+      OpenSqliteStore(eval.db_path.empty() ? ":memory:" : eval.db_path, store_options);
+  if (!store.ok()) return store.status();
+  return PlaceMap::Open(std::move(*store), options.index);
+}
+
+// One stdout line for a loop closure found at `frame`.
+void PrintLoopClosure(const Run& run, const RunFrame& frame, const RecognitionResult& result,
+                      const Answer& answer, const EvalOptions& eval, ProgressLine* progress) {
+  const PlaceMatch& best = result.matches.front();
+  const bool correct = run.IsPositive(frame.frame, answer.reference);
+  if (eval.progress) progress->Clear();
+  std::printf(
+      "loop closure: frame %d (%s) revisits frame %lld (%s), score %.0f, %d "
+      "landmarks matched%s\n",
+      frame.frame, frame.robot.c_str(), static_cast<long long>(best.place.sequence),
+      best.place.robot.c_str(), best.score, best.matched_landmarks,
+      run.is_revisit[frame.frame] ? (correct ? "  [correct]" : "  [wrong place]")
+                                  : "  [not a revisit]");
+  std::fflush(stdout);
+}
+
+// Feeds the first `frames` frames of `run` through `recognizer`, appending one answer per frame
+// to `report` and the counts and timings to `totals`.
+Status FeedFrames(const Run& run, const EvalOptions& eval, int frames, const Timer& run_timer,
+                  Recognizer& recognizer, EvalReport* report, FeedTotals* totals) {
   FrameObservation last_observation;
-  Timer run_timer;
   ProgressLine progress(static_cast<size_t>(frames), static_cast<size_t>(frames / 10));
 
   for (int f = 0; f < frames; ++f) {
@@ -119,13 +137,13 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
       return Status(result.status.code(),
                     "frame " + std::to_string(f) + ": " + result.status.message());
     }
-    total_ms.push_back(frame_timer.ElapsedMs());
-    stage_ms["decode"].push_back(decode_ms);
-    for (const auto& [stage, ms] : result.timings) stage_ms[stage].push_back(ms);
-    extracted += result.keypoints;
-    stored += result.stored_descriptors;
-    objects += result.objects;
-    landmarks += result.landmarks;
+    totals->total_ms.push_back(frame_timer.ElapsedMs());
+    totals->stage_ms["decode"].push_back(decode_ms);
+    for (const auto& [stage, ms] : result.timings) totals->stage_ms[stage].push_back(ms);
+    totals->extracted += result.keypoints;
+    totals->stored += result.stored_descriptors;
+    totals->objects += result.objects;
+    totals->landmarks += result.landmarks;
 
     Answer answer;
     answer.frame = frame.frame;
@@ -133,26 +151,14 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
       const PlaceMatch& best = result.matches.front();
       answer.reference = static_cast<int>(best.place.sequence);
       answer.score = best.score;
-      records[f].has_match = true;
-      records[f].best = best;
+      totals->records[f].has_match = true;
+      totals->records[f].best = best;
     }
-    frame_scale[f] = result.image_scale;
-    report.answers.push_back(answer);
+    totals->frame_scale[f] = result.image_scale;
+    report->answers.push_back(answer);
     if (result.loop_closure) {
-      ++loop_closures;
-      if (eval.print_loop_closures) {
-        const PlaceMatch& best = result.matches.front();
-        const bool correct = run.IsPositive(frame.frame, answer.reference);
-        if (eval.progress) progress.Clear();
-        std::printf(
-            "loop closure: frame %d (%s) revisits frame %lld (%s), score %.0f, %d "
-            "landmarks matched%s\n",
-            frame.frame, frame.robot.c_str(), static_cast<long long>(best.place.sequence),
-            best.place.robot.c_str(), best.score, best.matched_landmarks,
-            run.is_revisit[frame.frame] ? (correct ? "  [correct]" : "  [wrong place]")
-                                        : "  [not a revisit]");
-        std::fflush(stdout);
-      }
+      ++totals->loop_closures;
+      if (eval.print_loop_closures) PrintLoopClosure(run, frame, result, answer, eval, &progress);
     }
     if (eval.progress) {
       const double elapsed = run_timer.ElapsedMs() / 1000.0;
@@ -162,104 +168,167 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
                       "eta %4.0fs",
                       f + 1, frames, 100.0 * (f + 1) / frames, frame.robot.c_str(),
                       result.keypoints, result.objects, result.landmarks,
-                      static_cast<long long>(result.map.landmarks), loop_closures, eta);
+                      static_cast<long long>(result.map.landmarks), totals->loop_closures, eta);
     }
   }
+  return Status::Ok();
+}
 
-  const Run scored = FirstFrames(run, frames);  // score only the frames that ran
-  StatusOr<RunScore> score = ScoreAnswers(scored, report.answers);
-  if (!score.ok()) return score.status();
-  report.score = *score;
-
-  // Precision and recall at the decision threshold.
-  int tp = 0;
-  int fp = 0;
-  int fp_same_robot = 0;  // wrong loop closures to the robot's own frames
-  for (const Answer& a : report.answers) {
-    if (a.reference < 0 || a.score < options.loop.min_score) continue;
+DecisionCounts CountDecisions(const Run& run, const Run& scored, const std::vector<Answer>& answers,
+                              double min_score) {
+  DecisionCounts counts;
+  for (const Answer& a : answers) {
+    if (a.reference < 0 || a.score < min_score) continue;
     if (scored.IsPositive(a.frame, a.reference)) {
-      ++tp;
+      ++counts.tp;
     } else {
-      ++fp;
-      if (run.frames[a.frame].robot == run.frames[a.reference].robot) ++fp_same_robot;
+      ++counts.fp;
+      if (run.frames[a.frame].robot == run.frames[a.reference].robot) ++counts.fp_same_robot;
     }
   }
+  return counts;
+}
 
-  nlohmann::json& s = report.summary;
-  s = ScoreSummary(run, frames, report.score);
-  s["loop_closures"] = loop_closures;
-  s["decision"] = DecisionSummary(tp, fp, report.score.revisit_frames);
+// Median and 90th percentile of each stage's time and of the whole frame.
+nlohmann::json TimingJson(const FeedTotals& totals) {
+  nlohmann::json timing;
+  for (const auto& [stage, values] : totals.stage_ms) {
+    timing[stage] = {{"median_ms", Median(values)}, {"p90_ms", Percentile(values, 90)}};
+  }
+  timing["frame_total"] = {{"median_ms", Median(totals.total_ms)},
+                           {"p90_ms", Percentile(totals.total_ms, 90)}};
+  return timing;
+}
+
+// What summary.json holds. `run_timer` is read here, for "wall_seconds".
+nlohmann::json SummaryJson(const Run& run, int frames, const RecognizerOptions& options,
+                           const EvalReport& report, const DecisionCounts& decisions,
+                           const FeedTotals& totals, const PlaceMap& map,
+                           const Recognizer& recognizer, const Timer& run_timer) {
+  nlohmann::json s = ScoreSummary(run, frames, report.score);
+  s["loop_closures"] = totals.loop_closures;
+  s["decision"] = DecisionSummary(decisions.tp, decisions.fp, report.score.revisit_frames);
   s["decision"]["min_score"] = options.loop.min_score;
-  s["decision"]["false_loop_closures_same_robot"] = fp_same_robot;
-  s["descriptors_extracted"] = extracted;
-  s["descriptors_stored"] = stored;
-  s["stored_over_extracted"] = extracted > 0 ? static_cast<double>(stored) / extracted : 0.0;
-  s["objects"] = objects;
-  s["landmarks"] = landmarks;
-  const MapCounts counts = (*map)->Counts();
+  s["decision"]["false_loop_closures_same_robot"] = decisions.fp_same_robot;
+  s["descriptors_extracted"] = totals.extracted;
+  s["descriptors_stored"] = totals.stored;
+  s["stored_over_extracted"] =
+      totals.extracted > 0 ? static_cast<double>(totals.stored) / totals.extracted : 0.0;
+  s["objects"] = totals.objects;
+  s["landmarks"] = totals.landmarks;
+  const MapCounts counts = map.Counts();
   s["map"] = {{"places", counts.places},
               {"landmarks", counts.landmarks},
               {"descriptors", counts.descriptors}};
-  nlohmann::json timing;
-  for (const auto& [stage, values] : stage_ms) {
-    timing[stage] = {{"median_ms", Median(values)}, {"p90_ms", Percentile(values, 90)}};
-  }
-  timing["frame_total"] = {{"median_ms", Median(total_ms)}, {"p90_ms", Percentile(total_ms, 90)}};
-  s["time"] = timing;
+  s["time"] = TimingJson(totals);
   s["wall_seconds"] = run_timer.ElapsedMs() / 1000.0;
   s["segmentation"] = recognizer.segmenter().name();
   s["options"] = OptionsJson(options);
+  return s;
+}
 
-  if (eval.out_dir.empty()) return report;
-
-  PLACEREC_RETURN_IF_ERROR(WriteAnswers(eval.out_dir + "/answers.csv", report.answers));
+// answers.csv, summary.json and pr_curve.png in `out_dir`.
+Status WriteOutputs(const Run& run, const std::string& out_dir, const EvalReport& report) {
+  PLACEREC_RETURN_IF_ERROR(WriteAnswers(out_dir + "/answers.csv", report.answers));
   {
-    std::ofstream out(eval.out_dir + "/summary.json");
-    if (!out) return Status::IoError("cannot write " + eval.out_dir + "/summary.json");
-    out << s.dump(2) << "\n";
+    std::ofstream out(out_dir + "/summary.json");
+    if (!out) return Status::IoError("cannot write " + out_dir + "/summary.json");
+    out << report.summary.dump(2) << "\n";
   }
   PrCurve curve;
   curve.label = "placerec (R@100P " + Fixed(report.score.recall_at_100_precision, 2) + ", max F1 " +
                 Fixed(report.score.max_f1, 2) + ")";
   curve.score = report.score;
-  PLACEREC_RETURN_IF_ERROR(
-      WritePrCurvePng(eval.out_dir + "/pr_curve.png", run.name + ": precision-recall", {curve}));
+  return WritePrCurvePng(out_dir + "/pr_curve.png", run.name + ": precision-recall", {curve});
+}
 
-  // Match pictures: the strongest correct answers and the strongest wrong ones.
+// Which frames get a match picture: the strongest correct answers, then the strongest wrong
+// ones (a third of `pictures` at most); each with whether it is correct.
+std::vector<std::pair<int, bool>> ChoosePictures(const Run& scored, int frames,
+                                                 const EvalReport& report, const FeedTotals& totals,
+                                                 int pictures) {
+  std::vector<int> correct;
+  std::vector<int> wrong;
+  for (int f = 0; f < frames; ++f) {
+    if (!totals.records[f].has_match) continue;
+    (scored.IsPositive(f, report.answers[f].reference) ? correct : wrong).push_back(f);
+  }
+  auto by_score = [&](int a, int b) { return report.answers[a].score > report.answers[b].score; };
+  std::sort(correct.begin(), correct.end(), by_score);
+  std::sort(wrong.begin(), wrong.end(), by_score);
+  const int n_wrong = std::min<int>(wrong.size(), pictures / 3);
+  const int n_correct = std::min<int>(correct.size(), pictures - n_wrong);
+  std::vector<std::pair<int, bool>> chosen;
+  for (int i = 0; i < n_correct; ++i) chosen.emplace_back(correct[i], true);
+  for (int i = 0; i < n_wrong; ++i) chosen.emplace_back(wrong[i], false);
+  return chosen;
+}
+
+// Match pictures in `out_dir`/matches: the strongest correct answers and the strongest wrong ones.
+Status WriteMatchPictures(const Run& run, const Run& scored, int frames, const EvalOptions& eval,
+                          const EvalReport& report, const FeedTotals& totals,
+                          Recognizer& recognizer) {
+  const std::string dir = eval.out_dir + "/matches";
+  if (!MakeDirectories(dir)) return Status::IoError("cannot create " + dir);
+  for (const auto& [f, is_correct] :
+       ChoosePictures(scored, frames, report, totals, eval.pictures)) {
+    const int reference = report.answers[f].reference;
+    StatusOr<cv::Mat> query = ReadImageFile(run.frames[f].image);
+    StatusOr<cv::Mat> ref = ReadImageFile(run.frames[reference].image);
+    if (!query.ok() || !ref.ok()) continue;
+    const FrameObservation observation = recognizer.Analyze(*query);
+    const std::string caption =
+        "frame " + std::to_string(f) + " (" + run.frames[f].robot + ") -> frame " +
+        std::to_string(reference) + " (" + run.frames[reference].robot + ")  score " +
+        Fixed(report.answers[f].score, 0) + "  " + (is_correct ? "correct" : "WRONG");
+    const cv::Mat picture = DrawMatchPicture(
+        *query, observation, *ref, totals.frame_scale[reference], totals.records[f].best, caption);
+    char name[64];
+    std::snprintf(name, sizeof(name), "/%s_%03d_to_%03d.jpg", is_correct ? "correct" : "wrong", f,
+                  reference);
+    cv::imwrite(dir + name, picture);
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& options,
+                                 const EvalOptions& eval) {
+  std::string error;
+  if (!options.Check(&error)) return Status::InvalidArgument(error);
+  if (!eval.out_dir.empty() && !MakeDirectories(eval.out_dir)) {
+    return Status::IoError("cannot create output directory " + eval.out_dir);
+  }
+  StatusOr<std::unique_ptr<PlaceMap>> map = OpenMap(options, eval);
+  if (!map.ok()) return map.status();
+  StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.analyzer);
+  if (!segmenter.ok()) return segmenter.status();
+  Recognizer recognizer(options, map->get(), std::move(*segmenter));
+
+  const int frames = eval.max_frames > 0 ? std::min<int>(eval.max_frames, run.frames.size())
+                                         : static_cast<int>(run.frames.size());
+  EvalReport report;
+  FeedTotals totals;
+  totals.records.resize(frames);
+  totals.frame_scale.assign(frames, 1.0);
+  Timer run_timer;
+  PLACEREC_RETURN_IF_ERROR(FeedFrames(run, eval, frames, run_timer, recognizer, &report, &totals));
+
+  const Run scored = FirstFrames(run, frames);  // score only the frames that ran
+  StatusOr<RunScore> score = ScoreAnswers(scored, report.answers);
+  if (!score.ok()) return score.status();
+  report.score = *score;
+  const DecisionCounts decisions =
+      CountDecisions(run, scored, report.answers, options.loop.min_score);
+  report.summary =
+      SummaryJson(run, frames, options, report, decisions, totals, **map, recognizer, run_timer);
+
+  if (eval.out_dir.empty()) return report;
+  PLACEREC_RETURN_IF_ERROR(WriteOutputs(run, eval.out_dir, report));
   if (eval.pictures > 0) {
-    const std::string dir = eval.out_dir + "/matches";
-    if (!MakeDirectories(dir)) return Status::IoError("cannot create " + dir);
-    std::vector<int> correct;
-    std::vector<int> wrong;
-    for (int f = 0; f < frames; ++f) {
-      if (!records[f].has_match) continue;
-      (scored.IsPositive(f, report.answers[f].reference) ? correct : wrong).push_back(f);
-    }
-    auto by_score = [&](int a, int b) { return report.answers[a].score > report.answers[b].score; };
-    std::sort(correct.begin(), correct.end(), by_score);
-    std::sort(wrong.begin(), wrong.end(), by_score);
-    const int n_wrong = std::min<int>(wrong.size(), eval.pictures / 3);
-    const int n_correct = std::min<int>(correct.size(), eval.pictures - n_wrong);
-    std::vector<std::pair<int, bool>> chosen;
-    for (int i = 0; i < n_correct; ++i) chosen.emplace_back(correct[i], true);
-    for (int i = 0; i < n_wrong; ++i) chosen.emplace_back(wrong[i], false);
-    for (const auto& [f, is_correct] : chosen) {
-      const int reference = report.answers[f].reference;
-      StatusOr<cv::Mat> query = ReadImageFile(run.frames[f].image);
-      StatusOr<cv::Mat> ref = ReadImageFile(run.frames[reference].image);
-      if (!query.ok() || !ref.ok()) continue;
-      const FrameObservation observation = recognizer.Analyze(*query);
-      const std::string caption =
-          "frame " + std::to_string(f) + " (" + run.frames[f].robot + ") -> frame " +
-          std::to_string(reference) + " (" + run.frames[reference].robot + ")  score " +
-          Fixed(report.answers[f].score, 0) + "  " + (is_correct ? "correct" : "WRONG");
-      const cv::Mat picture = DrawMatchPicture(*query, observation, *ref, frame_scale[reference],
-                                               records[f].best, caption);
-      char name[64];
-      std::snprintf(name, sizeof(name), "/%s_%03d_to_%03d.jpg", is_correct ? "correct" : "wrong", f,
-                    reference);
-      cv::imwrite(dir + name, picture);
-    }
+    PLACEREC_RETURN_IF_ERROR(
+        WriteMatchPictures(run, scored, frames, eval, report, totals, recognizer));
   }
   return report;
 }

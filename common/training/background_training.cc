@@ -179,8 +179,8 @@ int64_t FileSize(const std::string& path) {
   return ec ? -1 : static_cast<int64_t>(size);
 }
 
-// The whole training, writing into config.out (a fresh staging directory).
-StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
+// The options TrainInto needs.
+Status CheckTrainingOptions(const BackgroundTrainingConfig& config) {
   std::string error;
   if (!config.textons.Check(&error) || !config.boost.Check(&error) ||
       !config.organizer.Check(&error)) {
@@ -189,11 +189,11 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
   if (config.pixels_per_image < 1) {
     return Status::InvalidArgument("pixels_per_image must be at least 1");
   }
-  StatusOr<ClassTable> table = ReadClassTable(config.dataset);
-  if (!table.ok()) return table.status();
-  if (table->empty()) {
-    return Status::InvalidArgument(config.dataset + " has no classes.txt: cannot label regions");
-  }
+  return Status::Ok();
+}
+
+// The training images: the split without its first `holdout` images and the left-out fold.
+StatusOr<std::vector<std::string>> TrainingIds(const BackgroundTrainingConfig& config) {
   StatusOr<std::vector<std::string>> ids = ReadSplit(config.dataset, config.split);
   if (!ids.ok()) return ids.status();
   if (config.holdout < 0 || config.holdout >= static_cast<int>(ids->size())) {
@@ -211,46 +211,68 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
     if (kept.empty()) return Status::InvalidArgument("the left-out fold leaves no image");
     *ids = std::move(kept);
   }
-  // Structured classes by name -> dataset class ids.
-  std::vector<std::string> structured_names;
-  std::map<int, int> structured_index;  // dataset class id -> structured class index
+  return ids;
+}
+
+// Structured classes by name -> dataset class ids.
+struct StructuredClasses {
+  std::vector<std::string> names;
+  std::map<int, int> index;  // dataset class id -> structured class index
+};
+
+StatusOr<StructuredClasses> FindStructuredClasses(const BackgroundTrainingConfig& config,
+                                                  const ClassTable& table) {
+  StructuredClasses structured;
   for (const std::string& wanted : config.structured_classes) {
     bool found = false;
-    for (const auto& [id, name] : table->names) {
-      if (table->IsUnlabelled(id) || IsBackground(table->BackgroundClass(id))) continue;
+    for (const auto& [id, name] : table.names) {
+      if (table.IsUnlabelled(id) || IsBackground(table.BackgroundClass(id))) continue;
       if (wanted != "all" && wanted != name) continue;
       found = true;
-      if (structured_index.count(id) > 0) continue;
-      structured_index[id] = static_cast<int>(structured_names.size());
-      structured_names.push_back(name);
+      if (structured.index.count(id) > 0) continue;
+      structured.index[id] = static_cast<int>(structured.names.size());
+      structured.names.push_back(name);
     }
     if (!found) {
       return Status::InvalidArgument("structured class '" + wanted + "' is not a labelled, " +
                                      "non-background class of " + config.dataset + "/classes.txt");
     }
   }
-  // The evaluation split is otherwise read only after the whole training: check it first.
-  if (!config.eval_split.empty() && PathExists(config.dataset + "/" + config.eval_split + ".txt")) {
-    StatusOr<std::vector<std::string>> eval_ids = ReadSplit(config.dataset, config.eval_split);
-    if (!eval_ids.ok()) return eval_ids.status();
-    for (const std::string& id : *eval_ids) {
-      const StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, id);
-      if (!image.ok()) {
-        return Status(image.status().code(), image.status().message() + " (listed in " +
-                                                 config.dataset + "/" + config.eval_split +
-                                                 ".txt, the --eval-split)");
-      }
+  return structured;
+}
+
+// Whether the evaluation split is given and present.
+bool HasEvalSplit(const BackgroundTrainingConfig& config) {
+  return !config.eval_split.empty() &&
+         PathExists(config.dataset + "/" + config.eval_split + ".txt");
+}
+
+// The evaluation split is otherwise read only after the whole training: checks that every image
+// it lists can be read.
+Status CheckEvalSplit(const BackgroundTrainingConfig& config) {
+  if (!HasEvalSplit(config)) return Status::Ok();
+  StatusOr<std::vector<std::string>> eval_ids = ReadSplit(config.dataset, config.eval_split);
+  if (!eval_ids.ok()) return eval_ids.status();
+  for (const std::string& id : *eval_ids) {
+    const StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, id);
+    if (!image.ok()) {
+      return Status(image.status().code(), image.status().message() + " (listed in " +
+                                               config.dataset + "/" + config.eval_split +
+                                               ".txt, the --eval-split)");
     }
   }
-  const int working_width = config.organizer.superpixels.working_width;
-  Timer total_timer;
+  return Status::Ok();
+}
 
-  // 1. Textons: k-means on pixels sampled from every training image.
-  Timer timer;
+// Filter-bank responses of `pixels_per_image` random pixels of every training image (image i's
+// seeded with seed + i), for the texton k-means.
+StatusOr<cv::Mat> SamplePixels(const BackgroundTrainingConfig& config,
+                               const std::vector<std::string>& ids) {
+  const int working_width = config.organizer.superpixels.working_width;
   cv::Mat pixel_samples;
-  ProgressLine sampling_progress(ids->size(), kLogProgressEvery);
-  for (size_t i = 0; i < ids->size(); ++i) {
-    StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*ids)[i]);
+  ProgressLine sampling_progress(ids.size(), kLogProgressEvery);
+  for (size_t i = 0; i < ids.size(); ++i) {
+    StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, ids[i]);
     if (!image.ok()) return image.status();
     const WorkingImage working = MakeWorkingImage(image->bgr, working_width);
     const cv::Mat features = ComputeFilterBank(working.lab);
@@ -264,45 +286,48 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
       std::copy(f, f + kTextonFeatureSize, samples.ptr<float>(s));
     }
     pixel_samples.push_back(samples);
-    if (config.progress) sampling_progress.Report(i + 1, "filter bank %zu/%zu", i + 1, ids->size());
+    if (config.progress) sampling_progress.Report(i + 1, "filter bank %zu/%zu", i + 1, ids.size());
   }
-  const double sampling_seconds = timer.ElapsedMs() / 1000.0;
-  timer.Restart();
-  if (config.progress) {
-    std::fprintf(stderr, "k-means: %d pixels, k = %d\n", pixel_samples.rows, config.textons.k);
-  }
-  const TextonModel textons = TrainTextons(pixel_samples, config.textons);
-  const double kmeans_seconds = timer.ElapsedMs() / 1000.0;
-  PLACEREC_RETURN_IF_ERROR(SaveTextons(textons, config.out + "/textons.yml"));
+  return pixel_samples;
+}
 
-  // 2. Training regions: superpixels (and ground-truth objects) with their majority class.
-  timer.Restart();
-  const TextonAssigner assigner(textons);
+// The labelled training regions: appearance rows, labels, structured class and weight of each.
+struct RegionSample {
+  cv::Mat samples;
+  std::vector<int> labels;
+  std::vector<int> structured;  // structured class index per sample, -1 none
+  std::vector<float> weights;
+  int superpixel_regions = 0;  // of the samples, how many are superpixels
+};
+
+// Appends the labelled regions of one image (`gt`: its classes at the working size).
+void AppendRegions(const BackgroundTrainingConfig& config, const ClassTable& table,
+                   const std::map<int, int>& structured_index, const cv::Mat& appearance,
+                   const cv::Mat& regions, int n, const cv::Mat& gt, double fraction,
+                   RegionSample* sample) {
+  std::vector<int> majority;
+  const std::vector<int> labels = RegionLabels(regions, n, gt, table, fraction, &majority);
+  const std::vector<int> areas = RegionAreas(regions, n);
+  for (int i = 0; i < n; ++i) {
+    if (labels[i] < 0 || areas[i] < config.min_region_pixels) continue;
+    sample->samples.push_back(appearance.row(i));
+    sample->labels.push_back(labels[i]);
+    const auto it = structured_index.find(majority[i]);
+    sample->structured.push_back(it == structured_index.end() ? -1 : it->second);
+    sample->weights.push_back(
+        static_cast<float>(std::pow(static_cast<double>(areas[i]), config.area_weight_power)));
+  }
+}
+
+// 2. Training regions: superpixels (and ground-truth objects) with their majority class.
+Status CollectRegions(const BackgroundTrainingConfig& config, const std::vector<std::string>& ids,
+                      const ClassTable& table, const std::map<int, int>& structured_index,
+                      const TextonAssigner& assigner, RegionSample* sample) {
+  const int working_width = config.organizer.superpixels.working_width;
   const int stride = config.organizer.texton_stride;
-  cv::Mat region_samples;
-  std::vector<int> region_labels;
-  std::vector<int> region_structured;  // structured class index per sample, -1 none
-  std::vector<float> region_weights;
-  // Appends the labelled regions of one image (`gt`: its classes at the working size).
-  auto append = [&](const cv::Mat& appearance, const cv::Mat& regions, int n, const cv::Mat& gt,
-                    double fraction) {
-    std::vector<int> majority;
-    const std::vector<int> labels = RegionLabels(regions, n, gt, *table, fraction, &majority);
-    const std::vector<int> areas = RegionAreas(regions, n);
-    for (int i = 0; i < n; ++i) {
-      if (labels[i] < 0 || areas[i] < config.min_region_pixels) continue;
-      region_samples.push_back(appearance.row(i));
-      region_labels.push_back(labels[i]);
-      const auto it = structured_index.find(majority[i]);
-      region_structured.push_back(it == structured_index.end() ? -1 : it->second);
-      region_weights.push_back(
-          static_cast<float>(std::pow(static_cast<double>(areas[i]), config.area_weight_power)));
-    }
-  };
-  int superpixel_regions = 0;
-  ProgressLine region_progress(ids->size(), kLogProgressEvery);
-  for (size_t i = 0; i < ids->size(); ++i) {
-    StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*ids)[i]);
+  ProgressLine region_progress(ids.size(), kLogProgressEvery);
+  for (size_t i = 0; i < ids.size(); ++i) {
+    StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, ids[i]);
     if (!image.ok()) return image.status();
     if (image->classes.empty()) continue;
     const WorkingImage working = MakeWorkingImage(image->bgr, working_width);
@@ -310,159 +335,159 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
     const cv::Mat features = ComputeFilterBank(working.lab);
     const TextonMap map = ComputeTextonMap(features, assigner, stride);
     const SceneSegmentation superpixels = ComputeSuperpixels(working, config.organizer.superpixels);
-    const int before = region_samples.rows;
+    const int before = sample->samples.rows;
     if (config.superpixel_regions) {
-      append(RegionAppearance(superpixels.labels, superpixels.size(), map, features, assigner),
-             superpixels.labels, superpixels.size(), gt, config.min_labelled_fraction);
+      AppendRegions(
+          config, table, structured_index,
+          RegionAppearance(superpixels.labels, superpixels.size(), map, features, assigner),
+          superpixels.labels, superpixels.size(), gt, config.min_labelled_fraction, sample);
     }
-    superpixel_regions += region_samples.rows - before;
+    sample->superpixel_regions += sample->samples.rows - before;
     if (config.ground_truth_regions && !image->objects.empty()) {
       int n = 0;
       const cv::Mat objects = ObjectRegions(LayerAtSize(image->objects, working.bgr.size()), &n);
-      append(RegionAppearance(objects, n, map, features, assigner), objects, n, gt, 0.5);
+      AppendRegions(config, table, structured_index,
+                    RegionAppearance(objects, n, map, features, assigner), objects, n, gt, 0.5,
+                    sample);
     }
-    if (config.progress) region_progress.Report(i + 1, "regions %zu/%zu", i + 1, ids->size());
+    if (config.progress) region_progress.Report(i + 1, "regions %zu/%zu", i + 1, ids.size());
   }
-  const double regions_seconds = timer.ElapsedMs() / 1000.0;
-  if (config.progress) {
-    std::fprintf(stderr, "boosting on %d regions (%d superpixels)\n", region_samples.rows,
-                 superpixel_regions);
-  }
+  return Status::Ok();
+}
 
-  // 3. Five binary Gentle AdaBoost classifiers.
-  if (!config.appearance_extras) {
-    region_samples = region_samples.colRange(0, config.textons.k + 1).clone();
-  }
-  BackgroundTrainingSummary boost_summary;
+// 3. Five binary Gentle AdaBoost classifiers (and one per structured class).
+StatusOr<BackgroundClassifier> TrainClassifier(const BackgroundTrainingConfig& config,
+                                               const RegionSample& regions,
+                                               const std::vector<std::string>& structured_names,
+                                               BackgroundTrainingSummary* boost_summary) {
   StatusOr<BackgroundClassifier> trained =
-      BackgroundClassifier::Train(region_samples, region_labels, region_weights, config.boost,
-                                  &boost_summary, structured_names, region_structured);
+      BackgroundClassifier::Train(regions.samples, regions.labels, regions.weights, config.boost,
+                                  boost_summary, structured_names, regions.structured);
   if (!trained.ok()) {
     return Status::InvalidArgument(
         "the training images (" + config.dataset + "/" + config.split +
         ".txt): " + trained.status().message() +
         "; train on more images, or leave a structured class out (--structured-classes)");
   }
-  const BackgroundClassifier& classifier = *trained;
-  PLACEREC_RETURN_IF_ERROR(classifier.Save(config.out));
+  return trained;
+}
 
-  // 4. Accuracy on the evaluation split's ground-truth objects (seed Table 6.4 protocol) and
-  // its superpixels, and the fixed check sample from its first images.
+// The fixed check sample: the labelled ground-truth object regions of the evaluation split's
+// first images.
+struct CheckSample {
+  cv::Mat features;
+  std::vector<int> labels;
+  std::vector<std::string> ids;
+};
+
+// 4. Accuracy on the evaluation split's ground-truth objects (seed Table 6.4 protocol) and
+// its superpixels, and the fixed check sample from its first images; null without an
+// evaluation split.
+StatusOr<nlohmann::json> Evaluate(const BackgroundTrainingConfig& config, const ClassTable& table,
+                                  const TextonAssigner& assigner,
+                                  const BackgroundClassifier& classifier, CheckSample* check) {
   nlohmann::json evaluation;
-  cv::Mat check_features;
-  std::vector<int> check_labels;
-  std::vector<std::string> check_ids;
-  timer.Restart();
-  if (!config.eval_split.empty() && PathExists(config.dataset + "/" + config.eval_split + ".txt")) {
-    StatusOr<std::vector<std::string>> eval_ids = ReadSplit(config.dataset, config.eval_split);
-    if (!eval_ids.ok()) return eval_ids.status();
-    BackgroundAccuracy objects_accuracy;
-    BackgroundAccuracy superpixel_accuracy;
-    // The decision segmentation makes: one-per-class when its options ask for it.
-    auto rivals_of = [&](const cv::Mat& appearance) {
-      return classifier.Rivals(appearance, config.organizer.one_per_class);
-    };
-    ProgressLine evaluation_progress(eval_ids->size(), kLogProgressEvery);
-    for (size_t i = 0; i < eval_ids->size(); ++i) {
-      StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*eval_ids)[i]);
-      if (!image.ok()) return image.status();
-      if (image->classes.empty() || image->objects.empty()) continue;
-      const WorkingImage working = MakeWorkingImage(image->bgr, working_width);
-      const cv::Mat gt = LayerAtSize(image->classes, working.bgr.size());
-      const cv::Mat features = ComputeFilterBank(working.lab);
-      const TextonMap map = ComputeTextonMap(features, assigner, stride);
-      int n = 0;
-      const cv::Mat objects = ObjectRegions(LayerAtSize(image->objects, working.bgr.size()), &n);
-      const cv::Mat appearance = RegionAppearance(objects, n, map, features, assigner);
-      std::vector<int> majority;
-      const std::vector<int> labels = RegionLabels(objects, n, gt, *table, 0.5, &majority);
-      objects_accuracy.Add(classifier.Scores(appearance), rivals_of(appearance), labels, majority,
-                           RegionAreas(objects, n), *table, config.organizer.background_threshold);
-      const SceneSegmentation superpixels =
-          ComputeSuperpixels(working, config.organizer.superpixels);
-      std::vector<int> superpixel_majority;
-      const std::vector<int> superpixel_labels =
-          RegionLabels(superpixels.labels, superpixels.size(), gt, *table,
-                       config.min_labelled_fraction, &superpixel_majority);
-      const cv::Mat superpixel_appearance =
-          RegionAppearance(superpixels.labels, superpixels.size(), map, features, assigner);
-      superpixel_accuracy.Add(classifier.Scores(superpixel_appearance),
-                              rivals_of(superpixel_appearance), superpixel_labels,
-                              superpixel_majority,
-                              RegionAreas(superpixels.labels, superpixels.size()), *table,
-                              config.organizer.background_threshold);
-      if (static_cast<int>(i) < config.check_images) {
-        check_ids.push_back((*eval_ids)[i]);
-        for (int r = 0; r < n; ++r) {
-          if (labels[r] < 0) continue;
-          check_features.push_back(appearance.row(r));
-          check_labels.push_back(labels[r]);
-        }
-      }
-      if (config.progress) {
-        evaluation_progress.Report(i + 1, "evaluation %zu/%zu", i + 1, eval_ids->size());
+  if (!HasEvalSplit(config)) return evaluation;
+  const int working_width = config.organizer.superpixels.working_width;
+  const int stride = config.organizer.texton_stride;
+  StatusOr<std::vector<std::string>> eval_ids = ReadSplit(config.dataset, config.eval_split);
+  if (!eval_ids.ok()) return eval_ids.status();
+  BackgroundAccuracy objects_accuracy;
+  BackgroundAccuracy superpixel_accuracy;
+  // The decision segmentation makes: one-per-class when its options ask for it.
+  auto rivals_of = [&](const cv::Mat& appearance) {
+    return classifier.Rivals(appearance, config.organizer.one_per_class);
+  };
+  ProgressLine evaluation_progress(eval_ids->size(), kLogProgressEvery);
+  for (size_t i = 0; i < eval_ids->size(); ++i) {
+    StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*eval_ids)[i]);
+    if (!image.ok()) return image.status();
+    if (image->classes.empty() || image->objects.empty()) continue;
+    const WorkingImage working = MakeWorkingImage(image->bgr, working_width);
+    const cv::Mat gt = LayerAtSize(image->classes, working.bgr.size());
+    const cv::Mat features = ComputeFilterBank(working.lab);
+    const TextonMap map = ComputeTextonMap(features, assigner, stride);
+    int n = 0;
+    const cv::Mat objects = ObjectRegions(LayerAtSize(image->objects, working.bgr.size()), &n);
+    const cv::Mat appearance = RegionAppearance(objects, n, map, features, assigner);
+    std::vector<int> majority;
+    const std::vector<int> labels = RegionLabels(objects, n, gt, table, 0.5, &majority);
+    objects_accuracy.Add(classifier.Scores(appearance), rivals_of(appearance), labels, majority,
+                         RegionAreas(objects, n), table, config.organizer.background_threshold);
+    const SceneSegmentation superpixels = ComputeSuperpixels(working, config.organizer.superpixels);
+    std::vector<int> superpixel_majority;
+    const std::vector<int> superpixel_labels =
+        RegionLabels(superpixels.labels, superpixels.size(), gt, table,
+                     config.min_labelled_fraction, &superpixel_majority);
+    const cv::Mat superpixel_appearance =
+        RegionAppearance(superpixels.labels, superpixels.size(), map, features, assigner);
+    superpixel_accuracy.Add(
+        classifier.Scores(superpixel_appearance), rivals_of(superpixel_appearance),
+        superpixel_labels, superpixel_majority, RegionAreas(superpixels.labels, superpixels.size()),
+        table, config.organizer.background_threshold);
+    if (static_cast<int>(i) < config.check_images) {
+      check->ids.push_back((*eval_ids)[i]);
+      for (int r = 0; r < n; ++r) {
+        if (labels[r] < 0) continue;
+        check->features.push_back(appearance.row(r));
+        check->labels.push_back(labels[r]);
       }
     }
-    evaluation["split"] = config.eval_split;
-    evaluation["ground_truth_objects"] = objects_accuracy.ToJson();
-    evaluation["superpixels"] = superpixel_accuracy.ToJson();
+    if (config.progress) {
+      evaluation_progress.Report(i + 1, "evaluation %zu/%zu", i + 1, eval_ids->size());
+    }
   }
-  const double evaluation_seconds = timer.ElapsedMs() / 1000.0;
+  evaluation["split"] = config.eval_split;
+  evaluation["ground_truth_objects"] = objects_accuracy.ToJson();
+  evaluation["superpixels"] = superpixel_accuracy.ToJson();
+  return evaluation;
+}
 
-  // The check sample: regions, their labels and the decisions made now.
+// The check sample: regions, their labels and the decisions made now, written to
+// check_sample.yml.gz; what the manifest says of it (null when the sample is empty).
+StatusOr<nlohmann::json> WriteCheckSample(const BackgroundTrainingConfig& config,
+                                          const BackgroundClassifier& classifier,
+                                          const CheckSample& sample) {
   nlohmann::json check;
-  if (!check_features.empty()) {
-    const std::vector<SegmentClass> decided = classifier.Classify(
-        check_features, config.organizer.background_threshold, config.organizer.one_per_class);
-    std::vector<int> decided_ids;
-    int correct = 0;
-    for (size_t r = 0; r < decided.size(); ++r) {
-      decided_ids.push_back(static_cast<int>(decided[r]));
-      correct += static_cast<int>(decided[r]) == check_labels[r];
-    }
-    const double accuracy = static_cast<double>(correct) / static_cast<double>(decided.size());
-    const std::string path = config.out + "/check_sample.yml.gz";
-    try {
-      cv::FileStorage fs(path, cv::FileStorage::WRITE);
-      if (!fs.isOpened()) return Status::IoError("cannot write " + path);
-      fs << "format_version" << 1;
-      fs << "split" << config.eval_split;
-      fs << "images" << check_ids;
-      fs << "features" << check_features;
-      fs << "labels" << check_labels;
-      fs << "decisions" << decided_ids;
-      fs << "threshold" << config.organizer.background_threshold;
-      fs << "one_per_class" << static_cast<int>(config.organizer.one_per_class);
-      fs << "accuracy" << accuracy;
-    } catch (const cv::Exception& e) {
-      return Status::IoError("cannot write " + path + ": " + e.what());
-    }
-    check["file"] = "check_sample.yml.gz";
-    check["split"] = config.eval_split;
-    check["images"] = check_ids;
-    check["regions"] = static_cast<int>(decided.size());
-    check["accuracy"] = 100.0 * accuracy;
+  if (sample.features.empty()) return check;
+  const std::vector<SegmentClass> decided = classifier.Classify(
+      sample.features, config.organizer.background_threshold, config.organizer.one_per_class);
+  std::vector<int> decided_ids;
+  int correct = 0;
+  for (size_t r = 0; r < decided.size(); ++r) {
+    decided_ids.push_back(static_cast<int>(decided[r]));
+    correct += static_cast<int>(decided[r]) == sample.labels[r];
   }
+  const double accuracy = static_cast<double>(correct) / static_cast<double>(decided.size());
+  const std::string path = config.out + "/check_sample.yml.gz";
+  try {
+    cv::FileStorage fs(path, cv::FileStorage::WRITE);
+    if (!fs.isOpened()) return Status::IoError("cannot write " + path);
+    fs << "format_version" << 1;
+    fs << "split" << config.eval_split;
+    fs << "images" << sample.ids;
+    fs << "features" << sample.features;
+    fs << "labels" << sample.labels;
+    fs << "decisions" << decided_ids;
+    fs << "threshold" << config.organizer.background_threshold;
+    fs << "one_per_class" << static_cast<int>(config.organizer.one_per_class);
+    fs << "accuracy" << accuracy;
+  } catch (const cv::Exception& e) {
+    return Status::IoError("cannot write " + path + ": " + e.what());
+  }
+  check["file"] = "check_sample.yml.gz";
+  check["split"] = config.eval_split;
+  check["images"] = sample.ids;
+  check["regions"] = static_cast<int>(decided.size());
+  check["accuracy"] = 100.0 * accuracy;
+  return check;
+}
 
-  // 5. The manifest.
-  nlohmann::json manifest;
-  manifest["format_version"] = 1;
-  manifest["created"] = TodayUtc();
-  if (!config.command_line.empty()) manifest["command"] = config.command_line;
-  manifest["data"] = {{"dataset", std::filesystem::path(config.dataset).filename().string()},
-                      {"split", config.split},
-                      {"holdout_first_images", config.holdout},
-                      {"left_out_fold", config.leave_out_fold.ToString()},
-                      {"images", static_cast<int>(ids->size())}};
-  manifest["textons"] = {{"file", "textons.yml"},
-                         {"k", config.textons.k},
-                         {"features", kTextonFeatureSize},
-                         {"pixels_per_image", config.pixels_per_image},
-                         {"pixels", pixel_samples.rows},
-                         {"max_iterations", config.textons.max_iterations},
-                         {"epsilon", config.textons.epsilon},
-                         {"standardise", config.textons.standardise},
-                         {"seed", config.textons.seed}};
+// The manifest's "classifiers": their files, boosting options, training regions and per-class
+// counts.
+nlohmann::json ClassifiersJson(const BackgroundTrainingConfig& config, const RegionSample& regions,
+                               const std::vector<std::string>& structured_names,
+                               const BackgroundTrainingSummary& boost_summary) {
   nlohmann::json classifiers;
   classifiers["files"] = {"background.yml"};
   classifiers["weak_count"] = config.boost.weak_count;
@@ -470,10 +495,10 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
   classifiers["boost_type"] = "gentle";
   classifiers["weight_trim_rate"] = config.boost.weight_trim_rate;
   classifiers["max_negatives_per_positive"] = config.boost.max_negatives_per_positive;
-  classifiers["regions"] = region_samples.rows;
-  classifiers["features"] = region_samples.cols;
+  classifiers["regions"] = regions.samples.rows;
+  classifiers["features"] = regions.samples.cols;
   classifiers["appearance_extras"] = config.appearance_extras;
-  classifiers["superpixel_region_count"] = superpixel_regions;
+  classifiers["superpixel_region_count"] = regions.superpixel_regions;
   classifiers["superpixel_regions"] = config.superpixel_regions;
   classifiers["ground_truth_regions"] = config.ground_truth_regions;
   classifiers["min_labelled_fraction"] = config.min_labelled_fraction;
@@ -491,7 +516,44 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
         {"negatives", boost_summary.negatives[c]},
         {"training_accuracy", 100.0 * boost_summary.training_accuracy[c]}};
   }
-  manifest["classifiers"] = classifiers;
+  return classifiers;
+}
+
+// How long each stage took, in seconds.
+struct StageSeconds {
+  double sampling = 0;
+  double kmeans = 0;
+  double regions = 0;
+  double evaluation = 0;
+};
+
+// 5. The manifest; "total" seconds are `total_timer`'s now, and "file_bytes" lists config.out
+// as it is now.
+nlohmann::json BackgroundManifest(const BackgroundTrainingConfig& config, int images, int pixels,
+                                  const RegionSample& regions,
+                                  const std::vector<std::string>& structured_names,
+                                  const BackgroundTrainingSummary& boost_summary,
+                                  const nlohmann::json& evaluation, const nlohmann::json& check,
+                                  const StageSeconds& seconds, const Timer& total_timer) {
+  nlohmann::json manifest;
+  manifest["format_version"] = 1;
+  manifest["created"] = TodayUtc();
+  if (!config.command_line.empty()) manifest["command"] = config.command_line;
+  manifest["data"] = {{"dataset", std::filesystem::path(config.dataset).filename().string()},
+                      {"split", config.split},
+                      {"holdout_first_images", config.holdout},
+                      {"left_out_fold", config.leave_out_fold.ToString()},
+                      {"images", images}};
+  manifest["textons"] = {{"file", "textons.yml"},
+                         {"k", config.textons.k},
+                         {"features", kTextonFeatureSize},
+                         {"pixels_per_image", config.pixels_per_image},
+                         {"pixels", pixels},
+                         {"max_iterations", config.textons.max_iterations},
+                         {"epsilon", config.textons.epsilon},
+                         {"standardise", config.textons.standardise},
+                         {"seed", config.textons.seed}};
+  manifest["classifiers"] = ClassifiersJson(config, regions, structured_names, boost_summary);
   const SuperpixelOptions& sp = config.organizer.superpixels;
   manifest["regions"] = {{"working_width", sp.working_width},
                          {"fh_sigma", sp.sigma},
@@ -502,11 +564,11 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
                          {"texton_stride", config.organizer.texton_stride}};
   manifest["accuracy"] = evaluation;
   manifest["check_sample"] = check;
-  manifest["seconds"] = {{"filter_bank_sampling", sampling_seconds},
-                         {"kmeans", kmeans_seconds},
-                         {"regions", regions_seconds},
+  manifest["seconds"] = {{"filter_bank_sampling", seconds.sampling},
+                         {"kmeans", seconds.kmeans},
+                         {"regions", seconds.regions},
                          {"boosting", boost_summary.seconds},
-                         {"evaluation", evaluation_seconds},
+                         {"evaluation", seconds.evaluation},
                          {"total", total_timer.ElapsedMs() / 1000.0}};
   nlohmann::json files;
   for (const auto& entry : std::filesystem::directory_iterator(config.out)) {
@@ -515,6 +577,75 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
     files[name] = FileSize(entry.path().string());
   }
   manifest["file_bytes"] = files;
+  return manifest;
+}
+
+// The whole training, writing into config.out (a fresh staging directory).
+StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
+  PLACEREC_RETURN_IF_ERROR(CheckTrainingOptions(config));
+  StatusOr<ClassTable> table = ReadClassTable(config.dataset);
+  if (!table.ok()) return table.status();
+  if (table->empty()) {
+    return Status::InvalidArgument(config.dataset + " has no classes.txt: cannot label regions");
+  }
+  StatusOr<std::vector<std::string>> ids = TrainingIds(config);
+  if (!ids.ok()) return ids.status();
+  StatusOr<StructuredClasses> structured = FindStructuredClasses(config, *table);
+  if (!structured.ok()) return structured.status();
+  PLACEREC_RETURN_IF_ERROR(CheckEvalSplit(config));
+  Timer total_timer;
+  StageSeconds seconds;
+
+  // 1. Textons: k-means on pixels sampled from every training image.
+  Timer timer;
+  StatusOr<cv::Mat> pixel_samples = SamplePixels(config, *ids);
+  if (!pixel_samples.ok()) return pixel_samples.status();
+  seconds.sampling = timer.ElapsedMs() / 1000.0;
+  timer.Restart();
+  if (config.progress) {
+    std::fprintf(stderr, "k-means: %d pixels, k = %d\n", pixel_samples->rows, config.textons.k);
+  }
+  const TextonModel textons = TrainTextons(*pixel_samples, config.textons);
+  seconds.kmeans = timer.ElapsedMs() / 1000.0;
+  PLACEREC_RETURN_IF_ERROR(SaveTextons(textons, config.out + "/textons.yml"));
+
+  // 2. Training regions: superpixels (and ground-truth objects) with their majority class.
+  timer.Restart();
+  const TextonAssigner assigner(textons);
+  RegionSample regions;
+  PLACEREC_RETURN_IF_ERROR(
+      CollectRegions(config, *ids, *table, structured->index, assigner, &regions));
+  seconds.regions = timer.ElapsedMs() / 1000.0;
+  if (config.progress) {
+    std::fprintf(stderr, "boosting on %d regions (%d superpixels)\n", regions.samples.rows,
+                 regions.superpixel_regions);
+  }
+
+  // 3. Five binary Gentle AdaBoost classifiers.
+  if (!config.appearance_extras) {
+    regions.samples = regions.samples.colRange(0, config.textons.k + 1).clone();
+  }
+  BackgroundTrainingSummary boost_summary;
+  StatusOr<BackgroundClassifier> trained =
+      TrainClassifier(config, regions, structured->names, &boost_summary);
+  if (!trained.ok()) return trained.status();
+  const BackgroundClassifier& classifier = *trained;
+  PLACEREC_RETURN_IF_ERROR(classifier.Save(config.out));
+
+  // 4. Accuracy on the evaluation split and the check sample.
+  CheckSample check_sample;
+  timer.Restart();
+  StatusOr<nlohmann::json> evaluation =
+      Evaluate(config, *table, assigner, classifier, &check_sample);
+  if (!evaluation.ok()) return evaluation.status();
+  seconds.evaluation = timer.ElapsedMs() / 1000.0;
+  StatusOr<nlohmann::json> check = WriteCheckSample(config, classifier, check_sample);
+  if (!check.ok()) return check.status();
+
+  // 5. The manifest.
+  nlohmann::json manifest = BackgroundManifest(
+      config, static_cast<int>(ids->size()), pixel_samples->rows, regions, structured->names,
+      boost_summary, *evaluation, *check, seconds, total_timer);
   PLACEREC_RETURN_IF_ERROR(WriteManifest(config.out + "/manifest.json", manifest));
   return manifest;
 }

@@ -182,6 +182,255 @@ Status CheckCrossFitManifest(const std::string& path, const Fold& fold,
   return Status::Ok();
 }
 
+// The options and parameter ranges TrainGroupingModel needs (organizer_options: the organizer's
+// with learned merging off).
+Status CheckTrainingConfig(const GroupingTrainingConfig& config,
+                           const SceneOrganizerOptions& organizer_options) {
+  std::string error;
+  if (!config.boost.Check(&error) || !organizer_options.Check(&error)) {
+    return Status::InvalidArgument(error);
+  }
+  if (config.levels < 0 || !(config.level_fraction > 0 && config.level_fraction <= 1) ||
+      !(config.min_purity > 0 && config.min_purity <= 1) || config.holdout < 0 ||
+      config.max_pairs < 0 || !std::isfinite(config.policy_threshold) || config.features < 1 ||
+      config.features > kMergeFeatures) {
+    return Status::InvalidArgument(
+        "levels >= 0, level_fraction and min_purity in (0, 1], holdout and max_pairs >= 0, a "
+        "finite policy threshold, features in 1.." +
+        std::to_string(kMergeFeatures));
+  }
+  if (config.cross_fit.size() == 1) {
+    return Status::InvalidArgument("--cross-fit needs at least two models directories");
+  }
+  return Status::Ok();
+}
+
+// What describes the training images of each fold: its organizer and, when the grouping features
+// read them, its boundary classifier.
+struct FoldModels {
+  SceneOrganizerOptions organizer_options;
+  std::vector<std::string> model_dirs;  // one per fold (cross-fitting), or just `out`
+  std::vector<SceneOrganizer> organizers;
+  bool reads_boundary = false;
+  std::vector<BoundaryModel> boundary_models;
+  std::vector<std::string> boundary_sources;  // the directory each boundary model came from
+
+  // The merge state of `t`'s superpixels, as its fold's organizer sees them.
+  MergeState NewState(const TrainingImage& t) const {
+    const BackgroundModel& model = organizers[static_cast<size_t>(t.fold)].model();
+    return MergeState(t.parts.labels, t.parts.size(), t.lab, t.appearance,
+                      organizer_options.texton_stride, model.textons.inv_std, model.classifier,
+                      organizer_options.background_threshold, organizer_options.one_per_class,
+                      t.boundary);
+  }
+};
+
+// One organizer per fold (cross-fitting), or `out`'s for every image; each cross-fit directory's
+// manifest must have left its fold out.
+Status MakeOrganizers(const GroupingTrainingConfig& config, FoldModels* m) {
+  m->model_dirs =
+      config.cross_fit.empty() ? std::vector<std::string>{config.out} : config.cross_fit;
+  for (size_t k = 0; k < config.cross_fit.size(); ++k) {
+    PLACEREC_RETURN_IF_ERROR(CheckCrossFitManifest(
+        m->model_dirs[k] + "/manifest.json",
+        Fold{static_cast<int>(k), static_cast<int>(m->model_dirs.size())}, config));
+  }
+  for (size_t k = 0; k < m->model_dirs.size(); ++k) {
+    m->organizer_options.models_dir = m->model_dirs[k];
+    StatusOr<SceneOrganizer> organizer = SceneOrganizer::Create(m->organizer_options);
+    if (!organizer.ok()) return organizer.status();
+    if (!m->organizers.empty() && organizer->model().classifier.structured_names() !=
+                                      m->organizers[0].model().classifier.structured_names()) {
+      return Status::InvalidArgument("--cross-fit: " + m->model_dirs[k] +
+                                     " has other structured classes than " + m->model_dirs[0]);
+    }
+    m->organizers.push_back(std::move(*organizer));
+  }
+  return Status::Ok();
+}
+
+// The boundary classifier of each fold: from the fold's cross-fit directory when it has one
+// (trained without the fold), otherwise from --out.
+Status LoadBoundaryModels(const GroupingTrainingConfig& config, FoldModels* m) {
+  StatusOr<BoundaryModel> shared = BoundaryModel::Load(config.out);
+  if (!shared.ok() && shared.status().code() != StatusCode::kNotFound) return shared.status();
+  for (size_t k = 0; k < m->organizers.size(); ++k) {
+    const Fold fold{static_cast<int>(k), static_cast<int>(config.cross_fit.size())};
+    StatusOr<BoundaryModel> own = config.cross_fit.empty()
+                                      ? StatusOr<BoundaryModel>(Status::NotFound(""))
+                                      : BoundaryModel::Load(m->model_dirs[k]);
+    if (own.ok()) {
+      PLACEREC_RETURN_IF_ERROR(
+          CheckCrossFitManifest(m->model_dirs[k] + "/boundary.json", fold, config));
+      m->boundary_models[k] = std::move(*own);
+      m->boundary_sources[k] = m->model_dirs[k];
+    } else if (own.status().code() != StatusCode::kNotFound) {
+      return own.status();
+    } else if (shared.ok()) {
+      m->boundary_models[k] = *shared;
+      m->boundary_sources[k] = config.out;
+    } else {
+      return Status::NotFound("--features " + std::to_string(config.features) +
+                              " reads learned boundary scores but " + config.out + " has no " +
+                              BoundaryModel::kFileName +
+                              ": train it first with placerec-train boundary --dataset " +
+                              config.dataset + " --out " + config.out);
+    }
+  }
+  return Status::Ok();
+}
+
+// Image `ids[i]`'s superpixels (classified by its fold's organizer), appearance, boundary scores
+// and ground-truth object votes.
+StatusOr<TrainingImage> PrepareImage(const GroupingTrainingConfig& config, const FoldModels& m,
+                                     const std::vector<std::string>& ids, size_t i, size_t total) {
+  StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, ids[i]);
+  if (!image.ok()) return image.status();
+  if (image->objects.empty()) {
+    return Status::InvalidArgument(config.dataset + ": image " + ids[i] +
+                                   " has no objects/ layer to learn grouping from");
+  }
+  const WorkingImage working =
+      MakeWorkingImage(image->bgr, m.organizer_options.superpixels.working_width);
+  TrainingImage t;
+  t.fold =
+      FoldOf(i - static_cast<size_t>(config.holdout), total, static_cast<int>(m.organizers.size()));
+  cv::Mat bank;
+  t.parts = m.organizers[static_cast<size_t>(t.fold)].ClassifiedSuperpixels(working, &bank, nullptr,
+                                                                            &t.appearance);
+  t.lab = working.lab;
+  if (m.reads_boundary) {
+    t.boundary =
+        m.boundary_models[static_cast<size_t>(t.fold)].ScoreMap(bank, CrackPixels(t.parts.labels));
+  }
+  const cv::Mat objects = LayerAtSize(image->objects, working.bgr.size());
+  t.votes.resize(static_cast<size_t>(t.parts.size()));
+  for (int y = 0; y < objects.rows; ++y) {
+    const int* o = objects.ptr<int>(y);
+    const int* l = t.parts.labels.ptr<int>(y);
+    for (int x = 0; x < objects.cols; ++x) {
+      ++t.votes[l[x]].counts[o[x]];
+      ++t.votes[l[x]].total;
+    }
+  }
+  return t;
+}
+
+// Records the pairs of `t`'s superpixels, then of each ground-truth merge level: a random
+// `level_fraction` of the same-object neighbours merged.
+void RecordGroundTruthLevels(const GroupingTrainingConfig& config, const FoldModels& m,
+                             const TrainingImage& t, std::mt19937_64* rng, PairSample* sample) {
+  std::vector<Votes> votes = t.votes;
+  MergeState state = m.NewState(t);
+  Record(state, votes, {}, config.min_purity, sample);
+  for (int level = 0; level < config.levels; ++level) {
+    std::vector<std::pair<int, int>> candidates;
+    for (const auto& [a, b] : state.Pairs()) {
+      const int ma = votes[a].Majority(config.min_purity);
+      if (ma >= 0 && ma == votes[b].Majority(config.min_purity)) candidates.emplace_back(a, b);
+    }
+    if (candidates.empty()) break;
+    std::shuffle(candidates.begin(), candidates.end(), *rng);
+    const size_t merge_count = std::max<size_t>(
+        1, static_cast<size_t>(config.level_fraction * static_cast<double>(candidates.size())));
+    std::vector<char> changed(static_cast<size_t>(state.capacity()), 0);
+    for (size_t c = 0; c < merge_count; ++c) {
+      const int a = state.Find(candidates[c].first);
+      const int b = state.Find(candidates[c].second);
+      if (a == b || state.NeighboursOf(a).count(b) == 0) continue;
+      state.Merge(a, b);
+      votes[a].Add(votes[b]);
+      changed[a] = 1;
+    }
+    Record(state, votes, changed, config.min_purity, sample);
+  }
+}
+
+// Pass 1: superpixels and ground-truth merge levels of every training image.
+Status CollectGroundTruthPairs(const GroupingTrainingConfig& config, const FoldModels& m,
+                               const std::vector<std::string>& ids, std::mt19937_64* rng,
+                               std::vector<TrainingImage>* images, PairSample* sample) {
+  const size_t total = ids.size() - static_cast<size_t>(config.holdout);
+  ProgressLine pass1_progress(total, kLogProgressEvery);
+  for (size_t i = static_cast<size_t>(config.holdout); i < ids.size(); ++i) {
+    StatusOr<TrainingImage> t = PrepareImage(config, m, ids, i, total);
+    if (!t.ok()) return t.status();
+    RecordGroundTruthLevels(config, m, *t, rng, sample);
+    images->push_back(std::move(*t));
+    if (config.progress) {
+      pass1_progress.Report(images->size(), "pass 1: pairs from %zu/%zu images: %d", images->size(),
+                            total, sample->features.rows);
+    }
+  }
+  return Status::Ok();
+}
+
+// Pass 2: `model`'s own greedy merging, every pair it meets after a merge.
+void CollectOnPolicyPairs(const GroupingTrainingConfig& config, const FoldModels& m,
+                          const RegionMergeModel& model, const std::vector<TrainingImage>& images,
+                          int pass1_pairs, PairSample* sample) {
+  RegionMergeOptions policy;
+  policy.threshold = config.policy_threshold;
+  size_t done = 0;
+  ProgressLine pass2_progress(images.size(), kLogProgressEvery);
+  for (const TrainingImage& t : images) {
+    std::vector<Votes> votes = t.votes;
+    MergeState state = m.NewState(t);
+    MergeRegions(model, policy, &state, [&](int a, int b) {
+      votes[a].Add(votes[b]);
+      for (const auto& [n, edge] : state.NeighboursOf(a)) {
+        RecordPair(state, votes, a, n, config.min_purity, sample);
+      }
+    });
+    ++done;
+    if (config.progress) {
+      pass2_progress.Report(done, "pass 2: pairs from %zu/%zu images: %d", done, images.size(),
+                            sample->features.rows - pass1_pairs);
+    }
+  }
+}
+
+// What grouping.json holds.
+nlohmann::json GroupingManifest(const GroupingTrainingConfig& config, const FoldModels& m,
+                                int images, double pairs_seconds, const nlohmann::json& passes) {
+  const BackgroundModel& background = m.organizers[0].model();
+  nlohmann::json manifest;
+  manifest["format_version"] = RegionMergeModel::kFormatVersion;
+  manifest["created"] = TodayUtc();
+  manifest["file"] = RegionMergeModel::kFileName;
+  if (!config.command_line.empty()) manifest["command"] = config.command_line;
+  manifest["data"] = {{"dataset", std::filesystem::path(config.dataset).filename().string()},
+                      {"split", config.split},
+                      {"holdout_first_images", config.holdout},
+                      {"cross_fit_folds", static_cast<int>(config.cross_fit.size())},
+                      {"cross_fit_models", config.cross_fit},
+                      {"images", images}};
+  manifest["pairs"] = {{"levels", config.levels},         {"level_fraction", config.level_fraction},
+                       {"min_purity", config.min_purity}, {"max_pairs", config.max_pairs},
+                       {"on_policy", config.on_policy},   {"pass1_seconds", pairs_seconds}};
+  manifest["passes"] = passes;
+  manifest["boost"] = {{"type", "gentle"},
+                       {"weak_count", config.boost.weak_count},
+                       {"max_depth", config.boost.max_depth},
+                       {"weight_trim_rate", config.boost.weight_trim_rate},
+                       {"features", config.features}};
+  manifest["background_decision"] = {
+      {"threshold", m.organizer_options.background_threshold},
+      {"one_per_class", m.organizer_options.one_per_class},
+      {"structured_classes", background.classifier.structured_names()}};
+  manifest["seed"] = config.seed;
+  if (m.reads_boundary) {
+    // The boundary model that describes the pairs of each fold, with its manifest.
+    for (const std::string& dir : m.boundary_sources) {
+      std::ifstream in(dir + "/boundary.json");
+      manifest["boundary_models"].push_back(
+          {{"directory", dir},
+           {"manifest", in ? nlohmann::json::parse(in, nullptr, false) : nlohmann::json()}});
+    }
+  }
+  return manifest;
+}
+
 }  // namespace
 
 bool GroupingTrainingConfig::Check(std::string* error) const {
@@ -231,157 +480,27 @@ bool GroupingTrainingConfig::Check(std::string* error) const {
 }
 
 StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config) {
-  std::string error;
-  SceneOrganizerOptions organizer_options = config.organizer;
-  organizer_options.learned_merge = false;
-  if (!config.boost.Check(&error) || !organizer_options.Check(&error)) {
-    return Status::InvalidArgument(error);
-  }
-  if (config.levels < 0 || !(config.level_fraction > 0 && config.level_fraction <= 1) ||
-      !(config.min_purity > 0 && config.min_purity <= 1) || config.holdout < 0 ||
-      config.max_pairs < 0 || !std::isfinite(config.policy_threshold) || config.features < 1 ||
-      config.features > kMergeFeatures) {
-    return Status::InvalidArgument(
-        "levels >= 0, level_fraction and min_purity in (0, 1], holdout and max_pairs >= 0, a "
-        "finite policy threshold, features in 1.." +
-        std::to_string(kMergeFeatures));
-  }
-  if (config.cross_fit.size() == 1) {
-    return Status::InvalidArgument("--cross-fit needs at least two models directories");
-  }
+  FoldModels m;
+  m.organizer_options = config.organizer;
+  m.organizer_options.learned_merge = false;
+  PLACEREC_RETURN_IF_ERROR(CheckTrainingConfig(config, m.organizer_options));
   StatusOr<std::vector<std::string>> ids = ReadSplit(config.dataset, config.split);
   if (!ids.ok()) return ids.status();
   if (static_cast<int>(ids->size()) <= config.holdout) {
     return Status::InvalidArgument("the holdout leaves no training image");
   }
-  // One organizer per fold (cross-fitting), or `out`'s for every image.
-  std::vector<SceneOrganizer> organizers;
-  std::vector<std::string> model_dirs =
-      config.cross_fit.empty() ? std::vector<std::string>{config.out} : config.cross_fit;
-  for (size_t k = 0; k < config.cross_fit.size(); ++k) {
-    PLACEREC_RETURN_IF_ERROR(CheckCrossFitManifest(
-        model_dirs[k] + "/manifest.json",
-        Fold{static_cast<int>(k), static_cast<int>(model_dirs.size())}, config));
-  }
-  for (size_t k = 0; k < model_dirs.size(); ++k) {
-    organizer_options.models_dir = model_dirs[k];
-    StatusOr<SceneOrganizer> organizer = SceneOrganizer::Create(organizer_options);
-    if (!organizer.ok()) return organizer.status();
-    if (!organizers.empty() && organizer->model().classifier.structured_names() !=
-                                   organizers[0].model().classifier.structured_names()) {
-      return Status::InvalidArgument("--cross-fit: " + model_dirs[k] +
-                                     " has other structured classes than " + model_dirs[0]);
-    }
-    organizers.push_back(std::move(*organizer));
-  }
-  const BackgroundModel& background = organizers[0].model();
-  // The boundary classifier of each fold: from the fold's cross-fit directory when it has one
-  // (trained without the fold), otherwise from --out.
-  const bool reads_boundary = config.features > kMergeBoundaryOffset;
-  std::vector<BoundaryModel> boundary_models(organizers.size());
-  std::vector<std::string> boundary_sources(organizers.size());
-  if (reads_boundary) {
-    StatusOr<BoundaryModel> shared = BoundaryModel::Load(config.out);
-    if (!shared.ok() && shared.status().code() != StatusCode::kNotFound) return shared.status();
-    for (size_t k = 0; k < organizers.size(); ++k) {
-      const Fold fold{static_cast<int>(k), static_cast<int>(config.cross_fit.size())};
-      StatusOr<BoundaryModel> own = config.cross_fit.empty()
-                                        ? StatusOr<BoundaryModel>(Status::NotFound(""))
-                                        : BoundaryModel::Load(model_dirs[k]);
-      if (own.ok()) {
-        PLACEREC_RETURN_IF_ERROR(
-            CheckCrossFitManifest(model_dirs[k] + "/boundary.json", fold, config));
-        boundary_models[k] = std::move(*own);
-        boundary_sources[k] = model_dirs[k];
-      } else if (own.status().code() != StatusCode::kNotFound) {
-        return own.status();
-      } else if (shared.ok()) {
-        boundary_models[k] = *shared;
-        boundary_sources[k] = config.out;
-      } else {
-        return Status::NotFound("--features " + std::to_string(config.features) +
-                                " reads learned boundary scores but " + config.out + " has no " +
-                                BoundaryModel::kFileName +
-                                ": train it first with placerec-train boundary --dataset " +
-                                config.dataset + " --out " + config.out);
-      }
-    }
-  }
-  auto new_state = [&](const TrainingImage& t) {
-    const BackgroundModel& model = organizers[static_cast<size_t>(t.fold)].model();
-    return MergeState(t.parts.labels, t.parts.size(), t.lab, t.appearance,
-                      organizer_options.texton_stride, model.textons.inv_std, model.classifier,
-                      organizer_options.background_threshold, organizer_options.one_per_class,
-                      t.boundary);
-  };
+  PLACEREC_RETURN_IF_ERROR(MakeOrganizers(config, &m));
+  m.reads_boundary = config.features > kMergeBoundaryOffset;
+  m.boundary_models.resize(m.organizers.size());
+  m.boundary_sources.resize(m.organizers.size());
+  if (m.reads_boundary) PLACEREC_RETURN_IF_ERROR(LoadBoundaryModels(config, &m));
 
   // Pass 1: superpixels and ground-truth merge levels.
   Timer timer;
   PairSample sample;
   std::mt19937_64 rng(config.seed);
   std::vector<TrainingImage> images;
-  const size_t total = ids->size() - static_cast<size_t>(config.holdout);
-  ProgressLine pass1_progress(total, kLogProgressEvery);
-  for (size_t i = static_cast<size_t>(config.holdout); i < ids->size(); ++i) {
-    StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*ids)[i]);
-    if (!image.ok()) return image.status();
-    if (image->objects.empty()) {
-      return Status::InvalidArgument(config.dataset + ": image " + (*ids)[i] +
-                                     " has no objects/ layer to learn grouping from");
-    }
-    const WorkingImage working =
-        MakeWorkingImage(image->bgr, organizer_options.superpixels.working_width);
-    TrainingImage t;
-    t.fold =
-        FoldOf(i - static_cast<size_t>(config.holdout), total, static_cast<int>(organizers.size()));
-    cv::Mat bank;
-    t.parts = organizers[static_cast<size_t>(t.fold)].ClassifiedSuperpixels(working, &bank, nullptr,
-                                                                            &t.appearance);
-    t.lab = working.lab;
-    if (reads_boundary) {
-      t.boundary =
-          boundary_models[static_cast<size_t>(t.fold)].ScoreMap(bank, CrackPixels(t.parts.labels));
-    }
-    const cv::Mat objects = LayerAtSize(image->objects, working.bgr.size());
-    t.votes.resize(static_cast<size_t>(t.parts.size()));
-    for (int y = 0; y < objects.rows; ++y) {
-      const int* o = objects.ptr<int>(y);
-      const int* l = t.parts.labels.ptr<int>(y);
-      for (int x = 0; x < objects.cols; ++x) {
-        ++t.votes[l[x]].counts[o[x]];
-        ++t.votes[l[x]].total;
-      }
-    }
-    std::vector<Votes> votes = t.votes;
-    MergeState state = new_state(t);
-    Record(state, votes, {}, config.min_purity, &sample);
-    for (int level = 0; level < config.levels; ++level) {
-      std::vector<std::pair<int, int>> candidates;
-      for (const auto& [a, b] : state.Pairs()) {
-        const int ma = votes[a].Majority(config.min_purity);
-        if (ma >= 0 && ma == votes[b].Majority(config.min_purity)) candidates.emplace_back(a, b);
-      }
-      if (candidates.empty()) break;
-      std::shuffle(candidates.begin(), candidates.end(), rng);
-      const size_t merge_count = std::max<size_t>(
-          1, static_cast<size_t>(config.level_fraction * static_cast<double>(candidates.size())));
-      std::vector<char> changed(static_cast<size_t>(state.capacity()), 0);
-      for (size_t c = 0; c < merge_count; ++c) {
-        const int a = state.Find(candidates[c].first);
-        const int b = state.Find(candidates[c].second);
-        if (a == b || state.NeighboursOf(a).count(b) == 0) continue;
-        state.Merge(a, b);
-        votes[a].Add(votes[b]);
-        changed[a] = 1;
-      }
-      Record(state, votes, changed, config.min_purity, &sample);
-    }
-    images.push_back(std::move(t));
-    if (config.progress) {
-      pass1_progress.Report(images.size(), "pass 1: pairs from %zu/%zu images: %d", images.size(),
-                            total, sample.features.rows);
-    }
-  }
+  PLACEREC_RETURN_IF_ERROR(CollectGroundTruthPairs(config, m, *ids, &rng, &images, &sample));
   const double pairs_seconds = timer.ElapsedMs() / 1000.0;
   const int pass1_pairs = sample.features.rows;
   StatusOr<TrainedModel> trained = TrainOn(sample, config, &rng);
@@ -396,25 +515,7 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
   // Pass 2: the first model's own greedy merging, every pair it meets after a merge.
   if (config.on_policy) {
     timer.Restart();
-    RegionMergeOptions policy;
-    policy.threshold = config.policy_threshold;
-    size_t done = 0;
-    ProgressLine pass2_progress(images.size(), kLogProgressEvery);
-    for (const TrainingImage& t : images) {
-      std::vector<Votes> votes = t.votes;
-      MergeState state = new_state(t);
-      MergeRegions(trained->model, policy, &state, [&](int a, int b) {
-        votes[a].Add(votes[b]);
-        for (const auto& [n, edge] : state.NeighboursOf(a)) {
-          RecordPair(state, votes, a, n, config.min_purity, &sample);
-        }
-      });
-      ++done;
-      if (config.progress) {
-        pass2_progress.Report(done, "pass 2: pairs from %zu/%zu images: %d", done, images.size(),
-                              sample.features.rows - pass1_pairs);
-      }
-    }
+    CollectOnPolicyPairs(config, m, trained->model, images, pass1_pairs, &sample);
     const double policy_seconds = timer.ElapsedMs() / 1000.0;
     trained = TrainOn(sample, config, &rng);
     if (!trained.ok()) return trained.status();
@@ -428,40 +529,8 @@ StatusOr<nlohmann::json> TrainGroupingModel(const GroupingTrainingConfig& config
   }
   PLACEREC_RETURN_IF_ERROR(trained->model.Save(config.out));
 
-  nlohmann::json manifest;
-  manifest["format_version"] = RegionMergeModel::kFormatVersion;
-  manifest["created"] = TodayUtc();
-  manifest["file"] = RegionMergeModel::kFileName;
-  if (!config.command_line.empty()) manifest["command"] = config.command_line;
-  manifest["data"] = {{"dataset", std::filesystem::path(config.dataset).filename().string()},
-                      {"split", config.split},
-                      {"holdout_first_images", config.holdout},
-                      {"cross_fit_folds", static_cast<int>(config.cross_fit.size())},
-                      {"cross_fit_models", config.cross_fit},
-                      {"images", static_cast<int>(images.size())}};
-  manifest["pairs"] = {{"levels", config.levels},         {"level_fraction", config.level_fraction},
-                       {"min_purity", config.min_purity}, {"max_pairs", config.max_pairs},
-                       {"on_policy", config.on_policy},   {"pass1_seconds", pairs_seconds}};
-  manifest["passes"] = passes;
-  manifest["boost"] = {{"type", "gentle"},
-                       {"weak_count", config.boost.weak_count},
-                       {"max_depth", config.boost.max_depth},
-                       {"weight_trim_rate", config.boost.weight_trim_rate},
-                       {"features", config.features}};
-  manifest["background_decision"] = {
-      {"threshold", organizer_options.background_threshold},
-      {"one_per_class", organizer_options.one_per_class},
-      {"structured_classes", background.classifier.structured_names()}};
-  manifest["seed"] = config.seed;
-  if (reads_boundary) {
-    // The boundary model that describes the pairs of each fold, with its manifest.
-    for (const std::string& dir : boundary_sources) {
-      std::ifstream in(dir + "/boundary.json");
-      manifest["boundary_models"].push_back(
-          {{"directory", dir},
-           {"manifest", in ? nlohmann::json::parse(in, nullptr, false) : nlohmann::json()}});
-    }
-  }
+  nlohmann::json manifest =
+      GroupingManifest(config, m, static_cast<int>(images.size()), pairs_seconds, passes);
   PLACEREC_RETURN_IF_ERROR(WriteManifest(config.out + "/grouping.json", manifest));
   return manifest;
 }
