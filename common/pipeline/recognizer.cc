@@ -61,6 +61,59 @@ RecognitionResult Recognizer::Process(const FrameRequest& request, const cv::Mat
   return Recognize(request, analyzer_.Analyze(bgr));
 }
 
+std::vector<Landmark> Recognizer::BuildLandmarks(const FrameObservation& observation,
+                                                 const LandmarkSelection& selection) const {
+  // Rows stored per landmark: the tracked ones, topped up in plain scenes.
+  std::vector<std::vector<int>> stored_rows(selection.landmarks.size());
+  size_t stored_total = 0;
+  for (size_t i = 0; i < selection.landmarks.size(); ++i) {
+    const SceneObject& object = observation.objects[selection.landmarks[i]];
+    if (options_.store_tracked_descriptors_only) {
+      stored_rows[i] = selection.tracked_rows[i];
+    } else {
+      stored_rows[i].resize(object.keypoints.size());
+      for (size_t r = 0; r < stored_rows[i].size(); ++r) stored_rows[i][r] = static_cast<int>(r);
+    }
+    stored_total += stored_rows[i].size();
+  }
+  if (stored_total < static_cast<size_t>(options_.min_descriptors_per_place)) {
+    // Untracked rows of every landmark, strongest keypoint first.
+    std::vector<std::tuple<float, size_t, int>> extra;  // (-response, landmark, row)
+    for (size_t i = 0; i < selection.landmarks.size(); ++i) {
+      const SceneObject& object = observation.objects[selection.landmarks[i]];
+      std::vector<bool> taken(object.keypoints.size(), false);
+      for (int r : stored_rows[i]) taken[r] = true;
+      for (int r = 0; r < object.sift_count(); ++r) {
+        if (taken[r]) continue;
+        extra.emplace_back(-observation.features.keypoints[object.keypoints[r]].response, i, r);
+      }
+    }
+    std::sort(extra.begin(), extra.end());
+    for (const auto& [negative_response, i, r] : extra) {
+      if (stored_total >= static_cast<size_t>(options_.min_descriptors_per_place)) break;
+      stored_rows[i].push_back(r);
+      ++stored_total;
+    }
+  }
+  std::vector<Landmark> landmarks;
+  for (size_t i = 0; i < selection.landmarks.size(); ++i) {
+    const SceneObject& object = observation.objects[selection.landmarks[i]];
+    Landmark landmark;
+    landmark.sift_count = object.sift_count();
+    landmark.colour = object.colour;
+    landmark.box = object.box;
+    landmark.segment_class = object.segment_class;
+    const std::vector<int>& rows = stored_rows[i];
+    landmark.descriptors.create(static_cast<int>(rows.size()), kDescriptorSize, CV_8U);
+    for (size_t r = 0; r < rows.size(); ++r) {
+      object.descriptors.row(rows[r]).copyTo(landmark.descriptors.row(static_cast<int>(r)));
+      landmark.keypoints.push_back(observation.features.keypoints[object.keypoints[rows[r]]]);
+    }
+    landmarks.push_back(std::move(landmark));
+  }
+  return landmarks;
+}
+
 RecognitionResult Recognizer::Recognize(const FrameRequest& request,
                                         const FrameObservation& observation) {
   RecognitionResult result;
@@ -95,6 +148,20 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
                                    observation.features.descriptors);
   }
   result.timings.emplace_back("recent_past", timer.ElapsedMs());
+
+  if (recent.duplicate && state->last_map_places == map_->Counts().places) {
+    // Nothing new in the frame and nothing new in the map: the same answer, at any frame rate,
+    // without a lookup.
+    result.duplicate = true;
+    result.repeated_answer = true;
+    result.landmarks = static_cast<int>(selection.landmarks.size());  // seen, not stored
+    result.matches = state->last_matches;
+    result.loop_closure =
+        !result.matches.empty() && result.matches.front().score >= options_.loop.min_score;
+    state->last_sequence = request.sequence;
+    result.map = map_->Counts();
+    return result;
+  }
 
   // Lookup (seed §5.7 step 5) and decision (step 6).
   MapLookup lookup;
@@ -157,24 +224,6 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
       searched_objects.push_back(-1);
     }
   }
-  if (recent.duplicate && state->last_map_places == map_->Counts().places) {
-    // Nothing new in the frame and nothing new in the map: the same answer, at any frame rate.
-    result.duplicate = true;
-    result.repeated_answer = true;
-    result.landmarks = static_cast<int>(selection.landmarks.size());  // seen, not stored
-    result.matches = state->last_matches;
-    for (PlaceMatch& match : result.matches) {
-      match.object_pairs.clear();
-      match.landmark_boxes.clear();
-      match.point_pairs.clear();
-      match.point_landmarks.clear();
-    }
-    result.loop_closure =
-        !result.matches.empty() && result.matches.front().score >= options_.loop.min_score;
-    state->last_sequence = request.sequence;
-    result.map = map_->Counts();
-    return result;
-  }
   MapLookupResult found = map_->Lookup(lookup, options_.loop);
   VLOG(1) << request.robot << " #" << request.sequence << ": " << lookup.objects.size()
           << " query objects, " << found.stats.candidates << " candidates, "
@@ -215,62 +264,16 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   }
 
   // Store this frame's landmarks, committed before the answer goes out; a frame that shows
-  // nothing new since the robot's last stored place is not stored.
+  // nothing new since the robot's last distinct frame is not stored.
   timer.Restart();
   result.duplicate = recent.duplicate;
-  // Rows stored per landmark: the tracked ones, topped up in plain scenes.
-  std::vector<std::vector<int>> stored_rows(selection.landmarks.size());
-  size_t stored_total = 0;
-  for (size_t i = 0; i < selection.landmarks.size(); ++i) {
-    const SceneObject& object = observation.objects[selection.landmarks[i]];
-    if (options_.store_tracked_descriptors_only) {
-      stored_rows[i] = selection.tracked_rows[i];
-    } else {
-      stored_rows[i].resize(object.keypoints.size());
-      for (size_t r = 0; r < stored_rows[i].size(); ++r) stored_rows[i][r] = static_cast<int>(r);
-    }
-    stored_total += stored_rows[i].size();
-  }
-  if (stored_total < static_cast<size_t>(options_.min_descriptors_per_place)) {
-    // Untracked rows of every landmark, strongest keypoint first.
-    std::vector<std::tuple<float, size_t, int>> extra;  // (-response, landmark, row)
-    for (size_t i = 0; i < selection.landmarks.size(); ++i) {
-      const SceneObject& object = observation.objects[selection.landmarks[i]];
-      std::vector<bool> taken(object.keypoints.size(), false);
-      for (int r : stored_rows[i]) taken[r] = true;
-      for (int r = 0; r < object.sift_count(); ++r) {
-        if (taken[r]) continue;
-        extra.emplace_back(-observation.features.keypoints[object.keypoints[r]].response, i, r);
-      }
-    }
-    std::sort(extra.begin(), extra.end());
-    for (const auto& [negative_response, i, r] : extra) {
-      if (stored_total >= static_cast<size_t>(options_.min_descriptors_per_place)) break;
-      stored_rows[i].push_back(r);
-      ++stored_total;
-    }
-  }
   std::vector<Landmark> landmarks;
-  for (size_t i = 0; i < selection.landmarks.size(); ++i) {
-    const SceneObject& object = observation.objects[selection.landmarks[i]];
-    Landmark landmark;
-    landmark.sift_count = object.sift_count();
-    landmark.colour = object.colour;
-    landmark.box = object.box;
-    landmark.segment_class = object.segment_class;
-    const std::vector<int>& rows = stored_rows[i];
-    landmark.descriptors.create(static_cast<int>(rows.size()), kDescriptorSize, CV_8U);
-    for (size_t r = 0; r < rows.size(); ++r) {
-      object.descriptors.row(rows[r]).copyTo(landmark.descriptors.row(static_cast<int>(r)));
-      landmark.keypoints.push_back(observation.features.keypoints[object.keypoints[rows[r]]]);
-    }
-    result.stored_descriptors += static_cast<int>(rows.size());
-    landmarks.push_back(std::move(landmark));
+  if (!result.duplicate) landmarks = BuildLandmarks(observation, selection);
+  for (const Landmark& landmark : landmarks) {
+    result.stored_descriptors += landmark.num_descriptors();
   }
-  result.landmarks = static_cast<int>(landmarks.size());
-  if (result.duplicate) {
-    result.stored_descriptors = 0;
-  } else if (!landmarks.empty()) {
+  result.landmarks = static_cast<int>(selection.landmarks.size());  // stored unless a duplicate
+  if (!landmarks.empty()) {
     Place place;
     place.robot = request.robot;
     place.sequence = request.sequence;
@@ -288,7 +291,17 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   // The landmark history holds the robot's distinct frames: copies of a view would make every
   // object "widely visible" at a high frame rate.
   if (!result.duplicate) state->selector.Remember(object_descriptors);
-  state->last_matches = result.matches;
+  // The answer a frame showing nothing new gets again: without the per-object pairs and
+  // points, which belong to this frame's objects and keypoints.
+  state->last_matches.clear();
+  for (const PlaceMatch& match : result.matches) {
+    PlaceMatch summary = match;
+    summary.object_pairs.clear();
+    summary.landmark_boxes.clear();
+    summary.point_pairs.clear();
+    summary.point_landmarks.clear();
+    state->last_matches.push_back(std::move(summary));
+  }
   state->last_map_places = map_->Counts().places;
   state->last_sequence = request.sequence;
   result.timings.emplace_back("insert", timer.ElapsedMs());

@@ -116,6 +116,10 @@ class Recognizer {
     int64_t last_map_places = -1;
   };
   RobotState* StateOf(const std::string& robot);
+  // The landmarks a frame stores: per selected landmark its tracked descriptors, topped up in
+  // plain scenes to min_descriptors_per_place (strongest keypoints first).
+  std::vector<Landmark> BuildLandmarks(const FrameObservation& observation,
+                                       const LandmarkSelection& selection) const;
 
   RecognizerOptions options_;
   PlaceMap* map_;
