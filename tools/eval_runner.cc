@@ -36,6 +36,8 @@ std::string Fixed(double value, int digits) {
 nlohmann::json OptionsJson(const RecognizerOptions& o) {
   nlohmann::json j;
   j["max_image_width"] = o.analyzer.max_image_width;
+  j["small_frame_width"] = o.analyzer.small_frame_width;
+  j["upscaled_width"] = o.analyzer.upscaled_width;
   const bool organization = o.analyzer.segmentation == SegmentationMethod::kOrganization;
   const SuperpixelOptions& superpixels =
       organization ? o.analyzer.organization.superpixels : o.analyzer.superpixels;
@@ -60,6 +62,8 @@ nlohmann::json OptionsJson(const RecognizerOptions& o) {
   j["min_same_robot_gap_seconds"] = o.recent_past.min_gap_seconds;
   j["away_seconds"] = o.recent_past.away_seconds;
   j["geometric_verification"] = o.loop.geometric_verification;
+  j["sequence_frames"] = o.sequence.frames;
+  j["objects_include_background"] = o.analyzer.objects.include_background;
   j["loop_min_score"] = o.loop.min_score;
   return j;
 }
@@ -75,6 +79,10 @@ struct FeedTotals {
   int64_t objects = 0;
   int64_t landmarks = 0;
   int loop_closures = 0;
+  // candidates.csv: every place returned per frame (--max-matches of them), best first.
+  std::string candidates_csv =
+      "frame,rank,reference,robot,score,inliers,matched_descriptors,"
+      "matched_landmarks,log_scale\n";
 };
 
 // Precision and recall at the decision threshold.
@@ -83,6 +91,13 @@ struct DecisionCounts {
   int fp = 0;
   int fp_same_robot = 0;  // wrong loop closures to the robot's own frames
 };
+
+// A frame of the run as the simulated camera sends it (eval.frame_width).
+StatusOr<cv::Mat> ReadFrame(const std::string& path, const EvalOptions& eval) {
+  StatusOr<cv::Mat> image = ReadImageFile(path);
+  if (!image.ok() || eval.frame_width <= 0) return image;
+  return ResizeToWidth(*image, eval.frame_width);
+}
 
 // The map the run builds (SQLite, in memory unless `eval.db_path` names a file).
 StatusOr<std::unique_ptr<PlaceMap>> OpenMap(const RecognizerOptions& options,
@@ -123,7 +138,7 @@ Status FeedFrames(const Run& run, const EvalOptions& eval, int frames, const Tim
     // A frame sent again (a repeated run) is analysed once: analysis is deterministic.
     double decode_ms = 0;
     if (f == 0 || frame.image != run.frames[f - 1].image) {
-      StatusOr<cv::Mat> image = ReadImageFile(frame.image);
+      StatusOr<cv::Mat> image = ReadFrame(frame.image, eval);
       if (!image.ok()) return image.status();
       decode_ms = frame_timer.ElapsedMs();
       last_observation = recognizer.Analyze(*image);
@@ -153,6 +168,14 @@ Status FeedFrames(const Run& run, const EvalOptions& eval, int frames, const Tim
       answer.score = best.score;
       totals->records[f].has_match = true;
       totals->records[f].best = best;
+    }
+    for (size_t rank = 0; rank < result.matches.size(); ++rank) {
+      const PlaceMatch& m = result.matches[rank];
+      char row[160];
+      std::snprintf(row, sizeof(row), "%d,%zu,%lld,%s,%.6g,%d,%d,%d,%.4f\n", frame.frame, rank,
+                    static_cast<long long>(m.place.sequence), m.place.robot.c_str(), m.score,
+                    m.inliers, m.matched_descriptors, m.matched_landmarks, m.log_scale);
+      totals->candidates_csv += row;
     }
     totals->frame_scale[f] = result.image_scale;
     report->answers.push_back(answer);
@@ -227,9 +250,15 @@ nlohmann::json SummaryJson(const Run& run, int frames, const RecognizerOptions& 
   return s;
 }
 
-// answers.csv, summary.json and pr_curve.png in `out_dir`.
-Status WriteOutputs(const Run& run, const std::string& out_dir, const EvalReport& report) {
+// answers.csv, candidates.csv, summary.json and pr_curve.png in `out_dir`.
+Status WriteOutputs(const Run& run, const std::string& out_dir, const EvalReport& report,
+                    const FeedTotals& totals) {
   PLACEREC_RETURN_IF_ERROR(WriteAnswers(out_dir + "/answers.csv", report.answers));
+  {
+    std::ofstream out(out_dir + "/candidates.csv");
+    if (!out) return Status::IoError("cannot write " + out_dir + "/candidates.csv");
+    out << totals.candidates_csv;
+  }
   {
     std::ofstream out(out_dir + "/summary.json");
     if (!out) return Status::IoError("cannot write " + out_dir + "/summary.json");
@@ -273,8 +302,8 @@ Status WriteMatchPictures(const Run& run, const Run& scored, int frames, const E
   for (const auto& [f, is_correct] :
        ChoosePictures(scored, frames, report, totals, eval.pictures)) {
     const int reference = report.answers[f].reference;
-    StatusOr<cv::Mat> query = ReadImageFile(run.frames[f].image);
-    StatusOr<cv::Mat> ref = ReadImageFile(run.frames[reference].image);
+    StatusOr<cv::Mat> query = ReadFrame(run.frames[f].image, eval);
+    StatusOr<cv::Mat> ref = ReadFrame(run.frames[reference].image, eval);
     if (!query.ok() || !ref.ok()) continue;
     const FrameObservation observation = recognizer.Analyze(*query);
     const std::string caption =
@@ -323,9 +352,10 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
       CountDecisions(run, scored, report.answers, options.loop.min_score);
   report.summary =
       SummaryJson(run, frames, options, report, decisions, totals, **map, recognizer, run_timer);
+  report.summary["frame_width"] = eval.frame_width;  // 0: as recorded
 
   if (eval.out_dir.empty()) return report;
-  PLACEREC_RETURN_IF_ERROR(WriteOutputs(run, eval.out_dir, report));
+  PLACEREC_RETURN_IF_ERROR(WriteOutputs(run, eval.out_dir, report, totals));
   if (eval.pictures > 0) {
     PLACEREC_RETURN_IF_ERROR(
         WriteMatchPictures(run, scored, frames, eval, report, totals, recognizer));

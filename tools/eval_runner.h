@@ -1,5 +1,6 @@
 // Feeds a run (../shared/data layout) through the recognition pipeline in-process and writes
-// what placerec-eval promises: answers.csv, summary.json, pr_curve.png and match pictures.
+// what placerec-eval promises: answers.csv, candidates.csv, summary.json, pr_curve.png and match
+// pictures.
 #pragma once
 
 #include <functional>
@@ -23,6 +24,9 @@ struct EvalOptions {
   bool progress = true;              // a progress line on stderr
   bool print_loop_closures = false;  // one stdout line per loop closure as it is found
   int max_frames = 0;                // stop after this many frames (0: all)
+  // Every frame is scaled to this width as it is read (0: as recorded), as a camera of that
+  // resolution would send it; the pipeline's own scaling comes after.
+  int frame_width = 0;
 };
 
 struct EvalReport {

@@ -51,7 +51,8 @@ int RunCommand(int argc, char** argv) {
       "placerec-eval run --dataset DIR --run NAME --out OUT [options]\n\n"
       "Feeds every frame of a run (layout of shared/data/README.md) through the pipeline in\n"
       "order, each frame compared only with earlier ones, and writes OUT/answers.csv\n"
-      "(frame,reference,score), OUT/summary.json, OUT/pr_curve.png and OUT/matches/*.jpg.");
+      "(frame,reference,score), OUT/candidates.csv (every place returned per frame),\n"
+      "OUT/summary.json, OUT/pr_curve.png and OUT/matches/*.jpg.");
   parser.AddRequired("dataset", &dataset,
                      "dataset directory, or its name under PLACEREC_DATA / ../shared/data");
   parser.AddRequired("run", &run_name, "run name (DIR/runs/NAME.frames.csv)");
@@ -59,6 +60,9 @@ int RunCommand(int argc, char** argv) {
   parser.Add("db", &eval.db_path, "SQLite map file to build (default: a map in memory)");
   parser.Add("pictures", &eval.pictures, "match pictures to draw");
   parser.Add("max-frames", &eval.max_frames, "stop after this many frames (0: all)");
+  parser.Add("frame-width", &eval.frame_width,
+             "scale every frame to this many pixels wide as it is read, as a camera of that "
+             "resolution would send it (0: as recorded; e.g. 160 or 320)");
   parser.Add("repeat", &repeat,
              "send every frame this many times, repeat-interval-ms apart (a faster camera or a "
              "robot standing still); OUT/run.frames.csv and run.positives.csv hold the fed run");
@@ -74,6 +78,10 @@ int RunCommand(int argc, char** argv) {
   std::string error;
   if (!options.Check(&error)) {
     std::fprintf(stderr, "placerec-eval run: %s\n", error.c_str());
+    return 2;
+  }
+  if (eval.frame_width != 0 && (eval.frame_width < 16 || eval.frame_width > 8192)) {
+    std::fprintf(stderr, "placerec-eval run: --frame-width must be 0 or in [16, 8192] pixels\n");
     return 2;
   }
   if (repeat < 1 || repeat_interval_ms <= 0) {

@@ -139,6 +139,27 @@ cv::Mat LimitWidth(const cv::Mat& bgr, int max_width, double* scale) {
   return resized;
 }
 
+cv::Mat ResizeToWidth(const cv::Mat& bgr, int width) {
+  CHECK_GT(width, 0);
+  if (bgr.cols == width) return bgr;
+  const double scale = static_cast<double>(width) / bgr.cols;
+  const int height = std::max(1, static_cast<int>(std::lround(bgr.rows * scale)));
+  cv::Mat resized;
+  cv::resize(bgr, resized, cv::Size(width, height), 0, 0,
+             width < bgr.cols ? cv::INTER_AREA : cv::INTER_CUBIC);
+  return resized;
+}
+
+cv::Mat FitWidth(const cv::Mat& bgr, int min_width, int max_width, double* scale) {
+  *scale = 1.0;
+  int width = bgr.cols;
+  if (min_width > 0 && width < min_width) width = min_width;
+  if (max_width > 0 && width > max_width) width = max_width;
+  if (width == bgr.cols || bgr.cols == 0) return bgr;
+  *scale = static_cast<double>(width) / bgr.cols;
+  return ResizeToWidth(bgr, width);
+}
+
 cv::Mat ToLab(const cv::Mat& bgr) {
   CHECK_EQ(bgr.type(), CV_8UC3);
   cv::Mat bgr_float;

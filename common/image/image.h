@@ -46,6 +46,14 @@ StatusOr<cv::Mat> ReadImageFile(const std::string& path);
 // the factor new/old through `scale` (1 when unchanged).
 cv::Mat LimitWidth(const cv::Mat& bgr, int max_width, double* scale);
 
+// Scales `bgr` so that its width lies in [min_width, max_width]: down with INTER_AREA, up with
+// INTER_CUBIC; a bound of 0 is no bound, and max_width wins where the two disagree. Returns the
+// factor new/old through `scale`.
+cv::Mat FitWidth(const cv::Mat& bgr, int min_width, int max_width, double* scale);
+
+// Scales `bgr` to exactly `width` pixels wide (aspect kept; down INTER_AREA, up INTER_CUBIC).
+cv::Mat ResizeToWidth(const cv::Mat& bgr, int width);
+
 // CIE Lab with L in [0, 100] and a, b roughly in [-127, 127] (CV_32FC3).
 cv::Mat ToLab(const cv::Mat& bgr);
 

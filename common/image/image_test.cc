@@ -145,5 +145,29 @@ TEST(ResizeTest, LimitWidthKeepsAspect) {
   EXPECT_EQ(scale, 1.0);
 }
 
+TEST(ResizeTest, FitWidthScalesUpAndDown) {
+  double scale = 0;
+  const cv::Mat up = FitWidth(Flat(160, 120, cv::Scalar(9, 9, 9)), 640, 0, &scale);
+  EXPECT_EQ(up.cols, 640);
+  EXPECT_EQ(up.rows, 480);
+  EXPECT_DOUBLE_EQ(scale, 4.0);
+  EXPECT_EQ(up.at<cv::Vec3b>(100, 100), cv::Vec3b(9, 9, 9));
+  const cv::Mat down = FitWidth(Flat(960, 540, cv::Scalar(0, 0, 0)), 640, 800, &scale);
+  EXPECT_EQ(down.cols, 800);
+  EXPECT_NEAR(scale, 800.0 / 960.0, 1e-9);
+  // The cap wins where the bounds disagree.
+  const cv::Mat capped = FitWidth(Flat(160, 120, cv::Scalar(0, 0, 0)), 640, 320, &scale);
+  EXPECT_EQ(capped.cols, 320);
+  const cv::Mat kept = FitWidth(Flat(512, 384, cv::Scalar(0, 0, 0)), 400, 0, &scale);
+  EXPECT_EQ(kept.cols, 512);
+  EXPECT_EQ(scale, 1.0);
+}
+
+TEST(ResizeTest, ResizeToWidthKeepsAspect) {
+  const cv::Mat small = ResizeToWidth(Flat(960, 540, cv::Scalar(0, 0, 0)), 160);
+  EXPECT_EQ(small.cols, 160);
+  EXPECT_EQ(small.rows, 90);
+}
+
 }  // namespace
 }  // namespace placerec

@@ -67,6 +67,11 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   AddOrganizerFlags(p, &a.organization);
   p->Add("max-image-width", &a.max_image_width,
          "frames wider than this are scaled down before SIFT (pixels; 0 keeps the size)");
+  p->Add("small-frame-width", &a.small_frame_width,
+         "frames narrower than this (pixels) are scaled up to upscaled-width before SIFT and "
+         "segmentation, so that small cameras give objects of enough keypoints (0: keep the "
+         "size; not in the seed, which ran on full-size frames)");
+  p->Add("upscaled-width", &a.upscaled_width, "the width small frames are scaled up to (pixels)");
   p->Add("sift-max-features", &a.features.max_features, "keep the strongest N keypoints (0: all)");
   p->Add("sift-octave-layers", &a.features.octave_layers, "SIFT scale-space layers per octave");
   p->Add("sift-contrast-threshold", &a.features.contrast_threshold,
@@ -89,7 +94,8 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add("object-min-keypoints", &a.objects.min_keypoints,
          "a segment is an object with at least this many keypoints (§5.7: more than 8)");
   p->Add("objects-include-background", &a.objects.include_background,
-         "background segments (sky, road, tree, grass, water) may be objects too");
+         "background segments (sky, road, tree, grass, water) may be objects too when "
+         "textured (the seed keeps them out: false)");
   p->Add("h-bin-width", &a.objects.colour.bin_width, "H histogram bin width");
   p->Add("h-peak-fraction", &a.objects.colour.peak_fraction,
          "dominant H peaks are within this fraction of the highest (§5.6: 0.8)");
@@ -145,6 +151,15 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add("vote-window-seconds", &o->index.vote_window_seconds,
          "a robot's places taken within this many seconds count as one location for the votes");
   p->Add("flann-checks", &o->index.flann.checks, "FLANN leaves checked per query descriptor");
+  p->Add("sequence-frames", &o->sequence.frames,
+         "earlier frames of the robot that may support a candidate place matched in step along "
+         "the same route; the score is the mean over them (0: each frame alone, as in the seed)");
+  p->Add("sequence-spacing-seconds", &o->sequence.min_spacing_seconds,
+         "supporting frames are at least this far apart in capture time");
+  p->Add("sequence-tolerance-seconds", &o->sequence.tolerance_seconds,
+         "a supporting frame's place lies within this many seconds of where the route predicts");
+  p->Add("sequence-max-age-seconds", &o->sequence.max_age_seconds,
+         "earlier frames older than this do not support");
   p->Add("min-same-robot-gap-seconds", &o->recent_past.min_gap_seconds,
          "a robot's own places count only this many seconds (capture time) back (§5.7 step 6; "
          "the seed counts frames, which depends on the frame rate)");

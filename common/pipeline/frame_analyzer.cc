@@ -15,6 +15,13 @@ bool AnalyzerOptions::Check(std::string* error) const {
     *error = "max_image_width must be 0 (keep) or at least 64 pixels";
     return false;
   }
+  if (small_frame_width < 0 || upscaled_width < 64 || upscaled_width > 4096 ||
+      small_frame_width > upscaled_width) {
+    *error =
+        "small_frame_width must be in [0, upscaled_width] (0: keep small frames) and "
+        "upscaled_width in [64, 4096] pixels";
+    return false;
+  }
   if (min_frame_chroma < 0) {
     *error = "min_frame_chroma must be non-negative";
     return false;
@@ -67,7 +74,9 @@ FrameObservation FrameAnalyzer::Analyze(const cv::Mat& bgr) const {
   FrameObservation observation;
   observation.original_size = bgr.size();
   Timer timer;
-  const cv::Mat frame = LimitWidth(bgr, options_.max_image_width, &observation.scale);
+  const cv::Mat frame =
+      FitWidth(bgr, bgr.cols < options_.small_frame_width ? options_.upscaled_width : 0,
+               options_.max_image_width, &observation.scale);
   observation.processed_size = frame.size();
   observation.timings.emplace_back("resize", timer.ElapsedMs());
 

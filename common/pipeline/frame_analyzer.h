@@ -66,6 +66,14 @@ enum class SegmentationMethod {
 struct AnalyzerOptions {
   // Frames wider than this are scaled down (pixels) before SIFT; 0 keeps the frame's size.
   int max_image_width = 0;
+  // Frames narrower than small_frame_width (a cheap camera's 160 or 320 px) are scaled up
+  // (bicubic) to upscaled_width before SIFT and segmentation: they then yield keypoints at the
+  // scales the seed's thresholds assume (objects of more than 8 keypoints, seed §5.3;
+  // superpixel sizes, §3.6) instead of a few dozen per frame. Not in the seed, which ran on
+  // full-size frames; small_frame_width 0 keeps small frames as they are. max_image_width wins
+  // where the two disagree.
+  int small_frame_width = 400;
+  int upscaled_width = 640;
   FeatureOptions features;
   SegmentationMethod segmentation = SegmentationMethod::kOrganization;
   // kOrganization: the initial partition, models and grouping parameters (the recognition
@@ -80,7 +88,15 @@ struct AnalyzerOptions {
     return o;
   }();
   ColourInvariantOptions colour;
-  ObjectOptions objects;
+  // Background segments are objects too when textured (more than 8 keypoints, like any object):
+  // sky and plain road hold too few keypoints to qualify, a textured wall, floor or hedge does.
+  // One default for every place: indoors the background classes cover most of what a corridor
+  // shows. The seed keeps background out of the landmarks (§3.7, §5.7 step 3).
+  ObjectOptions objects = [] {
+    ObjectOptions o;
+    o.include_background = true;
+    return o;
+  }();
   // A frame whose mean chroma (CIE Lab sqrt(a^2 + b^2)) is below this carries no colour (a
   // grey-level camera, seen at night): its objects get no colour signature, so the colour
   // filter lets them through instead of calling everything grey.
@@ -91,7 +107,7 @@ struct AnalyzerOptions {
 
 struct FrameObservation {
   cv::Size original_size;   // pixels of the decoded frame
-  cv::Size processed_size;  // after max_image_width
+  cv::Size processed_size;  // after small-frame upscaling and max_image_width
   double scale = 1.0;       // processed / original
   Features features;        // keypoints in processed pixels
   SceneSegmentation segmentation;

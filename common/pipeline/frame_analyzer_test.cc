@@ -48,5 +48,22 @@ TEST(FrameAnalyzerTest, FindsObjectsOnTexturedBuildings) {
   for (const SceneObject& object : grey_observation.objects) EXPECT_FALSE(object.colour.known());
 }
 
+// A cheap camera's 160 px frame is processed at 640 px: several times the keypoints, and
+// objects with enough of them to be matched, where the frame at its own size has few.
+TEST(FrameAnalyzerTest, SmallFramesAreScaledUp) {
+  const cv::Mat small = ResizeToWidth(View(World(1), 300), 160);
+  AnalyzerOptions options = SyntheticAnalyzerOptions();
+  options.small_frame_width = AnalyzerOptions().small_frame_width;
+  const FrameObservation upscaled = FrameAnalyzer(options).Analyze(small);
+  EXPECT_EQ(upscaled.original_size.width, 160);
+  EXPECT_EQ(upscaled.processed_size.width, AnalyzerOptions().upscaled_width);
+  EXPECT_DOUBLE_EQ(upscaled.scale, AnalyzerOptions().upscaled_width / 160.0);
+  options.small_frame_width = 0;
+  const FrameObservation kept = FrameAnalyzer(options).Analyze(small);
+  EXPECT_EQ(kept.processed_size.width, 160);
+  EXPECT_GT(upscaled.features.size(), 2 * kept.features.size());
+  EXPECT_GT(upscaled.objects.size(), kept.objects.size());
+}
+
 }  // namespace
 }  // namespace placerec

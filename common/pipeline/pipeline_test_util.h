@@ -51,9 +51,12 @@ inline cv::Mat View(const cv::Mat& world, int x) {
 // ground colours, rectangles touching each other), so these tests of the stages downstream of
 // segmentation use superpixels as objects; Perceptual Organization is tested in
 // common/organization and on real frames in tests/.
+// The street is drawn at the 320 px the tests expect, so small-frame upscaling (tested on its
+// own in frame_analyzer_test.cc) is off.
 inline AnalyzerOptions SyntheticAnalyzerOptions() {
   AnalyzerOptions options;
   options.segmentation = SegmentationMethod::kSuperpixels;
+  options.small_frame_width = 0;
   return options;
 }
 

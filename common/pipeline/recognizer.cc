@@ -11,7 +11,7 @@ namespace placerec {
 
 bool RecognizerOptions::Check(std::string* error) const {
   return analyzer.Check(error) && landmarks.Check(error) && index.Check(error) &&
-         loop.Check(error) && recent_past.Check(error);
+         loop.Check(error) && recent_past.Check(error) && sequence.Check(error);
 }
 
 Recognizer::Recognizer(const RecognizerOptions& options, PlaceMap* map,
@@ -23,7 +23,9 @@ Recognizer::Recognizer(const RecognizerOptions& options, PlaceMap* map,
 Recognizer::RobotState* Recognizer::StateOf(const std::string& robot) {
   std::lock_guard lock(robots_mutex_);
   std::unique_ptr<RobotState>& state = robots_[robot];
-  if (!state) state = std::make_unique<RobotState>(options_.landmarks, options_.recent_past);
+  if (!state)
+    state =
+        std::make_unique<RobotState>(options_.landmarks, options_.recent_past, options_.sequence);
   return state.get();
 }
 
@@ -224,7 +226,12 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
       searched_objects.push_back(-1);
     }
   }
-  MapLookupResult found = map_->Lookup(lookup, options_.loop);
+  // More places than the answer holds: the robot's later frames look for its route among them.
+  LoopDecisionOptions loop = options_.loop;
+  if (options_.sequence.frames > 0) {
+    loop.max_matches = std::max(loop.max_matches, options_.sequence.places_kept);
+  }
+  MapLookupResult found = map_->Lookup(lookup, loop);
   VLOG(1) << request.robot << " #" << request.sequence << ": " << lookup.objects.size()
           << " query objects, " << found.stats.candidates << " candidates, "
           << found.stats.matching.query_descriptors << " descriptors, "
@@ -251,6 +258,13 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   }
   for (PlaceMatch& match : found.places) {
     for (auto& pair : match.object_pairs) pair.first = searched_objects[pair.first];
+  }
+  // Sequence consistency: every frame reads the robot's earlier frames; inserted frames join
+  // them (a query changes nothing).
+  state->sequence.Apply(request.utime, &found.places);
+  if (request.insert) state->sequence.Record(request.utime, found.places);
+  if (static_cast<int>(found.places.size()) > options_.loop.max_matches) {
+    found.places.resize(options_.loop.max_matches);
   }
   result.matches = std::move(found.places);
   result.loop_closure =

@@ -18,6 +18,7 @@
 #include "common/recognition/landmark_selector.h"
 #include "common/recognition/loop_decision.h"
 #include "common/recognition/recent_past.h"
+#include "common/recognition/sequence_support.h"
 #include "common/util/status.h"
 #include "common/util/timer.h"
 
@@ -35,6 +36,9 @@ struct RecognizerOptions {
   LandmarkIndexOptions index;
   LoopDecisionOptions loop;
   RecentPastOptions recent_past;
+  // A candidate place's score averages in the robot's earlier frames that matched the same
+  // route in step (sequence_support.h); a one-off query keeps its own score.
+  SequenceOptions sequence;
   QueryObjects query_objects = QueryObjects::kAll;
   // Look up at most this many of the query objects' descriptors, the strongest keypoints
   // (largest DoG response) first: the cost of a lookup grows with the descriptors searched.
@@ -105,10 +109,12 @@ class Recognizer {
 
  private:
   struct RobotState {
-    RobotState(const LandmarkSelectorOptions& landmarks, const RecentPastOptions& recent)
-        : selector(landmarks), recent_past(recent) {}
+    RobotState(const LandmarkSelectorOptions& landmarks, const RecentPastOptions& recent,
+               const SequenceOptions& sequence_options)
+        : selector(landmarks), recent_past(recent), sequence(sequence_options) {}
     LandmarkSelector selector;
     RecentPast recent_past;
+    SequenceSupport sequence;
     int64_t last_sequence = INT64_MIN;
     // The answer to the robot's last distinct frame and the map's place count after it: a
     // frame that shows nothing new while the map is unchanged gets that answer again.

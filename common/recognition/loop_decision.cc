@@ -297,6 +297,7 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
     }
   }
   if (static_cast<int>(ranked.size()) > options.max_matches) ranked.resize(options.max_matches);
+  for (PlaceMatch& match : ranked) match.frame_score = match.score;
   return ranked;
 }
 

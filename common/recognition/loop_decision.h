@@ -72,7 +72,11 @@ struct LoopDecisionOptions {
 
 struct PlaceMatch {
   Place place;
-  double score = 0;             // inliers, or matched descriptors without verification
+  double score = 0;  // inliers, or matched descriptors without verification
+  // This frame's own score; `score` differs from it once sequence support (sequence_support.h)
+  // has averaged in the robot's earlier frames, `supporting_frames` of which matched the route.
+  double frame_score = 0;
+  int supporting_frames = 0;
   int matched_landmarks = 0;    // the place's landmarks matched by this frame's objects
   int matched_descriptors = 0;  // place-level descriptor matches (before the geometric check)
   int inliers = -1;             // geometric inliers; -1 when not verified
