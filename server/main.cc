@@ -51,6 +51,9 @@ int Main(int argc, char** argv) {
              "frames larger than this in either dimension are rejected (pixels)");
   parser.Add("min-image-dimension", &options.decode.min_dimension,
              "frames smaller than this in either dimension are rejected (pixels)");
+  parser.Add("max-image-pixels", &options.decode.max_pixels,
+             "frames of more pixels (width x height) are rejected; JPEG and PNG sizes are read "
+             "from the header before decoding");
   AddRecognizerFlags(&parser, &options.recognizer);
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 1, "placerec-server")) {
     return *exit;

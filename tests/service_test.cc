@@ -511,7 +511,7 @@ TEST_F(ServiceTest, BadInputGetsErrorAnswersAndTheServerGoesOn) {
                    result_t::STATUS_BAD_IMAGE, "PNG signature", robot_channel});
   cases.push_back({"JPEG of another size",
                    make("bad", frame_t::ENCODING_JPEG, 640, 480, jpeg_bytes),
-                   result_t::STATUS_BAD_IMAGE, "does not match decoded size", robot_channel});
+                   result_t::STATUS_BAD_IMAGE, "does not match the jpeg header", robot_channel});
   cases.push_back({"zero width", make("bad", frame_t::ENCODING_RAW_BGR8, 0, 48, noise),
                    result_t::STATUS_BAD_IMAGE, "below the minimum", robot_channel});
   cases.push_back({"negative size", make("bad", frame_t::ENCODING_RAW_GRAY8, -5, 48, noise),

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -29,6 +30,10 @@ bool DecodeOptions::Check(std::string* error) const {
     *error = "min_dimension must be at least 1";
     return false;
   }
+  if (max_pixels < int64_t{min_dimension} * min_dimension) {
+    *error = "max_pixels must hold at least a min_dimension x min_dimension image";
+    return false;
+  }
   if (max_dimension < min_dimension) {
     *error = "max_dimension must be at least min_dimension";
     return false;
@@ -51,10 +56,86 @@ Status CheckDimensions(int width, int height, const DecodeOptions& options) {
     return Status::BadImage("image size " + SizeText(width, height) + " exceeds the maximum of " +
                             std::to_string(options.max_dimension) + " pixels per side");
   }
+  if (int64_t{width} * height > options.max_pixels) {
+    return Status::BadImage("image size " + SizeText(width, height) + " exceeds the budget of " +
+                            std::to_string(options.max_pixels) + " pixels (--max-image-pixels)");
+  }
   return Status::Ok();
 }
 
+uint32_t BigEndian(const uint8_t* p, int bytes) {
+  uint32_t value = 0;
+  for (int i = 0; i < bytes; ++i) value = (value << 8) | p[i];
+  return value;
+}
+
+// JPEG: markers from the start of image; the first start-of-frame segment (SOF0-SOF15 but DHT
+// C4, JPG C8 and DAC CC) holds precision, height and width (ITU T.81, B.2.2).
+Status JpegHeaderSize(const uint8_t* data, size_t size, int* width, int* height) {
+  size_t i = 2;
+  while (i + 4 <= size) {
+    if (data[i] != 0xFF)
+      return Status::BadImage("JPEG marker expected at byte " + std::to_string(i));
+    const uint8_t marker = data[i + 1];
+    if (marker == 0xFF) {  // fill byte
+      ++i;
+      continue;
+    }
+    if (marker == 0x01 || (marker >= 0xD0 && marker <= 0xD7)) {  // no length
+      i += 2;
+      continue;
+    }
+    if (marker == 0xD9 || marker == 0xDA) break;  // end of image, or scan data before a frame
+    const size_t length = BigEndian(data + i + 2, 2);
+    if (length < 2) return Status::BadImage("JPEG segment of length " + std::to_string(length));
+    const bool sof =
+        marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC;
+    if (sof) {
+      if (length < 7 || i + 2 + 7 > size) return Status::BadImage("JPEG frame header cut short");
+      *height = static_cast<int>(BigEndian(data + i + 5, 2));
+      *width = static_cast<int>(BigEndian(data + i + 7, 2));
+      return Status::Ok();
+    }
+    i += 2 + length;
+  }
+  return Status::BadImage("JPEG has no frame header (SOF) before its image data");
+}
+
+// PNG: the signature, then the IHDR chunk: length 13, "IHDR", width, height (big-endian).
+Status PngHeaderSize(const uint8_t* data, size_t size, int* width, int* height) {
+  if (size < 24 || std::memcmp(data + 12, "IHDR", 4) != 0) {
+    return Status::BadImage("PNG has no IHDR chunk after its signature");
+  }
+  const uint32_t w = BigEndian(data + 16, 4);
+  const uint32_t h = BigEndian(data + 20, 4);
+  if (w > INT32_MAX || h > INT32_MAX) {
+    return Status::BadImage("PNG declares an impossible size " + std::to_string(w) + "x" +
+                            std::to_string(h));
+  }
+  *width = static_cast<int>(w);
+  *height = static_cast<int>(h);
+  return Status::Ok();
+}
+
+// Whether the bytes hold the whole image: a JPEG ends with its end-of-image marker (FF D9,
+// trailing zero padding allowed), a PNG with its IEND chunk.
+bool EndsComplete(const uint8_t* data, size_t size, ImageEncoding encoding) {
+  if (encoding == ImageEncoding::kJpeg) {
+    while (size > 2 && data[size - 1] == 0x00) --size;
+    return size >= 4 && data[size - 2] == 0xFF && data[size - 1] == 0xD9;
+  }
+  static const uint8_t kIend[8] = {'I', 'E', 'N', 'D', 0xAE, 0x42, 0x60, 0x82};
+  return size >= 20 && std::memcmp(data + size - 8, kIend, 8) == 0;
+}
+
 }  // namespace
+
+Status ReadHeaderSize(const uint8_t* data, size_t size, ImageEncoding encoding, int* width,
+                      int* height) {
+  if (encoding == ImageEncoding::kJpeg) return JpegHeaderSize(data, size, width, height);
+  if (encoding == ImageEncoding::kPng) return PngHeaderSize(data, size, width, height);
+  return Status::BadImage("only JPEG and PNG carry a header size");
+}
 
 StatusOr<cv::Mat> DecodeImage(const uint8_t* data, size_t size, ImageEncoding encoding, int width,
                               int height, const DecodeOptions& options) {
@@ -97,6 +178,28 @@ StatusOr<cv::Mat> DecodeImage(const uint8_t* data, size_t size, ImageEncoding en
       }
       if (encoding == ImageEncoding::kPng && !is_png) {
         return Status::BadImage("bytes do not start with a PNG signature");
+      }
+      // The size the header declares, against the limits, before anything is decoded.
+      int header_width = 0;
+      int header_height = 0;
+      const Status header = ReadHeaderSize(data, size, encoding, &header_width, &header_height);
+      if (!header.ok()) {
+        return Status::BadImage(std::string("cannot decode ") + ImageEncodingName(encoding) + ": " +
+                                header.message());
+      }
+      const Status header_size = CheckDimensions(header_width, header_height, options);
+      if (!header_size.ok()) {
+        return Status::BadImage(std::string(ImageEncodingName(encoding)) +
+                                " header: " + header_size.message());
+      }
+      if (width > 0 && (header_width != width || header_height != height)) {
+        return Status::BadImage("declared size " + SizeText(width, height) +
+                                " does not match the " + ImageEncodingName(encoding) +
+                                " header's " + SizeText(header_width, header_height));
+      }
+      if (!EndsComplete(data, size, encoding)) {
+        return Status::BadImage(std::string(ImageEncodingName(encoding)) +
+                                " bytes end before the image does (truncated)");
       }
       cv::Mat bytes(1, static_cast<int>(std::min<size_t>(size, INT32_MAX)), CV_8UC1,
                     const_cast<uint8_t*>(data));

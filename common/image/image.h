@@ -28,6 +28,10 @@ struct DecodeOptions {
   int max_dimension = 8192;
   // Frames smaller than this in either dimension are rejected (pixels).
   int min_dimension = 16;
+  // Frames of more pixels than this are rejected (width x height; 16 megapixels holds a phone
+  // photo of 4608x3456). JPEG and PNG sizes are read from the header before decoding, so a
+  // small file declaring a huge image costs nothing.
+  int64_t max_pixels = int64_t{1} << 24;
 
   bool Check(std::string* error) const;
 };
@@ -35,9 +39,16 @@ struct DecodeOptions {
 // Decodes `size` bytes into an 8-bit BGR image. For JPEG and PNG, `width` and `height` may be 0
 // (unknown); when given they must match the decoded image. For raw encodings they are required
 // and `size` must equal width * height * channels. Every failure is a kBadImage status whose
-// message says what was wrong.
+// message says what was wrong. JPEG and PNG sizes are checked from the header before any
+// decoding, and bytes that end before the image does (no JPEG end-of-image marker, no PNG IEND
+// chunk) are refused instead of decoded in part.
 StatusOr<cv::Mat> DecodeImage(const uint8_t* data, size_t size, ImageEncoding encoding, int width,
                               int height, const DecodeOptions& options);
+
+// The width and height a JPEG (its first frame header) or PNG (IHDR) declares, without decoding.
+// kBadImage when the header is missing or malformed.
+Status ReadHeaderSize(const uint8_t* data, size_t size, ImageEncoding encoding, int* width,
+                      int* height);
 
 // Reads an image file (JPEG, PNG, ...) into 8-bit BGR.
 StatusOr<cv::Mat> ReadImageFile(const std::string& path);

@@ -40,6 +40,91 @@ TEST(DecodeTest, JpegAndPngRoundTrip) {
   }
 }
 
+// A textured frame, so that its JPEG and PNG are long enough to cut in half.
+std::vector<uint8_t> Encoded(const char* ext, int width = 160, int height = 120) {
+  cv::Mat image(height, width, CV_8UC3);
+  cv::randu(image, cv::Scalar::all(0), cv::Scalar::all(255));
+  std::vector<uint8_t> bytes;
+  EXPECT_TRUE(cv::imencode(ext, image, bytes));
+  return bytes;
+}
+
+// Rewrites the size a JPEG's first frame header (SOF0, written by OpenCV) or a PNG's IHDR
+// declares, leaving the rest of the bytes as they were.
+void DeclareSize(std::vector<uint8_t>* bytes, ImageEncoding encoding, uint32_t width,
+                 uint32_t height) {
+  auto put = [&](size_t at, uint32_t value, int n) {
+    for (int i = n - 1; i >= 0; --i, value >>= 8) (*bytes)[at + i] = value & 0xFF;
+  };
+  if (encoding == ImageEncoding::kPng) {
+    put(16, width, 4);
+    put(20, height, 4);
+    return;
+  }
+  for (size_t i = 2; i + 9 < bytes->size(); ++i) {
+    if ((*bytes)[i] == 0xFF && (*bytes)[i + 1] == 0xC0) {
+      put(i + 5, height, 2);
+      put(i + 7, width, 2);
+      return;
+    }
+  }
+  ADD_FAILURE() << "no SOF0 marker";
+}
+
+TEST(DecodeTest, ReadsTheHeaderSize) {
+  for (const auto& [ext, encoding] :
+       {std::pair{".jpg", ImageEncoding::kJpeg}, std::pair{".png", ImageEncoding::kPng}}) {
+    const std::vector<uint8_t> bytes = Encoded(ext, 161, 97);
+    int width = 0;
+    int height = 0;
+    ASSERT_TRUE(ReadHeaderSize(bytes.data(), bytes.size(), encoding, &width, &height).ok());
+    EXPECT_EQ(width, 161);
+    EXPECT_EQ(height, 97);
+    EXPECT_FALSE(ReadHeaderSize(bytes.data(), 10, encoding, &width, &height).ok());
+  }
+}
+
+// Image bombs (issue 23): a small file declaring a huge image is refused from its header, before
+// decoding (the decoder would allocate width x height x 3 bytes first).
+TEST(DecodeTest, RefusesImageBombsFromTheHeader) {
+  for (const auto& [ext, encoding] :
+       {std::pair{".jpg", ImageEncoding::kJpeg}, std::pair{".png", ImageEncoding::kPng}}) {
+    for (const auto& [w, h] : {std::pair{30000u, 30000u}, std::pair{8000u, 8000u}}) {
+      std::vector<uint8_t> bytes = Encoded(ext);
+      DeclareSize(&bytes, encoding, w, h);
+      const StatusOr<cv::Mat> r =
+          DecodeImage(bytes.data(), bytes.size(), encoding, 0, 0, DecodeOptions());
+      EXPECT_EQ(r.status().code(), StatusCode::kBadImage) << ext << " " << w;
+      EXPECT_NE(r.status().message().find("header"), std::string::npos) << r.status().message();
+    }
+  }
+  // 8000x8000 is within the per-side limit: the pixel budget refuses it.
+  std::vector<uint8_t> bytes = Encoded(".jpg");
+  DeclareSize(&bytes, ImageEncoding::kJpeg, 8000, 8000);
+  const StatusOr<cv::Mat> r =
+      DecodeImage(bytes.data(), bytes.size(), ImageEncoding::kJpeg, 0, 0, DecodeOptions());
+  EXPECT_NE(r.status().message().find("budget"), std::string::npos) << r.status().message();
+}
+
+// A JPEG or PNG cut in half is an error, not the upper half of a frame.
+TEST(DecodeTest, RefusesTruncatedImages) {
+  for (const auto& [ext, encoding] :
+       {std::pair{".jpg", ImageEncoding::kJpeg}, std::pair{".png", ImageEncoding::kPng}}) {
+    const std::vector<uint8_t> bytes = Encoded(ext);
+    const StatusOr<cv::Mat> half =
+        DecodeImage(bytes.data(), bytes.size() / 2, encoding, 0, 0, DecodeOptions());
+    EXPECT_EQ(half.status().code(), StatusCode::kBadImage) << ext;
+    EXPECT_NE(half.status().message().find("truncated"), std::string::npos)
+        << half.status().message();
+    EXPECT_TRUE(DecodeImage(bytes.data(), bytes.size(), encoding, 0, 0, DecodeOptions()).ok());
+  }
+  // Zero padding after a JPEG's end-of-image marker is harmless.
+  std::vector<uint8_t> padded = Encoded(".jpg");
+  padded.resize(padded.size() + 16, 0);
+  EXPECT_TRUE(
+      DecodeImage(padded.data(), padded.size(), ImageEncoding::kJpeg, 0, 0, DecodeOptions()).ok());
+}
+
 TEST(DecodeTest, RejectsWhatIsWrongWithAMessage) {
   const cv::Mat image = Flat(64, 48, cv::Scalar(1, 2, 3));
   std::vector<uint8_t> jpeg;
