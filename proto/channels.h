@@ -23,8 +23,10 @@ inline constexpr size_t kMaxWireRobotIdLength =
     kMaxLcmChannelLength - (sizeof(kResultChannelPrefix) - 1);
 
 // Whether `robot` can name its answer channel and is a robot id the map accepts: 1 to
-// kMaxWireRobotIdLength bytes, none of them a control character. On false, *why says what is
-// wrong (for the error answer).
+// kMaxWireRobotIdLength bytes, each an ASCII letter, digit, '_', '-' or '.', so that every LCM
+// binding (C, C++, Python, Java, Lua, Go; they subscribe by regular expression and some decode
+// channel names as UTF-8) can subscribe to the answer channel. On false, *why says what is wrong
+// (for the error answer).
 inline bool IsValidWireRobotId(const std::string& robot, std::string* why) {
   if (robot.empty()) {
     *why = "robot id is empty";
@@ -37,9 +39,21 @@ inline bool IsValidWireRobotId(const std::string& robot, std::string* why) {
            std::to_string(kMaxLcmChannelLength) + " bytes)";
     return false;
   }
-  for (unsigned char c : robot) {
+  for (size_t i = 0; i < robot.size(); ++i) {
+    const unsigned char c = static_cast<unsigned char>(robot[i]);
     if (c < 0x20 || c == 0x7f) {
       *why = "robot id contains a control character";
+      return false;
+    }
+    const bool allowed = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') ||
+                         (c >= '0' && c <= '9') || c == '_' || c == '-' || c == '.';
+    if (!allowed) {
+      static const char kHex[] = "0123456789abcdef";
+      *why = std::string("robot id byte ") + std::to_string(i) + " (0x" + kHex[c >> 4] +
+             kHex[c & 15] +
+             ") is not allowed: use ASCII letters, digits, '_', '-' and '.' only, so that every "
+             "LCM binding can subscribe to the answer channel " +
+             kResultChannelPrefix + "<robot>";
       return false;
     }
   }

@@ -141,6 +141,16 @@ TEST(ProtocolTest, RobotIdsThatNameAChannel) {
   EXPECT_FALSE(IsValidWireRobotId("a\nb", &why));
   EXPECT_EQ(ResultChannel("left"), "PLACEREC_RESULT_left");
   EXPECT_EQ(ResultChannel(std::string(100, 'r')), "PLACEREC_RESULT");
+  // Bytes that are not valid UTF-8, spaces and other punctuation cannot name a channel every
+  // LCM binding subscribes to (issue 23: "r\xff\xfe" was processed and its answer was lost).
+  for (const std::string& bad :
+       {std::string("r\xff\xfe"), std::string("r\xc3\xa9"), std::string("two words"),
+        std::string("a*b"), std::string("a/b")}) {
+    EXPECT_FALSE(IsValidWireRobotId(bad, &why)) << bad;
+    EXPECT_NE(why.find("not allowed"), std::string::npos) << why;
+    EXPECT_EQ(ResultChannel(bad), "PLACEREC_RESULT");
+  }
+  EXPECT_TRUE(IsValidWireRobotId("robot-7.left_cam", &why)) << why;
   EXPECT_LE(ResultChannel(std::string(kMaxWireRobotIdLength, 'r')).size(), kMaxLcmChannelLength);
 }
 

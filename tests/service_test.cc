@@ -532,6 +532,9 @@ TEST_F(ServiceTest, BadInputGetsErrorAnswersAndTheServerGoesOn) {
                    result_t::STATUS_BAD_REQUEST, "robot id is empty", "PLACEREC_RESULT"});
   cases.push_back({"control character", make("ro\tbot", frame_t::ENCODING_JPEG, 0, 0, jpeg_bytes),
                    result_t::STATUS_BAD_REQUEST, "control character", "PLACEREC_RESULT"});
+  cases.push_back({"robot id not UTF-8",
+                   make("r\xff\xfe", frame_t::ENCODING_JPEG, 0, 0, jpeg_bytes),
+                   result_t::STATUS_BAD_REQUEST, "is not allowed", "PLACEREC_RESULT"});
   frame_t old = make("robot", frame_t::ENCODING_JPEG, 0, 0, jpeg_bytes);
   old.sequence = 1;  // robot has sent 0..2
   cases.push_back({"sequence going back", old, result_t::STATUS_BAD_REQUEST,
