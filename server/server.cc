@@ -49,8 +49,8 @@ bool ServerOptions::Check(std::string* error) const {
     *error = "--queue must be at least 1";
     return false;
   }
-  if (!(status_period_s > 0)) {
-    *error = "--status-period must be positive";
+  if (!(status_period_s > 0) || status_period_s > 3600) {
+    *error = "--status-period must be positive and at most 3600 seconds";
     return false;
   }
   return store.Check(error) && decode.Check(error) && recognizer.Check(error);

@@ -101,6 +101,8 @@ TEST(ServerOptionsTest, DefaultsPassAndBadValuesNameTheirFlag) {
       {"--status-period", [](ServerOptions* o) { o->status_period_s = -1; }},
       {"--status-period",
        [](ServerOptions* o) { o->status_period_s = std::numeric_limits<double>::quiet_NaN(); }},
+      {"--status-period",
+       [](ServerOptions* o) { o->status_period_s = std::numeric_limits<double>::infinity(); }},
       // The parts' own checks run too.
       {"max_image_width", [](ServerOptions* o) { o->recognizer.analyzer.max_image_width = 10; }},
   });

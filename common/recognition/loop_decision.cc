@@ -41,6 +41,14 @@ bool LoopDecisionOptions::Check(std::string* error) const {
     *error = "loop localization_window_seconds must be >= 0";
     return false;
   }
+  if (!(localization_score_fraction >= 0 && localization_score_fraction <= 1)) {
+    *error = "loop localization_score_fraction must be in [0, 1]";
+    return false;
+  }
+  if (!(noise_inliers >= 0) || !std::isfinite(noise_inliers)) {
+    *error = "loop noise_inliers must be non-negative and finite";
+    return false;
+  }
   if (min_score < 0) {
     *error = "loop min_score must be non-negative";
     return false;

@@ -27,6 +27,14 @@ TEST(LoopDecisionTest, DefaultsPassAndBadValuesFail) {
   EXPECT_TRUE(LoopDecisionOptions().Check(&error)) << error;
   options.ransac_threshold = 0;
   EXPECT_FALSE(options.Check(&error));
+  options = LoopDecisionOptions();
+  options.localization_score_fraction = 1.5;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("localization_score_fraction"), std::string::npos) << error;
+  options = LoopDecisionOptions();
+  options.noise_inliers = -1;
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("noise_inliers"), std::string::npos) << error;
 }
 
 TEST(LoopDecisionTest, GeometricallyConsistentPlaceRanksFirst) {
