@@ -9,6 +9,8 @@
 #include <random>
 #include <set>
 
+#include <unistd.h>
+
 #include "common/image/image.h"
 #include "common/organization/filter_bank.h"
 #include "common/organization/scene_organizer.h"
@@ -66,6 +68,15 @@ std::vector<Segment> FindSegments(const LabelledImage& image, const ClassTable& 
   }
   return segments;
 }
+
+// Removes a directory tree when it goes out of scope (the staging directory, on every return).
+struct RemoveOnExit {
+  std::string path;
+  ~RemoveOnExit() {
+    std::error_code ec;
+    std::filesystem::remove_all(path, ec);
+  }
+};
 
 std::set<int> ExcludedIds(const ClassTable& table, const std::vector<std::string>& exclude) {
   std::set<int> ids;
@@ -235,7 +246,14 @@ StatusOr<nlohmann::json> TrainObjectModels(const ObjectTrainingConfig& config) {
   StatusOr<TextonModel> textons = LoadTextons(textons_file);
   if (!textons.ok()) return textons.status();
   const TextonAssigner assigner(*textons);
-  if (!MakeDirectories(config.out)) return Status::IoError("cannot create " + config.out);
+  // Everything is written to a staging directory inside --out and moved into place only when
+  // the whole training succeeded, so that a failed run leaves the previous models as they were.
+  namespace fs = std::filesystem;
+  const std::string staging = config.out + "/.training-" + std::to_string(getpid());
+  std::error_code ec;
+  fs::remove_all(staging, ec);
+  if (!MakeDirectories(staging)) return Status::IoError("cannot create " + staging);
+  const RemoveOnExit cleanup{staging};
 
   Timer timer;
   StatusOr<DescribedSegments> segments =
@@ -300,9 +318,8 @@ StatusOr<nlohmann::json> TrainObjectModels(const ObjectTrainingConfig& config) {
                          {"seed", o.selection.seed}};
   manifest["seconds"]["describe"] = describe_seconds;
 
-  // Staged: a failed run leaves --out's previous models in place.
-  std::filesystem::copy_file(textons_file, config.out + "/textons.yml",
-                             std::filesystem::copy_options::overwrite_existing);
+  fs::copy_file(textons_file, staging + "/textons.yml", ec);
+  if (ec) return Status::IoError("cannot copy " + textons_file + ": " + ec.message());
   for (const ObjectModelVariant& variant : ObjectModelVariants()) {
     if (!config.ablation && variant.name != "all") continue;
     ObjectClassifierOptions options = config.classifier;
@@ -324,7 +341,7 @@ StatusOr<nlohmann::json> TrainObjectModels(const ObjectTrainingConfig& config) {
                        picked.c_str(), s.seconds);
         });
     if (!classifier.ok()) return classifier.status();
-    const std::string dir = config.out + "/" + variant.name;
+    const std::string dir = staging + "/" + variant.name;
     PLACEREC_RETURN_IF_ERROR(classifier->Save(dir));
     nlohmann::json v;
     v["groups"] = variant.groups;
@@ -346,7 +363,22 @@ StatusOr<nlohmann::json> TrainObjectModels(const ObjectTrainingConfig& config) {
     manifest["variants"][variant.name] = v;
   }
   manifest["seconds"]["total"] = total.ElapsedMs() / 1000.0;
-  PLACEREC_RETURN_IF_ERROR(WriteManifest(config.out + "/manifest.json", manifest));
+  PLACEREC_RETURN_IF_ERROR(WriteManifest(staging + "/manifest.json", manifest));
+  // Into place, the manifest last (it describes the files beside it).
+  std::vector<fs::path> entries;
+  for (const auto& entry : fs::directory_iterator(staging)) {
+    if (entry.path().filename() != "manifest.json") entries.push_back(entry.path());
+  }
+  entries.push_back(fs::path(staging) / "manifest.json");
+  for (const fs::path& entry : entries) {
+    const fs::path target = fs::path(config.out) / entry.filename();
+    fs::remove_all(target, ec);
+    fs::rename(entry, target, ec);
+    if (ec) {
+      return Status::IoError("cannot move " + entry.string() + " into " + config.out + ": " +
+                             ec.message());
+    }
+  }
   return manifest;
 }
 

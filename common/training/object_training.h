@@ -98,7 +98,8 @@ struct ObjectTrainingConfig {
 
 // Trains and writes the variants and OUT/manifest.json (data, classes with their training
 // segment counts, options, selected feature counts per class and group, times); returns the
-// manifest.
+// manifest. The files are written to OUT/.training-<pid>/ and moved into OUT only when
+// everything succeeded, so a failed run leaves OUT's previous models as they were.
 StatusOr<nlohmann::json> TrainObjectModels(const ObjectTrainingConfig& config);
 
 // Region accuracy of a classifier over labelled segments (seed §6.2.1: "given a ground truth
