@@ -2,6 +2,8 @@
 //   placerec-eval run --dataset DIR --run NAME --out OUT [pipeline options]
 // feeds a run through the pipeline in-process and writes answers.csv, summary.json,
 // pr_curve.png and match pictures into OUT.
+//   placerec-eval classify --dataset DIR --split test --segments truth --out OUT
+// classifies a labelled dataset's ground-truth object segments (seed Ch. 4, Tables 6.5-6.7).
 #include <cstdio>
 #include <cstring>
 #include <optional>
@@ -16,6 +18,7 @@
 #include "common/util/logging.h"
 #include "common/util/options.h"
 #include "common/util/paths.h"
+#include "tools/classify_command.h"
 #include "tools/eval_runner.h"
 #include "tools/segment_command.h"
 
@@ -27,7 +30,8 @@ constexpr char kUsage[] =
     "Commands:\n"
     "  run       feed a place-recognition run through the pipeline and score it\n"
     "  analyze   draw one frame's segmentation, keypoints and objects\n"
-    "  segment   segment a labelled dataset's split and score it (seed eq. 6.2)\n\n"
+    "  segment   segment a labelled dataset's split and score it (seed eq. 6.2)\n"
+    "  classify  classify a labelled dataset's object segments (seed Ch. 4, Tables 6.5-6.7)\n\n"
     "'placerec-eval COMMAND --help' lists the options of a command.";
 
 // A dataset given by name (e.g. gardens_point) is looked up under PLACEREC_DATA or
@@ -206,6 +210,9 @@ int main(int argc, char** argv) {
   if (std::strcmp(argv[1], "analyze") == 0) return placerec::AnalyzeCommand(argc, argv);
   if (std::strcmp(argv[1], "segment") == 0) {
     return placerec::SegmentCommand(argc, argv, placerec::DataDir("", PLACEREC_DEFAULT_DATA_DIR));
+  }
+  if (std::strcmp(argv[1], "classify") == 0) {
+    return placerec::ClassifyCommand(argc, argv, placerec::DataDir("", PLACEREC_DEFAULT_DATA_DIR));
   }
   std::fprintf(stderr, "placerec-eval: unknown command '%s'\n%s\n", argv[1], placerec::kUsage);
   return 2;

@@ -7,6 +7,9 @@
 // textons and classifiers already in --out, and writes grouping.yml.gz and grouping.json.
 //   placerec-train boundary --dataset DIR --out models/
 // learns the boundary classifier (boundary.h) the grouping model's boundary features read.
+//   placerec-train objects --dataset DIR --out models/objects
+// learns the object classifiers of seed Ch. 4 (feature selection, one classifier per class) from
+// DIR's ground-truth object segments (common/training/object_training.h).
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -21,6 +24,7 @@
 #include "common/training/background_training.h"
 #include "common/training/boundary_training.h"
 #include "common/training/grouping_training.h"
+#include "common/training/object_training.h"
 #include "common/util/csv.h"
 #include "common/util/logging.h"
 #include "common/util/options.h"
@@ -36,7 +40,9 @@ constexpr char kUsage[] =
     "  boundary     the learned object-boundary classifier the grouping reads\n"
     "  grouping     the learned region-merge classifier, from a dataset's object ground truth\n"
     "  grouping-ensemble\n"
-    "               one grouping model that averages the scores of trained ones\n\n"
+    "               one grouping model that averages the scores of trained ones\n"
+    "  objects      object classifiers (seed Ch. 4: feature selection, one per class) from a\n"
+    "               dataset's ground-truth object segments\n\n"
     "'placerec-train COMMAND --help' lists the options of a command.";
 
 // The flags of a training command that are text (or a switch) on the command line and reach
@@ -340,6 +346,70 @@ int GroupingEnsembleCommand(int argc, char** argv) {
   return 0;
 }
 
+int ObjectsCommand(int argc, char** argv) {
+  ObjectTrainingConfig config;
+  std::string exclude;
+  bool quiet = false;
+  FlagParser parser(
+      "placerec-train objects --dataset DIR --out DIR [options]\n\n"
+      "Describes every ground-truth object segment of DIR's training split (seed §4.1: texton\n"
+      "appearance, parts layout, Poisson shape; objects/ and classes/ layers and classes.txt\n"
+      "required), selects each class's features (seed §4.2: information gain eq. 4.8, then an\n"
+      "AdaBoost wrapper) and trains one Gentle AdaBoost classifier per class on them; the\n"
+      "multiclass decision is one-per-class (placerec-eval classify). Writes all/ (the model),\n"
+      "the ablation's appearance/, appearance_parts/, appearance_shape/ and full/ (seed Tables\n"
+      "6.5-6.6), textons.yml and manifest.json into --out.");
+  parser.AddRequired("dataset", &config.dataset,
+                     "labelled dataset (layout of shared/data/README.md), e.g. "
+                     "../shared/data/msrc_v2");
+  parser.AddRequired("out", &config.out, "directory to write (created), e.g. models/objects");
+  parser.Add("split", &config.split, "split to train on");
+  parser.Add("textons", &config.textons,
+             "textons.yml to describe with (default: the shipped models/textons.yml)");
+  parser.Add("exclude-classes", &exclude,
+             "comma-separated dataset classes to leave out (msrc_v2: horse,mountain gives the "
+             "seed's MSRC-21)");
+  parser.Add("min-class-segments", &config.min_class_segments,
+             "classes with fewer training segments get no classifier");
+  parser.Add("min-object-pixels", &config.segments.min_object_pixels,
+             "smaller ground-truth objects are not used (image pixels)");
+  parser.Add("max-segments-per-class", &config.segments.max_segments_per_class,
+             "train on at most N random segments per class (0: all)");
+  parser.Add("weak-count", &config.classifier.weak_count, "boosted trees per class classifier");
+  parser.Add("max-depth", &config.classifier.max_depth, "depth of each boosted tree");
+  parser.Add("bins", &config.classifier.selection.bins,
+             "quantile bins per feature for the information gain (eq. 4.8)");
+  parser.Add("parts-candidates", &config.classifier.selection.parts_layout_candidates,
+             "parts-layout candidates of highest gain (seed §4.2: 50)");
+  parser.Add("wrapper-weak-count", &config.classifier.selection.wrapper_weak_count,
+             "boosted trees of the wrapper's cross-validated classifier");
+  parser.Add("folds", &config.classifier.selection.folds, "the wrapper's cross-validation folds");
+  parser.Add("wrapper-negatives-per-positive",
+             &config.classifier.selection.max_negatives_per_positive,
+             "negatives the wrapper sees per positive (0: all)");
+  parser.Add("spouses", &config.classifier.selection.add_spouses,
+             "stage 3 of seed §4.2: try the children's parents");
+  parser.Add("ablation", &config.ablation,
+             "also train the feature-group and full-set variants (seed Tables 6.5, 6.6)");
+  parser.Add("threads", &config.classifier.threads, "classes trained at a time");
+  parser.Add("seed", &config.classifier.selection.seed, "random seed (folds, negatives)");
+  parser.AddSwitch("quiet", &quiet, "no progress lines");
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-train objects")) {
+    return *exit;
+  }
+  config.exclude_classes = SplitList(exclude);
+  config.segments.seed = config.classifier.selection.seed;
+  config.progress = !quiet;
+  config.command_line = CommandLine(argc, argv);
+  std::string error;
+  if (!config.Check(&error)) {
+    std::fprintf(stderr, "placerec-train objects: %s\n", error.c_str());
+    return 2;
+  }
+  cv::setNumThreads(1);
+  return ReportTraining("placerec-train objects", TrainObjectModels(config));
+}
+
 }  // namespace
 }  // namespace placerec
 
@@ -352,6 +422,7 @@ int main(int argc, char** argv) {
   if (std::strcmp(argv[1], "background") == 0) return placerec::BackgroundCommand(argc, argv);
   if (std::strcmp(argv[1], "boundary") == 0) return placerec::BoundaryCommand(argc, argv);
   if (std::strcmp(argv[1], "grouping") == 0) return placerec::GroupingCommand(argc, argv);
+  if (std::strcmp(argv[1], "objects") == 0) return placerec::ObjectsCommand(argc, argv);
   if (std::strcmp(argv[1], "grouping-ensemble") == 0) {
     return placerec::GroupingEnsembleCommand(argc, argv);
   }

@@ -522,4 +522,77 @@ Status WriteBarChartPng(const std::string& path, const std::string& title,
   return WritePng(path, image);
 }
 
+Status WriteConfusionMatrixPng(const std::string& path, const std::string& title,
+                               const std::vector<std::string>& names,
+                               const std::vector<std::vector<int>>& counts) {
+  if (path.empty()) return Status::InvalidArgument("confusion matrix path is empty");
+  const int n = static_cast<int>(names.size());
+  if (n == 0 || static_cast<int>(counts.size()) != n) {
+    return Status::InvalidArgument("confusion matrix needs one row per class, got " +
+                                   std::to_string(counts.size()) + " rows for " +
+                                   std::to_string(n) + " classes");
+  }
+  for (const std::vector<int>& row : counts) {
+    if (static_cast<int>(row.size()) < n) {
+      return Status::InvalidArgument("confusion matrix row shorter than the class count");
+    }
+  }
+  const Font label_font{0.45, 1};
+  const Font cell_font{0.35, 1};
+  const Font title_font{0.6, 1};
+  const int cell = 34;
+  const int pad = 10;
+  std::vector<std::string> row_labels;
+  int label_width = 0;
+  for (int r = 0; r < n; ++r) {
+    int total = 0;
+    for (const int v : counts[r]) total += v;
+    row_labels.push_back(names[r] + " (" + std::to_string(total) + ")");
+    label_width = std::max(label_width, label_font.Measure(row_labels.back()).width);
+  }
+  int column_height = 0;
+  for (const std::string& name : names) {
+    column_height = std::max(column_height, label_font.Measure(name).width);
+  }
+  const int title_height = title_font.Measure("Ag").height + pad;
+  const int left = pad + label_width + pad;
+  const int top = pad + title_height + column_height + pad;
+  const int width = std::min(kMaxSide, left + n * cell + pad);
+  const int height = std::min(kMaxSide, top + n * cell + pad);
+  cv::Mat image(height, width, CV_8UC3, kWhite);
+  title_font.Draw(image, title, {pad, pad}, kText);
+  for (int c = 0; c < n; ++c) {
+    DrawTurnedLabel(image, names[c], label_font, left + c * cell + (cell - label_font.Ascent()) / 2,
+                    top - pad - label_font.Measure(names[c]).width / 2);
+  }
+  for (int r = 0; r < n; ++r) {
+    int total = 0;
+    for (const int v : counts[r]) total += v;
+    label_font.Draw(image, row_labels[r],
+                    {left - pad - label_font.Measure(row_labels[r]).width,
+                     top + r * cell + (cell - label_font.Ascent()) / 2},
+                    kText);
+    for (int c = 0; c < n; ++c) {
+      const double percent = total == 0 ? 0.0 : 100.0 * counts[r][c] / total;
+      const double shade = percent / 100.0;
+      // White to a dark blue (BGR 140, 60, 20).
+      const cv::Scalar fill(255 - shade * (255 - 140), 255 - shade * (255 - 60),
+                            255 - shade * (255 - 20));
+      const cv::Rect box(left + c * cell, top + r * cell, cell, cell);
+      cv::rectangle(image, box, fill, cv::FILLED);
+      cv::rectangle(image, box, kGrid, 1);
+      if (counts[r][c] > 0) {
+        char text[16];
+        std::snprintf(text, sizeof(text), "%.0f", percent);
+        const cv::Size size = cell_font.Measure(text);
+        cell_font.Draw(image, text,
+                       {box.x + (cell - size.width) / 2, box.y + (cell - cell_font.Ascent()) / 2},
+                       shade > 0.55 ? kWhite : kText);
+      }
+    }
+    cv::rectangle(image, cv::Rect(left + r * cell, top + r * cell, cell, cell), kAxis, 2);
+  }
+  return WritePng(path, image);
+}
+
 }  // namespace placerec

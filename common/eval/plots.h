@@ -40,4 +40,15 @@ Status WriteBarChartPng(const std::string& path, const std::string& title,
                         const std::string& y_label, const std::vector<std::string>& groups,
                         const std::vector<BarSeries>& series, int width = 800, int height = 500);
 
+// Draws a confusion matrix into a PNG: one row per true class (`names`, with its segment count),
+// one column per decided class, each cell the percent of the row's segments (row-normalised)
+// printed and shaded from white (0) to dark blue (100); the diagonal is outlined. `counts` is
+// names.size() rows of at least names.size() values (extra columns, e.g. "none", are left out
+// of the picture but count in the row's total). The size follows the class count. InvalidArgument
+// for no classes, a row count or row length that disagrees or an empty path; IoError when the
+// file cannot be written.
+Status WriteConfusionMatrixPng(const std::string& path, const std::string& title,
+                               const std::vector<std::string>& names,
+                               const std::vector<std::vector<int>>& counts);
+
 }  // namespace placerec

@@ -103,5 +103,22 @@ TEST(PlotsTest, BarChartRefusesWhatItCannotDraw) {
       StatusCode::kIoError);
 }
 
+TEST(PlotsTest, ConfusionMatrixPngHasARowAndColumnPerClass) {
+  const std::string path = ::testing::TempDir() + "/placerec_confusion_test.png";
+  ASSERT_TRUE(WriteConfusionMatrixPng(path, "confusion", {"car", "building", "body"},
+                                      {{8, 2, 0, 0}, {0, 10, 0, 1}, {1, 1, 3, 0}})
+                  .ok());
+  const cv::Mat picture = cv::imread(path);
+  ASSERT_FALSE(picture.empty());
+  // Three cells of 34 pixels each way plus labels.
+  EXPECT_GT(picture.cols, 3 * 34);
+  EXPECT_GT(picture.rows, 3 * 34);
+  EXPECT_EQ(WriteConfusionMatrixPng(path, "t", {"a", "b"}, {{1, 2}}).code(),
+            StatusCode::kInvalidArgument);
+  EXPECT_EQ(WriteConfusionMatrixPng(path, "t", {"a", "b"}, {{1}, {2}}).code(),
+            StatusCode::kInvalidArgument);
+  EXPECT_EQ(WriteConfusionMatrixPng("", "t", {"a"}, {{1}}).code(), StatusCode::kInvalidArgument);
+}
+
 }  // namespace
 }  // namespace placerec
