@@ -10,7 +10,6 @@
 #include <opencv2/core/persistence.hpp>
 
 #include "common/organization/background.h"
-#include "common/organization/boosted_forest.h"
 #include "common/util/paths.h"
 #include "common/util/timer.h"
 
@@ -27,18 +26,8 @@ std::string BoostFile(const std::string& directory, int c) {
 }  // namespace
 
 bool ObjectClassifierOptions::Check(std::string* error) const {
-  if (weak_count < 1) {
-    *error = "object classifier weak_count must be at least 1, got " + std::to_string(weak_count);
-    return false;
-  }
-  if (max_depth < 1 || max_depth > BoostedForest::kMaxTrainingDepth) {
-    *error = "object classifier max_depth must be in [1, " +
-             std::to_string(BoostedForest::kMaxTrainingDepth) + "], got " +
-             std::to_string(max_depth);
-    return false;
-  }
-  if (!(weight_trim_rate >= 0.0 && weight_trim_rate <= 1.0)) {
-    *error = "object classifier weight_trim_rate must be in [0, 1]";
+  if (!CheckGentleBoostOptions("object classifier", weak_count, max_depth, weight_trim_rate,
+                               error)) {
     return false;
   }
   if (threads < 1) {

@@ -87,19 +87,27 @@ SegmentClass BackgroundClassOf(int index) {
   return static_cast<SegmentClass>(index);
 }
 
-bool BackgroundTrainingOptions::Check(std::string* error) const {
+bool CheckGentleBoostOptions(const std::string& what, int weak_count, int max_depth,
+                             double weight_trim_rate, std::string* error) {
   if (weak_count < 1) {
-    *error = "background weak_count must be at least 1, got " + std::to_string(weak_count);
+    *error = what + " weak_count must be at least 1, got " + std::to_string(weak_count);
     return false;
   }
   if (max_depth < 1 || max_depth > BoostedForest::kMaxTrainingDepth) {
-    *error = "background max_depth must be in [1, " +
+    *error = what + " max_depth must be in [1, " +
              std::to_string(BoostedForest::kMaxTrainingDepth) + "], got " +
              std::to_string(max_depth);
     return false;
   }
   if (!(weight_trim_rate >= 0.0 && weight_trim_rate <= 1.0)) {
-    *error = "background weight_trim_rate must be in [0, 1]";
+    *error = what + " weight_trim_rate must be in [0, 1]";
+    return false;
+  }
+  return true;
+}
+
+bool BackgroundTrainingOptions::Check(std::string* error) const {
+  if (!CheckGentleBoostOptions("background", weak_count, max_depth, weight_trim_rate, error)) {
     return false;
   }
   if (!(max_negatives_per_positive >= 0.0) || !std::isfinite(max_negatives_per_positive)) {

@@ -59,6 +59,11 @@ struct BackgroundTrainingSummary {
 cv::Ptr<cv::ml::Boost> TrainGentleBoost(const cv::Mat& samples, const cv::Mat& responses,
                                         const cv::Mat& weights, int weak_count, int max_depth,
                                         double weight_trim_rate);
+// Checks TrainGentleBoost's parameters: weak_count >= 1, max_depth in [1,
+// BoostedForest::kMaxTrainingDepth], weight_trim_rate in [0, 1]. `what` names the classifier in
+// the message ("background", "object classifier").
+bool CheckGentleBoostOptions(const std::string& what, int weak_count, int max_depth,
+                             double weight_trim_rate, std::string* error);
 // The boosted sum of the weak responses for every row (> 0: the positive class), n x 1 CV_32F.
 cv::Mat BoostedSums(const cv::ml::Boost& boost, const cv::Mat& samples);
 
