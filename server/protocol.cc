@@ -46,7 +46,42 @@ Status CheckFrameLengths(const uint8_t* data, size_t size) {
   return Status::Ok();
 }
 
+int64_t ReadInt64(const uint8_t* p) {
+  uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v = (v << 8) | p[i];
+  return static_cast<int64_t>(v);
+}
+
 }  // namespace
+
+StatusOr<frame_t> DecodeFrameHead(const void* data, size_t size) {
+  const auto* bytes = static_cast<const uint8_t*>(data);
+  constexpr size_t kRobotLengthOffset = 8 + 8 + 8 + 8 + 1 + 1 + 4 + 4;
+  if (data == nullptr || size < kRobotLengthOffset + 4) {
+    return Status::InvalidArgument("too short for a frame head");
+  }
+  if (ReadInt64(bytes) != frame_t::getHash()) {
+    return Status::InvalidArgument("not a placerec.frame_t (fingerprint mismatch)");
+  }
+  int32_t robot_length = 0;  // LCM strings: length with the terminating NUL, then the bytes
+  ReadInt32(bytes, size, kRobotLengthOffset, &robot_length);
+  const size_t robot_begin = kRobotLengthOffset + 4;
+  if (robot_length < 1 || static_cast<size_t>(robot_length) > size - robot_begin) {
+    return Status::InvalidArgument("robot id does not fit the message");
+  }
+  frame_t frame;
+  frame.utime = ReadInt64(bytes + 8);
+  frame.sequence = ReadInt64(bytes + 16);
+  frame.request_id = ReadInt64(bytes + 24);
+  frame.insert = bytes[32] != 0;
+  frame.encoding = static_cast<int8_t>(bytes[33]);
+  ReadInt32(bytes, size, 34, &frame.width);
+  ReadInt32(bytes, size, 38, &frame.height);
+  frame.robot.assign(reinterpret_cast<const char*>(bytes + robot_begin),
+                     static_cast<size_t>(robot_length) - 1);
+  frame.size = 0;
+  return frame;
+}
 
 StatusOr<frame_t> DecodeFrameMessage(const void* data, size_t size) {
   if (data == nullptr || size < 8) {

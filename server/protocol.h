@@ -24,6 +24,12 @@ constexpr size_t kMaxEchoedRobotIdLength = 256;
 // trailing bytes). Never throws and never allocates more than the message size.
 StatusOr<frame_t> DecodeFrameMessage(const void* data, size_t size);
 
+// For a message DecodeFrameMessage refused: the fields before the image (utime, sequence,
+// request_id, insert, encoding, width, height, robot; `size` and `data` left empty) when the
+// fingerprint is frame_t's and those fields are whole, so that the sender can be answered (a
+// `size` that does not match the bytes, trailing bytes). InvalidArgument otherwise.
+StatusOr<frame_t> DecodeFrameHead(const void* data, size_t size);
+
 // The image encoding a frame_t declares; BadImage for values the protocol does not define.
 StatusOr<ImageEncoding> ImageEncodingFromWire(int8_t encoding);
 

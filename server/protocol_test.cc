@@ -83,6 +83,31 @@ TEST(ProtocolTest, RejectsWhatIsNotAFrame) {
   EXPECT_NE(trailing.status().message().find("1 unexpected bytes"), std::string::npos);
 }
 
+// A frame cut short after its robot id, or with a forged image size, still tells who sent it.
+TEST(ProtocolTest, HeadOfAMalformedFrame) {
+  frame_t frame = MakeFrame("left", 64);
+  frame.request_id = 77;
+  frame.sequence = 9;
+  const std::vector<uint8_t> bytes = Encode(frame);
+  const size_t robot_end = 8 + 8 + 8 + 8 + 1 + 1 + 4 + 4 + 4 + 5;
+  for (const size_t n : {robot_end, robot_end + 4, bytes.size() - 1}) {
+    ASSERT_FALSE(DecodeFrameMessage(bytes.data(), n).ok()) << n;
+    const StatusOr<frame_t> head = DecodeFrameHead(bytes.data(), n);
+    ASSERT_TRUE(head.ok()) << n << ": " << head.status().ToString();
+    EXPECT_EQ(head->robot, "left");
+    EXPECT_EQ(head->request_id, 77);
+    EXPECT_EQ(head->sequence, 9);
+    EXPECT_EQ(head->insert, frame.insert);
+    EXPECT_TRUE(head->data.empty());
+  }
+  // Cut inside the robot id, or not a frame_t: nothing to answer.
+  EXPECT_FALSE(DecodeFrameHead(bytes.data(), robot_end - 2).ok());
+  std::vector<uint8_t> other = bytes;
+  other[0] ^= 1;
+  EXPECT_FALSE(DecodeFrameHead(other.data(), other.size()).ok());
+  EXPECT_FALSE(DecodeFrameHead(nullptr, 0).ok());
+}
+
 TEST(ProtocolTest, ForgedLengthsNeitherAllocateNorThrow) {
   const std::vector<uint8_t> bytes = Encode(MakeFrame("left", 64));
   const size_t robot_length_offset = 8 + 8 + 8 + 8 + 1 + 1 + 4 + 4;

@@ -137,6 +137,20 @@ void Server::OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string&
   Job job;
   StatusOr<frame_t> frame = DecodeFrameMessage(buffer->data, buffer->data_size);
   if (!frame.ok()) {
+    // A frame whose head is whole (robot and request id readable) is answered with the reason;
+    // anything else is dropped.
+    const StatusOr<frame_t> head = DecodeFrameHead(buffer->data, buffer->data_size);
+    if (head.ok()) {
+      result_t answer = AnswerTemplate(*head);
+      SetError(result_t::STATUS_BAD_REQUEST, "malformed frame: " + frame.status().message(),
+               &answer);
+      const MapCounts counts = map_->Counts();
+      answer.map_places = counts.places;
+      answer.map_landmarks = counts.landmarks;
+      answer.map_descriptors = counts.descriptors;
+      Publish(&answer, false);
+      return;
+    }
     stats_.Dropped();
     // Log the first few and then every hundredth, so that a flood cannot fill the disk.
     if (dropped_logged_ < 10 || dropped_logged_ % 100 == 0) {

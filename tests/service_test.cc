@@ -542,7 +542,9 @@ TEST_F(ServiceTest, BadInputGetsErrorAnswersAndTheServerGoesOn) {
 
   for (const Case& c : cases) ASSERT_EQ(spy.Publish(c.frame), 0) << c.name;
 
-  // Not frames at all: random bytes of many lengths, a truncated frame, a forged length.
+  // Not frames at all: random bytes of many lengths; and frames whose head is whole (robot and
+  // request id readable) but whose image is cut short or whose size is forged: those are
+  // answered, with the reason.
   std::mt19937 random(42);
   int dropped = 0;
   for (int i = 0; i < 40; ++i) {
@@ -551,23 +553,38 @@ TEST_F(ServiceTest, BadInputGetsErrorAnswersAndTheServerGoesOn) {
     ASSERT_EQ(spy.Publish("PLACEREC_FRAME", bytes.data(), bytes.size()), 0);
     ++dropped;
   }
-  frame_t valid = make("bad", frame_t::ENCODING_JPEG, 0, 0, jpeg_bytes);
-  std::vector<uint8_t> encoded(valid.getEncodedSize());
-  valid.encode(encoded.data(), 0, static_cast<int>(encoded.size()));
-  ASSERT_EQ(spy.Publish("PLACEREC_FRAME", encoded.data(), encoded.size() / 2), 0);
-  ++dropped;
-  std::vector<uint8_t> forged = encoded;
-  const size_t size_offset = 8 + 8 + 8 + 8 + 1 + 1 + 4 + 4 + 4 + valid.robot.size() + 1;
-  forged[size_offset] = 0x7f;  // claims ~2 GB of image
+  std::vector<int64_t> malformed;  // request ids of the frames cut short or forged
+  auto encode = [&](frame_t f) {
+    std::vector<uint8_t> bytes(f.getEncodedSize());
+    f.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    malformed.push_back(f.request_id);
+    return bytes;
+  };
+  const std::vector<uint8_t> cut = encode(make("bad", frame_t::ENCODING_JPEG, 0, 0, jpeg_bytes));
+  ASSERT_EQ(spy.Publish("PLACEREC_FRAME", cut.data(), cut.size() / 2), 0);
+  std::vector<uint8_t> forged = encode(make("bad", frame_t::ENCODING_JPEG, 0, 0, jpeg_bytes));
+  const size_t size_offset = 8 + 8 + 8 + 8 + 1 + 1 + 4 + 4 + 4 + 3 + 1;  // after robot "bad"
+  forged[size_offset] = 0x7f;                                            // claims ~2 GB of image
   ASSERT_EQ(spy.Publish("PLACEREC_FRAME", forged.data(), forged.size()), 0);
-  ++dropped;
 
   // The spy also heard the answers to the three good frames. Once the markers sent after every
   // case are answered, any extra answer would be here too.
-  ASSERT_TRUE(spy.WaitFor(3 + cases.size(), 60)) << ServerLog();
+  ASSERT_TRUE(spy.WaitFor(3 + cases.size() + malformed.size(), 60)) << ServerLog();
   ASSERT_TRUE(spy.Flush({"bad", "robot"}, 60)) << ServerLog();
   const auto answers = spy.answers();
-  ASSERT_EQ(answers.size(), 3 + cases.size()) << "exactly one answer per request";
+  ASSERT_EQ(answers.size(), 3 + cases.size() + malformed.size())
+      << "exactly one answer per request";
+  for (const int64_t id : malformed) {
+    int found = 0;
+    for (const auto& [channel, a] : answers) {
+      if (a.request_id != id) continue;
+      ++found;
+      EXPECT_EQ(channel, robot_channel);
+      EXPECT_EQ(int{a.status}, int{result_t::STATUS_BAD_REQUEST}) << a.message;
+      EXPECT_NE(a.message.find("malformed frame"), std::string::npos) << a.message;
+    }
+    EXPECT_EQ(found, 1) << "request " << id;
+  }
   for (const Case& c : cases) {
     int found = 0;
     for (const auto& [channel, a] : answers) {
