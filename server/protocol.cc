@@ -7,6 +7,10 @@
 namespace placerec {
 namespace {
 
+// Where frame_t's robot id (its int32 length) starts: after fingerprint, utime, sequence,
+// request_id, insert, encoding, width and height (proto/frame_t.lcm).
+constexpr size_t kRobotLengthOffset = 8 + 8 + 8 + 8 + 1 + 1 + 4 + 4;
+
 // Reads a big-endian int32 (LCM's wire order) at `offset`; false when it does not fit.
 bool ReadInt32(const uint8_t* data, size_t size, size_t offset, int32_t* value) {
   if (offset + 4 > size) return false;
@@ -23,7 +27,6 @@ bool ReadInt32(const uint8_t* data, size_t size, size_t offset, int32_t* value) 
 // This walks frame_t's layout (fingerprint, utime, sequence, request_id, insert, encoding, width,
 // height, robot, size, data; see proto/frame_t.lcm) and checks both lengths first.
 Status CheckFrameLengths(const uint8_t* data, size_t size) {
-  constexpr size_t kRobotLengthOffset = 8 + 8 + 8 + 8 + 1 + 1 + 4 + 4;
   int32_t robot_length = 0;
   if (!ReadInt32(data, size, kRobotLengthOffset, &robot_length)) {
     return Status::InvalidArgument("message of " + std::to_string(size) +
@@ -56,7 +59,6 @@ int64_t ReadInt64(const uint8_t* p) {
 
 StatusOr<frame_t> DecodeFrameHead(const void* data, size_t size) {
   const auto* bytes = static_cast<const uint8_t*>(data);
-  constexpr size_t kRobotLengthOffset = 8 + 8 + 8 + 8 + 1 + 1 + 4 + 4;
   if (data == nullptr || size < kRobotLengthOffset + 4) {
     return Status::InvalidArgument("too short for a frame head");
   }

@@ -141,14 +141,7 @@ void Server::OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string&
     // anything else is dropped.
     const StatusOr<frame_t> head = DecodeFrameHead(buffer->data, buffer->data_size);
     if (head.ok()) {
-      result_t answer = AnswerTemplate(*head);
-      SetError(result_t::STATUS_BAD_REQUEST, "malformed frame: " + frame.status().message(),
-               &answer);
-      const MapCounts counts = map_->Counts();
-      answer.map_places = counts.places;
-      answer.map_landmarks = counts.landmarks;
-      answer.map_descriptors = counts.descriptors;
-      Publish(&answer, false);
+      RejectFrame(*head, "malformed frame: " + frame.status().message());
       return;
     }
     stats_.Dropped();
@@ -164,13 +157,7 @@ void Server::OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string&
   std::string why;
   if (!IsValidWireRobotId(job.frame.robot, &why)) {
     // No lane and no channel of its own: answer at once on the shared error channel.
-    result_t answer = AnswerTemplate(job.frame);
-    SetError(result_t::STATUS_BAD_REQUEST, why, &answer);
-    const MapCounts counts = map_->Counts();
-    answer.map_places = counts.places;
-    answer.map_landmarks = counts.landmarks;
-    answer.map_descriptors = counts.descriptors;
-    Publish(&answer, false);
+    RejectFrame(job.frame, why);
     return;
   }
   stats_.SawRobot(job.frame.robot);
@@ -183,6 +170,16 @@ void Server::OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string&
              &answer);
     Publish(&answer, false);
   }
+}
+
+void Server::RejectFrame(const frame_t& frame, const std::string& message) {
+  result_t answer = AnswerTemplate(frame);
+  SetError(result_t::STATUS_BAD_REQUEST, message, &answer);
+  const MapCounts counts = map_->Counts();
+  answer.map_places = counts.places;
+  answer.map_landmarks = counts.landmarks;
+  answer.map_descriptors = counts.descriptors;
+  Publish(&answer, false);
 }
 
 void Server::Work(Job& job) {

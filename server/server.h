@@ -76,6 +76,8 @@ class Server {
   void Work(Job& job);
   // Publishes `answer` on its robot's channel; `processed` says whether a worker ran the frame.
   void Publish(result_t* answer, bool processed);
+  // Answers `frame` at once, unprocessed, with STATUS_BAD_REQUEST, `message` and the map's size.
+  void RejectFrame(const frame_t& frame, const std::string& message);
   void PublishStatus();
 
   ServerOptions options_;

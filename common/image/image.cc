@@ -74,8 +74,9 @@ uint32_t BigEndian(const uint8_t* p, int bytes) {
 Status JpegHeaderSize(const uint8_t* data, size_t size, int* width, int* height) {
   size_t i = 2;
   while (i + 4 <= size) {
-    if (data[i] != 0xFF)
+    if (data[i] != 0xFF) {
       return Status::BadImage("JPEG marker expected at byte " + std::to_string(i));
+    }
     const uint8_t marker = data[i + 1];
     if (marker == 0xFF) {  // fill byte
       ++i;
@@ -233,13 +234,7 @@ StatusOr<cv::Mat> ReadImageFile(const std::string& path) {
 }
 
 cv::Mat LimitWidth(const cv::Mat& bgr, int max_width, double* scale) {
-  *scale = 1.0;
-  if (max_width <= 0 || bgr.cols <= max_width) return bgr;
-  *scale = static_cast<double>(max_width) / bgr.cols;
-  const int height = std::max(1, static_cast<int>(std::lround(bgr.rows * *scale)));
-  cv::Mat resized;
-  cv::resize(bgr, resized, cv::Size(max_width, height), 0, 0, cv::INTER_AREA);
-  return resized;
+  return FitWidth(bgr, 0, max_width, scale);
 }
 
 cv::Mat ResizeToWidth(const cv::Mat& bgr, int width) {

@@ -23,9 +23,10 @@ Recognizer::Recognizer(const RecognizerOptions& options, PlaceMap* map,
 Recognizer::RobotState* Recognizer::StateOf(const std::string& robot) {
   std::lock_guard lock(robots_mutex_);
   std::unique_ptr<RobotState>& state = robots_[robot];
-  if (!state)
+  if (!state) {
     state =
         std::make_unique<RobotState>(options_.landmarks, options_.recent_past, options_.sequence);
+  }
   return state.get();
 }
 

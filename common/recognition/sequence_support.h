@@ -7,9 +7,8 @@
 // supporting frames of their single-frame scores, so that it keeps the unit of one frame's
 // geometric inliers and one loop threshold serves a single query and a sequence alike. A frame
 // with no earlier frames (a one-off query) keeps its own score. A route walked back the other
-// way is not supported (its frames count alone, diluted by the mean): allowing both directions
-// doubled the chance support and lost precision on the shared runs
-// (docs/experiments/2026-12-02-one-default.md).
+// way gets no support (its frames count alone, diluted by the mean); why both directions are
+// not allowed: docs/experiments/2026-12-02-one-default.md.
 #pragma once
 
 #include <cstdint>
