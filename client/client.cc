@@ -1,5 +1,6 @@
 #include "client/client.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cstdio>
 #include <exception>
@@ -71,6 +72,9 @@ FrameResult FromWire(const result_t& answer) {
     place.matched_landmarks = m.matched_landmarks;
     place.matched_descriptors = m.matched_descriptors;
     place.inliers = m.inliers;
+    const size_t classes = std::min(m.classes.size(), m.class_counts.size());
+    for (size_t i = 0; i < classes; ++i)
+      place.classes.emplace_back(m.classes[i], m.class_counts[i]);
     r.matches.push_back(std::move(place));
   }
   r.keypoints = answer.keypoints;
@@ -97,6 +101,16 @@ bool IsPlainChannelText(const std::string& text) {
 }
 
 }  // namespace
+
+std::string DescribeClasses(const std::vector<std::pair<std::string, int>>& classes) {
+  std::string text;
+  for (const auto& [name, count] : classes) {
+    text += text.empty() ? ", seen: " : ", ";
+    text += name;
+    if (count > 1) text += " x" + std::to_string(count);
+  }
+  return text;
+}
 
 const char* AnswerCodeName(AnswerCode code) {
   switch (code) {
@@ -144,8 +158,8 @@ std::string DescribeResult(const FrameResult& r) {
     char score[32];
     std::snprintf(score, sizeof(score), "%.0f", best.score);
     out << "; best place: robot " << best.robot << " #" << best.sequence << " (score " << score
-        << ", " << best.matched_landmarks << " landmarks matched)"
-        << (r.loop_closure ? " -- loop closure" : "");
+        << ", " << best.matched_landmarks << " landmarks matched" << DescribeClasses(best.classes)
+        << ")" << (r.loop_closure ? " -- loop closure" : "");
   }
   return out.str();
 }

@@ -70,6 +70,9 @@ enum class AnswerCode {
 };
 const char* AnswerCodeName(AnswerCode code);
 
+// ", seen: building x3, sign" for matched landmark classes; empty when there are none.
+std::string DescribeClasses(const std::vector<std::pair<std::string, int>>& classes);
+
 // An earlier place (a frame some robot inserted) that the frame matched.
 struct MatchedPlace {
   std::string robot;
@@ -80,6 +83,8 @@ struct MatchedPlace {
   int matched_landmarks = 0;
   int matched_descriptors = 0;
   int inliers = -1;
+  // Object classes of the place's matched landmarks with how many of each, most first.
+  std::vector<std::pair<std::string, int>> classes;
 };
 
 // The answer to one frame.

@@ -91,6 +91,11 @@ TEST(ClientTest, DescribesAnswers) {
   EXPECT_NE(DescribeResult(r).find("best place: robot left #30 (score 57, 5 landmarks matched) -- "
                                    "loop closure"),
             std::string::npos);
+  r.matches[0].classes = {{"building", 4}, {"sign", 1}};
+  EXPECT_NE(DescribeResult(r).find("(score 57, 5 landmarks matched, seen: building x4, sign) -- "
+                                   "loop closure"),
+            std::string::npos)
+      << DescribeResult(r);
   r.code = AnswerCode::kBadImage;
   r.message = "bytes do not start with a JPEG signature";
   EXPECT_EQ(DescribeResult(r), "bad image: bytes do not start with a JPEG signature");

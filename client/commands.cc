@@ -69,9 +69,10 @@ int SendImages(const std::vector<std::string>& images, const std::string& robot,
     if (!insert && result.ok()) {
       for (size_t i = 0; i < result.matches.size(); ++i) {
         const MatchedPlace& m = result.matches[i];
-        std::printf("  %zu. robot %s #%lld  score %.0f  %d landmarks matched  place %lld\n", i + 1,
-                    m.robot.c_str(), static_cast<long long>(m.sequence), m.score,
-                    m.matched_landmarks, static_cast<long long>(m.place_id));
+        std::printf("  %zu. robot %s #%lld  score %.0f  %d landmarks matched  place %lld%s\n",
+                    i + 1, m.robot.c_str(), static_cast<long long>(m.sequence), m.score,
+                    m.matched_landmarks, static_cast<long long>(m.place_id),
+                    DescribeClasses(m.classes).c_str());
       }
     }
     std::fflush(stdout);

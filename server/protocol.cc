@@ -242,6 +242,11 @@ void FillAnswer(const RecognitionResult& result, result_t* answer) {
     m.matched_landmarks = match.matched_landmarks;
     m.matched_descriptors = match.matched_descriptors;
     m.inliers = match.inliers;
+    for (const auto& [name, count] : match.landmark_classes) {
+      m.classes.push_back(name);
+      m.class_counts.push_back(count);
+    }
+    m.num_classes = static_cast<int32_t>(m.classes.size());
     answer->matches.push_back(std::move(m));
   }
   answer->num_matches = static_cast<int32_t>(answer->matches.size());

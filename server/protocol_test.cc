@@ -192,6 +192,7 @@ TEST(ProtocolTest, AnswersCarryTheResult) {
   match.matched_landmarks = 4;
   match.matched_descriptors = 80;
   match.inliers = 57;
+  match.landmark_classes = {{"building", 3}, {"sign", 1}};
   result.matches.push_back(match);
   result.keypoints = 1000;
   result.objects = 12;
@@ -215,6 +216,9 @@ TEST(ProtocolTest, AnswersCarryTheResult) {
   EXPECT_EQ(answer.matches[0].place_id, 3);
   EXPECT_EQ(answer.matches[0].score, 57.0);
   EXPECT_EQ(answer.matches[0].matched_landmarks, 4);
+  ASSERT_EQ(answer.matches[0].num_classes, 2);
+  EXPECT_EQ(answer.matches[0].classes, (std::vector<std::string>{"building", "sign"}));
+  EXPECT_EQ(answer.matches[0].class_counts, (std::vector<int32_t>{3, 1}));
   EXPECT_EQ(answer.place_id, 9);
   EXPECT_EQ(answer.map_landmarks, 30);
   EXPECT_EQ(answer.num_timings, 2);

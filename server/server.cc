@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/pipeline/object_classes.h"
 #include "common/util/logging.h"
 #include "proto/channels.h"
 #include "server/protocol.h"
@@ -61,6 +62,13 @@ StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
   if (!options.Check(&error)) return Status::InvalidArgument(error);
   StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.recognizer.analyzer);
   if (!segmenter.ok()) return segmenter.status();
+  if (options.recognizer.classes.enabled) {
+    // Refuse to start without the object classifiers, with the loader's advice; the recognizer
+    // loads its own copy.
+    StatusOr<std::unique_ptr<ObjectClassLabeler>> labeler =
+        ObjectClassLabeler::Load(options.recognizer.classes);
+    if (!labeler.ok()) return labeler.status();
+  }
   StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(options.db_path, options.store);
   if (!store.ok()) return store.status();
   StatusOr<std::unique_ptr<PlaceMap>> map =

@@ -11,6 +11,7 @@
 #include "common/eval/plots.h"
 #include "common/eval/stats.h"
 #include "common/image/image.h"
+#include "common/pipeline/object_classes.h"
 #include "common/pipeline/pictures.h"
 #include "common/storage/sqlite_store.h"
 #include "common/util/logging.h"
@@ -23,6 +24,7 @@ namespace {
 
 struct FrameRecord {
   bool has_match = false;
+  bool loop_closure = false;  // the recognizer's decision
   PlaceMatch best;
   double scale = 1.0;
 };
@@ -64,6 +66,10 @@ nlohmann::json OptionsJson(const RecognizerOptions& o) {
   j["geometric_verification"] = o.loop.geometric_verification;
   j["sequence_frames"] = o.sequence.frames;
   j["objects_include_background"] = o.analyzer.objects.include_background;
+  j["recognition"] = o.mode == RecognitionMode::kSeed ? "seed" : "default";
+  j["object_classes"] = o.classes.enabled;
+  j["drop_movable"] = o.classes.drop_movable;
+  j["min_movable_confidence"] = o.classes.min_movable_confidence;
   j["loop_min_score"] = o.loop.min_score;
   return j;
 }
@@ -78,11 +84,13 @@ struct FeedTotals {
   int64_t stored = 0;
   int64_t objects = 0;
   int64_t landmarks = 0;
+  int64_t movable_landmarks = 0;                  // left out of the map for their class
+  std::map<std::string, int64_t> stored_classes;  // stored landmarks per object class
   int loop_closures = 0;
   // candidates.csv: every place returned per frame (--max-matches of them), best first.
   std::string candidates_csv =
       "frame,rank,reference,robot,score,inliers,matched_descriptors,"
-      "matched_landmarks,log_scale\n";
+      "matched_landmarks,log_scale,classes\n";
 };
 
 // Precision and recall at the decision threshold.
@@ -159,6 +167,10 @@ Status FeedFrames(const Run& run, const EvalOptions& eval, int frames, const Tim
     totals->stored += result.stored_descriptors;
     totals->objects += result.objects;
     totals->landmarks += result.landmarks;
+    totals->movable_landmarks += result.movable_landmarks;
+    for (const std::string& name : result.stored_classes) {
+      ++totals->stored_classes[name.empty() ? "(none)" : name];
+    }
 
     Answer answer;
     answer.frame = frame.frame;
@@ -172,13 +184,20 @@ Status FeedFrames(const Run& run, const EvalOptions& eval, int frames, const Tim
     for (size_t rank = 0; rank < result.matches.size(); ++rank) {
       const PlaceMatch& m = result.matches[rank];
       char row[160];
-      std::snprintf(row, sizeof(row), "%d,%zu,%lld,%s,%.6g,%d,%d,%d,%.4f\n", frame.frame, rank,
+      std::snprintf(row, sizeof(row), "%d,%zu,%lld,%s,%.6g,%d,%d,%d,%.4f,", frame.frame, rank,
                     static_cast<long long>(m.place.sequence), m.place.robot.c_str(), m.score,
                     m.inliers, m.matched_descriptors, m.matched_landmarks, m.log_scale);
       totals->candidates_csv += row;
+      // Classes of the matched landmarks, "building:3;sign:1".
+      for (size_t c = 0; c < m.landmark_classes.size(); ++c) {
+        totals->candidates_csv += (c > 0 ? ";" : "") + m.landmark_classes[c].first + ":" +
+                                  std::to_string(m.landmark_classes[c].second);
+      }
+      totals->candidates_csv += "\n";
     }
     totals->frame_scale[f] = result.image_scale;
     report->answers.push_back(answer);
+    totals->records[f].loop_closure = result.loop_closure;
     if (result.loop_closure) {
       ++totals->loop_closures;
       if (eval.print_loop_closures) PrintLoopClosure(run, frame, result, answer, eval, &progress);
@@ -197,11 +216,14 @@ Status FeedFrames(const Run& run, const EvalOptions& eval, int frames, const Tim
   return Status::Ok();
 }
 
+// The recognizer's loop closures (score >= loop-min-score by default; the seed's step 6 with
+// --recognition seed) against the truth.
 DecisionCounts CountDecisions(const Run& run, const Run& scored, const std::vector<Answer>& answers,
-                              double min_score) {
+                              const std::vector<FrameRecord>& records) {
   DecisionCounts counts;
-  for (const Answer& a : answers) {
-    if (a.reference < 0 || a.score < min_score) continue;
+  for (size_t f = 0; f < answers.size(); ++f) {
+    const Answer& a = answers[f];
+    if (a.reference < 0 || !records[f].loop_closure) continue;
     if (scored.IsPositive(a.frame, a.reference)) {
       ++counts.tp;
     } else {
@@ -239,6 +261,8 @@ nlohmann::json SummaryJson(const Run& run, int frames, const RecognizerOptions& 
       totals.extracted > 0 ? static_cast<double>(totals.stored) / totals.extracted : 0.0;
   s["objects"] = totals.objects;
   s["landmarks"] = totals.landmarks;
+  s["movable_landmarks_left_out"] = totals.movable_landmarks;
+  s["stored_landmark_classes"] = totals.stored_classes;
   const MapCounts counts = map.Counts();
   s["map"] = {{"places", counts.places},
               {"landmarks", counts.landmarks},
@@ -333,7 +357,14 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
   if (!map.ok()) return map.status();
   StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.analyzer);
   if (!segmenter.ok()) return segmenter.status();
-  Recognizer recognizer(options, map->get(), std::move(*segmenter));
+  std::unique_ptr<ObjectClassLabeler> labeler;
+  if (options.classes.enabled) {
+    StatusOr<std::unique_ptr<ObjectClassLabeler>> loaded =
+        ObjectClassLabeler::Load(options.classes);
+    if (!loaded.ok()) return loaded.status();
+    labeler = std::move(*loaded);
+  }
+  Recognizer recognizer(options, map->get(), std::move(*segmenter), std::move(labeler));
 
   const int frames = eval.max_frames > 0 ? std::min<int>(eval.max_frames, run.frames.size())
                                          : static_cast<int>(run.frames.size());
@@ -348,10 +379,9 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
   StatusOr<RunScore> score = ScoreAnswers(scored, report.answers);
   if (!score.ok()) return score.status();
   report.score = *score;
-  const DecisionCounts decisions =
-      CountDecisions(run, scored, report.answers, options.loop.min_score);
-  report.summary =
-      SummaryJson(run, frames, options, report, decisions, totals, **map, recognizer, run_timer);
+  const DecisionCounts decisions = CountDecisions(run, scored, report.answers, totals.records);
+  report.summary = SummaryJson(run, frames, recognizer.options(), report, decisions, totals, **map,
+                               recognizer, run_timer);
   report.summary["frame_width"] = eval.frame_width;  // 0: as recorded
 
   if (eval.out_dir.empty()) return report;

@@ -198,8 +198,8 @@ SceneSegmentation SceneOrganizer::MergeParts(const SceneSegmentation& parts,
   return merged;
 }
 
-SceneSegmentation SceneOrganizer::Segment(const WorkingImage& image,
-                                          SceneOrganizerSummary* summary) const {
+SceneSegmentation SceneOrganizer::Segment(const WorkingImage& image, SceneOrganizerSummary* summary,
+                                          cv::Mat* filter_bank) const {
   SceneOrganizerSummary stats;
   cv::Mat appearance;
   cv::Mat features;
@@ -222,6 +222,7 @@ SceneSegmentation SceneOrganizer::Segment(const WorkingImage& image,
   result.scale = image.scale;
   stats.timings.emplace_back("organization", timer.ElapsedMs());
   if (summary != nullptr) *summary = std::move(stats);
+  if (filter_bank != nullptr) *filter_bank = std::move(features);
   return result;
 }
 

@@ -114,9 +114,10 @@ class SceneOrganizer {
   SceneOrganizer(const SceneOrganizerOptions& options,
                  std::shared_ptr<const BackgroundModel> model);
 
-  // Segments a working image. Thread-safe.
-  SceneSegmentation Segment(const WorkingImage& image,
-                            SceneOrganizerSummary* summary = nullptr) const;
+  // Segments a working image. Thread-safe. `filter_bank` (may be null) receives the image's
+  // filter-bank features (Features(image)), which the segmentation computes anyway.
+  SceneSegmentation Segment(const WorkingImage& image, SceneOrganizerSummary* summary = nullptr,
+                            cv::Mat* filter_bank = nullptr) const;
 
   // The stages on their own, for evaluation and training.
   // 20-d filter-bank features of the working image (CV_32FC(20)).

@@ -8,6 +8,23 @@
 
 namespace placerec {
 
+std::ostream& operator<<(std::ostream& os, RecognitionMode value) {
+  return os << (value == RecognitionMode::kDefault ? "default" : "seed");
+}
+
+std::istream& operator>>(std::istream& is, RecognitionMode& value) {
+  std::string text;
+  is >> text;
+  if (text == "default") {
+    value = RecognitionMode::kDefault;
+  } else if (text == "seed") {
+    value = RecognitionMode::kSeed;
+  } else {
+    is.setstate(std::ios::failbit);
+  }
+  return is;
+}
+
 std::ostream& operator<<(std::ostream& os, QueryObjects value) {
   return os << (value == QueryObjects::kAll ? "all" : "landmarks");
 }
@@ -198,6 +215,26 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
          "per second");
   p->Add("noise-inliers", &o->loop.noise_inliers,
          "inliers a wrong place reaches by chance; weaker neighbours are not considered");
+  p->Add("recognition", &o->mode,
+         "default | seed: the seed's recognition (§5.7 steps 5-6: landmarks looked up by their "
+         "objects alone, an object database whose objects keep the scenes they were seen at, a "
+         "loop where about half the landmarks match and the landmark counts are close)");
+  p->Add("seed-matched-fraction", &o->seed.min_matched_fraction,
+         "--recognition seed: share of the frame's landmarks that must match a place (§5.7: "
+         "around 50%)");
+  p->Add("seed-count-ratio", &o->seed.min_count_ratio,
+         "--recognition seed: the smaller landmark count is at least this share of the larger "
+         "(§5.7: 'close'; the seed gives no number)");
+  p->Add("object-classes", &o->classes.enabled,
+         "classify the landmarks a frame stores with the object classifiers (seed Ch. 4); the "
+         "map keeps each landmark's class and answers name the matched landmarks' classes");
+  p->Add("object-models", &o->classes.models_dir,
+         "object classifiers (placerec-train objects; default: the shipped models/objects/all)");
+  p->Add("drop-movable", &o->classes.drop_movable,
+         "leave landmarks of movable classes (car, body, face, bicycle, animals, ...) out of the "
+         "map (seed §7.2.3; the seed's experiments store every landmark)");
+  p->Add("min-movable-confidence", &o->classes.min_movable_confidence,
+         "... when the classifier is at least this sure of the class (0..1)");
   p->Add("max-matches", &o->loop.max_matches, "places returned per frame");
   p->Add("loop-min-score", &o->loop.min_score,
          "a frame is a loop closure when its best place scores at least this");

@@ -12,6 +12,8 @@ namespace placerec {
 
 void AddRecognizerFlags(FlagParser* parser, RecognizerOptions* options);
 
+std::ostream& operator<<(std::ostream& os, RecognitionMode value);
+std::istream& operator>>(std::istream& is, RecognitionMode& value);
 std::ostream& operator<<(std::ostream& os, QueryObjects value);
 std::istream& operator>>(std::istream& is, QueryObjects& value);
 std::ostream& operator<<(std::ostream& os, IndexSearch value);

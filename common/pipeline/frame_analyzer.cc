@@ -2,11 +2,14 @@
 
 #include <cmath>
 
+#include "common/organization/filter_bank.h"
 #include "common/util/logging.h"
 
 namespace placerec {
 
-SceneSegmentation SuperpixelSegmenter::Segment(const WorkingImage& image) const {
+SceneSegmentation SuperpixelSegmenter::Segment(const WorkingImage& image,
+                                               cv::Mat* filter_bank) const {
+  if (filter_bank != nullptr) filter_bank->release();
   return ComputeSuperpixels(image, options_);
 }
 
@@ -86,7 +89,11 @@ FrameObservation FrameAnalyzer::Analyze(const cv::Mat& bgr) const {
 
   timer.Restart();
   const WorkingImage working = MakeWorkingImage(frame, segmenter_->working_width());
-  observation.segmentation = segmenter_->Segment(working);
+  observation.segmentation =
+      segmenter_->Segment(working, options_.keep_filter_bank ? &observation.filter_bank : nullptr);
+  if (options_.keep_filter_bank && observation.filter_bank.empty()) {
+    observation.filter_bank = ComputeFilterBank(working.lab);
+  }
   observation.timings.emplace_back("segmentation", timer.ElapsedMs());
 
   timer.Restart();

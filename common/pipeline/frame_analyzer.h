@@ -24,7 +24,10 @@ namespace placerec {
 class Segmenter {
  public:
   virtual ~Segmenter() = default;
-  virtual SceneSegmentation Segment(const WorkingImage& image) const = 0;
+  // `filter_bank` (may be null) receives the image's 20-d filter bank (ComputeFilterBank,
+  // CV_32FC(20)) when the segmenter computes one, and is left empty otherwise.
+  virtual SceneSegmentation Segment(const WorkingImage& image,
+                                    cv::Mat* filter_bank = nullptr) const = 0;
   virtual std::string name() const = 0;
   // Width of the working image Segment expects (pixels; 0: the frame's own).
   virtual int working_width() const = 0;
@@ -34,7 +37,8 @@ class Segmenter {
 class SuperpixelSegmenter : public Segmenter {
  public:
   explicit SuperpixelSegmenter(const SuperpixelOptions& options) : options_(options) {}
-  SceneSegmentation Segment(const WorkingImage& image) const override;
+  SceneSegmentation Segment(const WorkingImage& image,
+                            cv::Mat* filter_bank = nullptr) const override;
   std::string name() const override { return "superpixels"; }
   int working_width() const override { return options_.working_width; }
 
@@ -48,8 +52,9 @@ class SuperpixelSegmenter : public Segmenter {
 class OrganizationSegmenter : public Segmenter {
  public:
   explicit OrganizationSegmenter(SceneOrganizer organizer) : organizer_(std::move(organizer)) {}
-  SceneSegmentation Segment(const WorkingImage& image) const override {
-    return organizer_.Segment(image);
+  SceneSegmentation Segment(const WorkingImage& image,
+                            cv::Mat* filter_bank = nullptr) const override {
+    return organizer_.Segment(image, nullptr, filter_bank);
   }
   std::string name() const override { return "organization"; }
   int working_width() const override { return organizer_.options().superpixels.working_width; }
@@ -101,6 +106,9 @@ struct AnalyzerOptions {
   // grey-level camera, seen at night): its objects get no colour signature, so the colour
   // filter lets them through instead of calling everything grey.
   double min_frame_chroma = 1.0;
+  // Keep the working image's filter bank in the observation (object classification reads it);
+  // computed when the segmenter does not compute one (superpixels).
+  bool keep_filter_bank = false;
 
   bool Check(std::string* error) const;
 };
@@ -111,6 +119,9 @@ struct FrameObservation {
   double scale = 1.0;       // processed / original
   Features features;        // keypoints in processed pixels
   SceneSegmentation segmentation;
+  // The working image's filter bank (CV_32FC(20), ComputeFilterBank) for object classification:
+  // the segmentation's own, or computed when keep_filter_bank asks for it.
+  cv::Mat filter_bank;
   std::vector<SceneObject> objects;  // boxes in processed pixels
   bool colourless = false;
   StageTimings timings;  // milliseconds per stage

@@ -18,6 +18,7 @@ StatusOr<std::unique_ptr<PlaceMap>> PlaceMap::Open(std::unique_ptr<LandmarkStore
   PLACEREC_RETURN_IF_ERROR(map->store_->LoadPlaces([&map](const Place& place) {
     map->places_[place.id] = place;
     map->index_.AddPlace(place);
+    for (const LandmarkId seen : place.seen_landmarks) map->seen_at_[seen].push_back(place.id);
   }));
   Status status;
   PLACEREC_RETURN_IF_ERROR(map->store_->LoadLandmarks([&map, &status](Landmark&& landmark) {
@@ -68,7 +69,44 @@ Status PlaceMap::Insert(Place* place, std::vector<Landmark>* landmarks) {
   places_[place->id] = *place;
   index_.AddPlace(*place);
   for (const Landmark& landmark : *landmarks) index_.Add(landmark);
+  for (const LandmarkId seen : place->seen_landmarks) seen_at_[seen].push_back(place->id);
   return Status::Ok();
+}
+
+MapLookupResult PlaceMap::LookupSeed(const MapLookup& lookup, const SeedLoopOptions& options,
+                                     int max_matches, bool* loop) const {
+  std::shared_lock lock(mutex_);
+  MapLookupResult result;
+  Timer timer;
+  // Every stored object is a candidate (step 5); the time gap applies to the scenes (step 6).
+  const IndexResult found = index_.Query(lookup.objects, [](PlaceId) { return true; });
+  result.stats = found.stats;
+  for (const LandmarkMatch& match : found.objects) {
+    result.object_matches.emplace_back(match.query_object, match.landmark);
+  }
+  result.index_ms = timer.ElapsedMs();
+  timer.Restart();
+  result.places = SeedRankPlaces(
+      found.objects, static_cast<int>(lookup.objects.size()),
+      [this](LandmarkId id) {
+        std::vector<PlaceId> scenes;
+        const int32_t slot = index_.SlotOf(id);
+        if (slot >= 0) scenes.push_back(index_.landmark(slot).place);
+        const auto it = seen_at_.find(id);
+        if (it != seen_at_.end()) scenes.insert(scenes.end(), it->second.begin(), it->second.end());
+        return scenes;
+      },
+      [this](PlaceId id) -> const Place* {
+        const auto it = places_.find(id);
+        return it == places_.end() ? nullptr : &it->second;
+      },
+      [&lookup](const Place& place) {
+        return lookup.recent.Allows(place.robot, place.sequence, place.utime);
+      },
+      options, max_matches, loop);
+  for (PlaceMatch& match : result.places) match.landmark_classes = MatchedClasses(match, index_);
+  result.ranking_ms = timer.ElapsedMs();
+  return result;
 }
 
 MapCounts PlaceMap::Counts() const {

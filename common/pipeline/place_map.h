@@ -13,6 +13,7 @@
 #include "common/recognition/landmark_index.h"
 #include "common/recognition/loop_decision.h"
 #include "common/recognition/recent_past.h"
+#include "common/recognition/seed_decision.h"
 #include "common/recognition/types.h"
 #include "common/storage/landmark_store.h"
 #include "common/util/status.h"
@@ -35,6 +36,8 @@ struct MapLookup {
 
 struct MapLookupResult {
   std::vector<PlaceMatch> places;  // best first
+  // LookupSeed: every object-level match, (query object, stored landmark).
+  std::vector<std::pair<int, LandmarkId>> object_matches;
   IndexQueryStats stats;
   double index_ms = 0;    // candidate filtering and descriptor verification
   double ranking_ms = 0;  // voting and geometric verification
@@ -47,9 +50,14 @@ class PlaceMap {
                                                   const LandmarkIndexOptions& index_options);
 
   MapLookupResult Lookup(const MapLookup& lookup, const LoopDecisionOptions& options) const;
+  // The seed's lookup and decision (seed_decision.h, §5.7 steps 5-6): object-level matches of
+  // the frame's landmarks (lookup.objects, one per landmark) against every stored object, ranked
+  // by the scene sets of the matched objects. `loop` receives the step-6 decision.
+  MapLookupResult LookupSeed(const MapLookup& lookup, const SeedLoopOptions& options,
+                             int max_matches, bool* loop) const;
 
-  // Commits the place and its landmarks to the store (assigning ids), then indexes them. On
-  // error nothing changes.
+  // Commits the place and its landmarks to the store (assigning ids), then indexes them; the
+  // place joins the scene sets of place->seen_landmarks. On error nothing changes.
   Status Insert(Place* place, std::vector<Landmark>* landmarks);
 
   MapCounts Counts() const;
@@ -65,6 +73,8 @@ class PlaceMap {
   std::unique_ptr<LandmarkStore> store_;
   LandmarkIndex index_;
   std::unordered_map<PlaceId, Place> places_;
+  // Per stored landmark, the later places that saw it again (Place::seen_landmarks).
+  std::unordered_map<LandmarkId, std::vector<PlaceId>> seen_at_;
   double open_ms_ = 0;
 };
 

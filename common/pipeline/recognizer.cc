@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <functional>
+#include <set>
 #include <tuple>
 
 #include "common/util/logging.h"
@@ -11,13 +12,54 @@ namespace placerec {
 
 bool RecognizerOptions::Check(std::string* error) const {
   return analyzer.Check(error) && landmarks.Check(error) && index.Check(error) &&
-         loop.Check(error) && recent_past.Check(error) && sequence.Check(error);
+         loop.Check(error) && recent_past.Check(error) && sequence.Check(error) &&
+         classes.Check(error) && seed.Check(error);
 }
 
+RecognizerOptions EffectiveOptions(const RecognizerOptions& options) {
+  RecognizerOptions o = options;
+  if (o.mode != RecognitionMode::kSeed) return o;
+  o.query_objects = QueryObjects::kLandmarks;
+  o.query_unassigned_keypoints = false;
+  o.max_query_descriptors = 0;
+  o.index.vote_places = 0;
+  o.loop.geometric_verification = false;
+  o.sequence.frames = 0;
+  o.store_tracked_descriptors_only = false;
+  o.min_descriptors_per_place = 0;
+  o.analyzer.objects.include_background = false;
+  o.classes.drop_movable = false;
+  return o;
+}
+
+namespace {
+
+// The analyzer keeps the filter bank when landmarks are classified.
+AnalyzerOptions AnalyzerFor(const RecognizerOptions& options) {
+  AnalyzerOptions analyzer = options.analyzer;
+  analyzer.keep_filter_bank = analyzer.keep_filter_bank || options.classes.enabled;
+  return analyzer;
+}
+
+}  // namespace
+
 Recognizer::Recognizer(const RecognizerOptions& options, PlaceMap* map,
-                       std::unique_ptr<Segmenter> segmenter)
-    : options_(options), map_(map), analyzer_(options.analyzer, std::move(segmenter)) {
+                       std::unique_ptr<Segmenter> segmenter,
+                       std::unique_ptr<ObjectClassLabeler> labeler)
+    : options_(EffectiveOptions(options)),
+      map_(map),
+      analyzer_(AnalyzerFor(options_), std::move(segmenter)),
+      labeler_(std::move(labeler)) {
   CHECK(map_ != nullptr);
+  options_.analyzer = analyzer_.options();
+  if (!options_.classes.enabled) {
+    labeler_.reset();
+  } else if (!labeler_) {
+    StatusOr<std::unique_ptr<ObjectClassLabeler>> loaded =
+        ObjectClassLabeler::Load(options_.classes);
+    CHECK(loaded.ok()) << loaded.status().message();
+    labeler_ = std::move(*loaded);
+  }
 }
 
 Recognizer::RobotState* Recognizer::StateOf(const std::string& robot) {
@@ -64,8 +106,30 @@ RecognitionResult Recognizer::Process(const FrameRequest& request, const cv::Mat
   return Recognize(request, analyzer_.Analyze(bgr));
 }
 
+LandmarkSelection Recognizer::ClassifyLandmarks(const FrameObservation& observation,
+                                                const LandmarkSelection& selection,
+                                                std::vector<ObjectLabel>* labels) const {
+  labels->clear();
+  if (!labeler_) {
+    labels->resize(selection.landmarks.size());
+    return selection;
+  }
+  LandmarkSelection kept;
+  for (size_t i = 0; i < selection.landmarks.size(); ++i) {
+    ObjectLabel label =
+        labeler_->Classify(observation.filter_bank, observation.objects[selection.landmarks[i]]);
+    if (labeler_->LeaveOut(label)) continue;
+    kept.landmarks.push_back(selection.landmarks[i]);
+    kept.tracked_rows.push_back(selection.tracked_rows[i]);
+    labels->push_back(std::move(label));
+  }
+  return kept;
+}
+
 std::vector<Landmark> Recognizer::BuildLandmarks(const FrameObservation& observation,
-                                                 const LandmarkSelection& selection) const {
+                                                 const LandmarkSelection& selection,
+                                                 const std::vector<ObjectLabel>& labels) const {
+  CHECK_EQ(labels.size(), selection.landmarks.size());
   // Rows stored per landmark: the tracked ones, topped up in plain scenes.
   std::vector<std::vector<int>> stored_rows(selection.landmarks.size());
   size_t stored_total = 0;
@@ -106,6 +170,8 @@ std::vector<Landmark> Recognizer::BuildLandmarks(const FrameObservation& observa
     landmark.colour = object.colour;
     landmark.box = object.box;
     landmark.segment_class = object.segment_class;
+    landmark.object_class = labels[i].name;
+    landmark.class_confidence = labels[i].name.empty() ? 0.0f : labels[i].confidence;
     const std::vector<int>& rows = stored_rows[i];
     landmark.descriptors.create(static_cast<int>(rows.size()), kDescriptorSize, CV_8U);
     for (size_t r = 0; r < rows.size(); ++r) {
@@ -232,7 +298,11 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   if (options_.sequence.frames > 0) {
     loop.max_matches = std::max(loop.max_matches, options_.sequence.places_kept);
   }
-  MapLookupResult found = map_->Lookup(lookup, loop);
+  const bool seed = options_.mode == RecognitionMode::kSeed;
+  bool seed_loop = false;
+  MapLookupResult found =
+      seed ? map_->LookupSeed(lookup, options_.seed, loop.max_matches, &seed_loop)
+           : map_->Lookup(lookup, loop);
   VLOG(1) << request.robot << " #" << request.sequence << ": " << lookup.objects.size()
           << " query objects, " << found.stats.candidates << " candidates, "
           << found.stats.matching.query_descriptors << " descriptors, "
@@ -269,7 +339,8 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   }
   result.matches = std::move(found.places);
   result.loop_closure =
-      !result.matches.empty() && result.matches.front().score >= options_.loop.min_score;
+      seed ? seed_loop
+           : !result.matches.empty() && result.matches.front().score >= options_.loop.min_score;
   result.timings.emplace_back("index", found.index_ms);
   result.timings.emplace_back("decision", found.ranking_ms);
 
@@ -283,17 +354,49 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   timer.Restart();
   result.duplicate = recent.duplicate;
   std::vector<Landmark> landmarks;
-  if (!result.duplicate) landmarks = BuildLandmarks(observation, selection);
+  std::set<LandmarkId> seen;  // kSeed: stored landmarks this frame saw again
+  if (!result.duplicate) {
+    // Classes (seed Ch. 4) of the landmarks to store; movable ones may be left out (§7.2.3).
+    std::vector<ObjectLabel> labels;
+    LandmarkSelection stored = ClassifyLandmarks(observation, selection, &labels);
+    result.movable_landmarks =
+        static_cast<int>(selection.landmarks.size() - stored.landmarks.size());
+    if (seed) {
+      // The seed's object database (§5.7 step 5): a landmark that matched stored objects is not
+      // stored again; the place joins their scene sets.
+      std::set<int> matched_objects;
+      for (const auto& [query, landmark] : found.object_matches) {
+        matched_objects.insert(searched_objects[query]);
+        seen.insert(landmark);
+      }
+      LandmarkSelection unmatched;
+      std::vector<ObjectLabel> unmatched_labels;
+      for (size_t i = 0; i < stored.landmarks.size(); ++i) {
+        if (matched_objects.count(stored.landmarks[i]) > 0) continue;
+        unmatched.landmarks.push_back(stored.landmarks[i]);
+        unmatched.tracked_rows.push_back(stored.tracked_rows[i]);
+        unmatched_labels.push_back(labels[i]);
+      }
+      stored = std::move(unmatched);
+      labels = std::move(unmatched_labels);
+    }
+    result.timings.emplace_back("classes", timer.ElapsedMs());
+    timer.Restart();
+    landmarks = BuildLandmarks(observation, stored, labels);
+  }
   for (const Landmark& landmark : landmarks) {
     result.stored_descriptors += landmark.num_descriptors();
+    result.stored_classes.push_back(landmark.object_class);
   }
-  result.landmarks = static_cast<int>(selection.landmarks.size());  // stored unless a duplicate
-  if (!landmarks.empty()) {
+  // Stored unless a duplicate or movable.
+  result.landmarks = static_cast<int>(selection.landmarks.size()) - result.movable_landmarks;
+  if (!landmarks.empty() || !seen.empty()) {
     Place place;
     place.robot = request.robot;
     place.sequence = request.sequence;
     place.utime = request.utime;
     place.image_width = observation.processed_size.width;
+    place.seen_landmarks.assign(seen.begin(), seen.end());
     const Status inserted = map_->Insert(&place, &landmarks);
     if (!inserted.ok()) {
       result.status = inserted;

@@ -14,15 +14,23 @@
 #include <opencv2/core.hpp>
 
 #include "common/pipeline/frame_analyzer.h"
+#include "common/pipeline/object_classes.h"
 #include "common/pipeline/place_map.h"
 #include "common/recognition/landmark_selector.h"
 #include "common/recognition/loop_decision.h"
 #include "common/recognition/recent_past.h"
+#include "common/recognition/seed_decision.h"
 #include "common/recognition/sequence_support.h"
 #include "common/util/status.h"
 #include "common/util/timer.h"
 
 namespace placerec {
+
+// Which recognition runs.
+enum class RecognitionMode {
+  kDefault,  // this project's: every object and keypoint looked up, geometric verification
+  kSeed,     // the seed's (§5.7 steps 5-6): landmarks only, an object database with scene sets
+};
 
 // Which objects of a frame are looked up in the map.
 enum class QueryObjects {
@@ -31,6 +39,9 @@ enum class QueryObjects {
 };
 
 struct RecognizerOptions {
+  RecognitionMode mode = RecognitionMode::kDefault;
+  // The seed's loop decision (mode kSeed).
+  SeedLoopOptions seed;
   AnalyzerOptions analyzer;
   LandmarkSelectorOptions landmarks;
   LandmarkIndexOptions index;
@@ -55,9 +66,18 @@ struct RecognizerOptions {
   // fewer than this, their other descriptors are stored too (strongest keypoints first) up to
   // this many, so that the place can still be recognised. 0: tracked only.
   int min_descriptors_per_place = 100;
+  // The object classes of the stored landmarks (seed Ch. 4) and semantic landmarks (§7.2.3).
+  ObjectClassOptions classes;
 
   bool Check(std::string* error) const;
 };
+
+// The options a recognizer runs with: as given for kDefault; for kSeed, the seed's choices where
+// ours differ (§5.7): only landmarks are looked up, by their objects alone (no place-level votes,
+// no keypoints outside objects, no geometric check, no sequence support); a new landmark is
+// stored with all its descriptors; background is not an object (§3.7); nothing is left out for
+// its class.
+RecognizerOptions EffectiveOptions(const RecognizerOptions& options);
 
 struct FrameRequest {
   std::string robot;     // 1..kMaxRobotIdLength bytes
@@ -72,7 +92,11 @@ struct RecognitionResult {
   std::vector<PlaceMatch> matches;  // best first
   int keypoints = 0;
   int objects = 0;
-  int landmarks = 0;           // this frame's landmarks (0 for query-only frames)
+  int landmarks = 0;  // this frame's landmarks (0 for query-only frames)
+  // Landmarks left out of the map for their movable class (ObjectClassOptions::drop_movable).
+  int movable_landmarks = 0;
+  // The object class of each landmark stored (empty names for unclassified ones).
+  std::vector<std::string> stored_classes;
   int stored_descriptors = 0;  // descriptors this frame added to the map
   PlaceId place;               // the place inserted for this frame, if any
   // The frame showed nothing new since the robot's last distinct frame (recent_past.h): its
@@ -87,8 +111,12 @@ struct RecognitionResult {
 
 class Recognizer {
  public:
+  // A null `segmenter` or `labeler` is made from the options (MakeSegmenter,
+  // ObjectClassLabeler::Load); failing to load models is then fatal, so callers that want to
+  // report it load them themselves. No labeler is used when options.classes.enabled is false.
   Recognizer(const RecognizerOptions& options, PlaceMap* map,
-             std::unique_ptr<Segmenter> segmenter = nullptr);
+             std::unique_ptr<Segmenter> segmenter = nullptr,
+             std::unique_ptr<ObjectClassLabeler> labeler = nullptr);
 
   // Analyze + Recognize. Frames of different robots may be processed from different threads at
   // once; frames of one robot must arrive in order, one at a time.
@@ -124,12 +152,20 @@ class Recognizer {
   RobotState* StateOf(const std::string& robot);
   // The landmarks a frame stores: per selected landmark its tracked descriptors, topped up in
   // plain scenes to min_descriptors_per_place (strongest keypoints first).
+  // `labels` holds one class per selected landmark.
   std::vector<Landmark> BuildLandmarks(const FrameObservation& observation,
-                                       const LandmarkSelection& selection) const;
+                                       const LandmarkSelection& selection,
+                                       const std::vector<ObjectLabel>& labels) const;
+  // The classes of the selected landmarks (one per landmark; empty labels without a labeler),
+  // and the selection without the landmarks the labeler leaves out.
+  LandmarkSelection ClassifyLandmarks(const FrameObservation& observation,
+                                      const LandmarkSelection& selection,
+                                      std::vector<ObjectLabel>* labels) const;
 
   RecognizerOptions options_;
   PlaceMap* map_;
   FrameAnalyzer analyzer_;
+  std::unique_ptr<ObjectClassLabeler> labeler_;
   mutable std::mutex robots_mutex_;
   std::map<std::string, std::unique_ptr<RobotState>> robots_;
 };

@@ -4,6 +4,7 @@
 // where exact counts are wanted.
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
@@ -15,6 +16,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
 
+#include "common/organization/filter_bank.h"
 #include "common/pipeline/pipeline_test_util.h"
 #include "common/pipeline/place_map.h"
 #include "common/pipeline/recognizer.h"
@@ -298,6 +300,112 @@ TEST(RecognizerTest, StoresOnlyLandmarksWithTheirTrackedFeaturesToppedUp) {
   }
 }
 
+// Observations with what classification reads: a filter bank of a textured image and an object
+// mask filling each object's box.
+FrameObservation WithPixels(FrameObservation observation) {
+  cv::Mat bgr(observation.processed_size, CV_8UC3);
+  cv::randu(bgr, cv::Scalar::all(0), cv::Scalar::all(255));
+  cv::Mat lab;
+  bgr.convertTo(lab, CV_32F, 1.0 / 255.0);
+  cv::cvtColor(lab, lab, cv::COLOR_BGR2Lab);
+  observation.filter_bank = ComputeFilterBank(lab);
+  for (SceneObject& object : observation.objects) {
+    object.mask = cv::Mat(object.working_box.size(), CV_8U, cv::Scalar(255));
+  }
+  return observation;
+}
+
+// Stored landmarks keep the class the object classifiers give them (seed Ch. 4), and the map
+// keeps it; with drop_movable, a landmark of a movable class is left out (seed §7.2.3): here every
+// class counts as movable, so the landmark is surely left out.
+TEST(RecognizerTest, LandmarksKeepTheirClassAndMovableOnesCanBeLeftOut) {
+  const TwoFrames frames(41);
+  for (const bool drop : {false, true}) {
+    SCOPED_TRACE(drop ? "drop movable" : "keep every landmark");
+    RecognizerOptions options = TestOptions();
+    ASSERT_TRUE(options.classes.enabled);  // the default
+    StatusOr<std::unique_ptr<ObjectClassLabeler>> labeler =
+        ObjectClassLabeler::Load(options.classes);
+    ASSERT_TRUE(labeler.ok()) << labeler.status().ToString();
+    if (drop) {
+      options.classes.drop_movable = true;
+      options.classes.min_movable_confidence = 0.0;
+      options.classes.movable_classes = (*labeler)->classifier().names();
+    }
+    std::unique_ptr<PlaceMap> map = OpenMap(":memory:", options);
+    Recognizer recognizer(options, map.get());
+    ASSERT_TRUE(recognizer.Recognize({"a", 0, 0, true}, WithPixels(frames.First())).status.ok());
+    const RecognitionResult second =
+        recognizer.Recognize({"a", 1, 1000000, true}, WithPixels(frames.Second()));
+    ASSERT_TRUE(second.status.ok()) << second.status.ToString();
+    if (drop) {
+      EXPECT_EQ(second.movable_landmarks, 1);
+      EXPECT_EQ(second.landmarks, 0);
+      EXPECT_TRUE(second.stored_classes.empty());
+      EXPECT_EQ(map->Counts().landmarks, 0);
+      continue;
+    }
+    EXPECT_EQ(second.movable_landmarks, 0);
+    EXPECT_EQ(second.landmarks, 1);
+    ASSERT_EQ(second.stored_classes.size(), 1u);
+    const std::vector<std::string>& names = (*labeler)->classifier().names();
+    EXPECT_NE(std::find(names.begin(), names.end(), second.stored_classes[0]), names.end())
+        << second.stored_classes[0];
+    // A query of the same view names the matched landmark's class.
+    const RecognitionResult query =
+        recognizer.Recognize({"b", 0, 50000000, false}, WithPixels(frames.Second()));
+    ASSERT_TRUE(query.status.ok());
+    ASSERT_FALSE(query.matches.empty());
+    ASSERT_EQ(query.matches[0].landmark_classes.size(), 1u);
+    EXPECT_EQ(query.matches[0].landmark_classes[0].first, second.stored_classes[0]);
+    EXPECT_EQ(query.matches[0].landmark_classes[0].second, 1);
+  }
+}
+
+// The seed's recognition (§5.7 steps 5-6): a landmark that matches a stored object is not stored
+// again, the place joins the object's scene set, and the seed's step 6 decides the loop.
+TEST(RecognizerTest, SeedModeKeepsOneObjectPerLandmarkWithItsScenes) {
+  const TwoFrames frames(41);
+  RecognizerOptions options = TestOptions();
+  options.mode = RecognitionMode::kSeed;
+  std::unique_ptr<PlaceMap> map = OpenMap(":memory:", options);
+  Recognizer recognizer(options, map.get());
+  EXPECT_EQ(recognizer.options().query_objects, QueryObjects::kLandmarks);
+  EXPECT_FALSE(recognizer.options().loop.geometric_verification);
+
+  ASSERT_TRUE(recognizer.Recognize({"a", 0, 0, true}, frames.First()).status.ok());
+  const RecognitionResult a = recognizer.Recognize({"a", 1, 1000000, true}, frames.Second());
+  ASSERT_TRUE(a.status.ok());
+  EXPECT_EQ(a.landmarks, 1);
+  EXPECT_EQ(a.stored_descriptors, 20);  // the seed stores the object's descriptors
+  EXPECT_FALSE(a.loop_closure);
+
+  ASSERT_TRUE(recognizer.Recognize({"b", 0, 100000000, true}, frames.First()).status.ok());
+  const RecognitionResult b = recognizer.Recognize({"b", 1, 101000000, true}, frames.Second());
+  ASSERT_TRUE(b.status.ok()) << b.status.ToString();
+  EXPECT_TRUE(b.loop_closure);  // its one landmark matched the one of a's place: 100 %
+  ASSERT_FALSE(b.matches.empty());
+  EXPECT_EQ(b.matches[0].place.id, a.place);
+  EXPECT_EQ(b.matches[0].matched_landmarks, 1);
+  EXPECT_EQ(b.stored_descriptors, 0);  // seen again, not stored again
+  EXPECT_EQ(map->Counts().landmarks, 1);
+  EXPECT_EQ(map->Counts().places, 2);
+}
+
+// Without object classes, landmarks are stored unclassified.
+TEST(RecognizerTest, ObjectClassesOffStoresUnclassifiedLandmarks) {
+  const TwoFrames frames(41);
+  RecognizerOptions options = TestOptions();
+  options.classes.enabled = false;
+  std::unique_ptr<PlaceMap> map = OpenMap(":memory:", options);
+  Recognizer recognizer(options, map.get());
+  ASSERT_TRUE(recognizer.Recognize({"a", 0, 0, true}, WithPixels(frames.First())).status.ok());
+  const RecognitionResult second =
+      recognizer.Recognize({"a", 1, 1000000, true}, WithPixels(frames.Second()));
+  ASSERT_TRUE(second.status.ok());
+  EXPECT_EQ(second.stored_classes, std::vector<std::string>{""});
+}
+
 // A query-only frame is answered but changes neither the map nor the robot: the inserted frame
 // after it is answered and stored exactly as without it, and its sequence number stays free.
 TEST(RecognizerTest, QueryOnlyFramesChangeNeitherTheMapNorTheRobot) {
@@ -330,8 +438,8 @@ TEST(RecognizerTest, QueryOnlyFramesChangeNeitherTheMapNorTheRobot) {
   EXPECT_EQ(second.stored_descriptors, 12);
   stages.clear();
   for (const auto& [stage, ms] : second.timings) stages.push_back(stage);
-  EXPECT_EQ(stages,
-            (std::vector<std::string>{"landmarks", "recent_past", "index", "decision", "insert"}));
+  EXPECT_EQ(stages, (std::vector<std::string>{"landmarks", "recent_past", "index", "decision",
+                                              "classes", "insert"}));
 }
 
 // Checks come before any work: ids of 1..64 printable bytes, and for inserts a sequence after

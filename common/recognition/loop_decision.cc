@@ -170,6 +170,24 @@ size_t Localize(const std::vector<PlaceMatch>& ranked, const LoopDecisionOptions
 
 }  // namespace
 
+std::vector<std::pair<std::string, int>> MatchedClasses(const PlaceMatch& match,
+                                                        const LandmarkIndex& index) {
+  std::set<int64_t> landmarks;
+  for (const auto& pair : match.object_pairs) landmarks.insert(pair.second.value());
+  for (const LandmarkId id : match.point_landmarks) landmarks.insert(id.value());
+  std::map<std::string, int> counts;
+  for (const int64_t id : landmarks) {
+    const int32_t slot = index.SlotOf(LandmarkId(id));
+    if (slot < 0) continue;
+    const std::string& name = index.landmark(slot).object_class;
+    if (!name.empty()) ++counts[name];
+  }
+  std::vector<std::pair<std::string, int>> classes(counts.begin(), counts.end());
+  std::stable_sort(classes.begin(), classes.end(),
+                   [](const auto& a, const auto& b) { return a.second > b.second; });
+  return classes;
+}
+
 std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
                                    const std::vector<std::vector<cv::KeyPoint>>& query_keypoints,
                                    int query_width, const LandmarkIndex& index,
@@ -305,7 +323,10 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
     }
   }
   if (static_cast<int>(ranked.size()) > options.max_matches) ranked.resize(options.max_matches);
-  for (PlaceMatch& match : ranked) match.frame_score = match.score;
+  for (PlaceMatch& match : ranked) {
+    match.frame_score = match.score;
+    match.landmark_classes = MatchedClasses(match, index);
+  }
   return ranked;
 }
 

@@ -89,7 +89,15 @@ struct PlaceMatch {
   // matches without verification.
   std::vector<std::pair<cv::Point2f, cv::Point2f>> point_pairs;
   std::vector<LandmarkId> point_landmarks;  // the stored landmark of each point pair
+  // Object classes (seed Ch. 4) of the place's landmarks that matched (an object pair or an
+  // inlier point), with how many landmarks of each: most first, then by name. Landmarks without
+  // a class are not counted.
+  std::vector<std::pair<std::string, int>> landmark_classes;
 };
+
+// PlaceMatch::landmark_classes: the classes of the match's object pairs and inlier points.
+std::vector<std::pair<std::string, int>> MatchedClasses(const PlaceMatch& match,
+                                                        const LandmarkIndex& index);
 
 // Ranks the candidate places of `found`, best first, at most options.max_matches of them.
 // `query_keypoints[o][r]` is the keypoint of row r of query object o; `place_of(id)` looks a place

@@ -1,5 +1,6 @@
 #include "common/recognition/types.h"
 
+#include <cctype>
 #include <climits>
 
 #include "common/features/features.h"
@@ -16,6 +17,11 @@ Status Place::Validate() const {
   }
   if (robot.find('\0') != std::string::npos) {
     return Status::InvalidArgument("robot id contains a NUL byte");
+  }
+  for (size_t i = 0; i < seen_landmarks.size(); ++i) {
+    if (!seen_landmarks[i].IsValid() || (i > 0 && !(seen_landmarks[i - 1] < seen_landmarks[i]))) {
+      return Status::InvalidArgument("seen landmarks must be valid ids, increasing");
+    }
   }
   return Status::Ok();
 }
@@ -48,6 +54,20 @@ Status Landmark::Validate() const {
                                    std::to_string(static_cast<int>(segment_class)));
   }
   if (box.width < 0 || box.height < 0) return Status::InvalidArgument("box has a negative size");
+  if (object_class.size() > kMaxObjectClassLength) {
+    return Status::InvalidArgument("object class is " + std::to_string(object_class.size()) +
+                                   " bytes; the limit is " + std::to_string(kMaxObjectClassLength));
+  }
+  for (unsigned char c : object_class) {
+    if (!((c < 0x80 && std::isalnum(c)) || c == '_' || c == '-')) {
+      return Status::InvalidArgument(
+          "object class may hold only ASCII letters, digits, '_' and '-'");
+    }
+  }
+  if (!(class_confidence >= 0.0f && class_confidence <= 1.0f) ||
+      (object_class.empty() && class_confidence != 0.0f)) {
+    return Status::InvalidArgument("class confidence must be in [0, 1], and 0 without a class");
+  }
   return Status::Ok();
 }
 

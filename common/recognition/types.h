@@ -17,6 +17,8 @@ namespace placerec {
 
 // Longest robot id the map accepts (bytes).
 constexpr size_t kMaxRobotIdLength = 64;
+// Longest object class name a landmark keeps (bytes).
+constexpr size_t kMaxObjectClassLength = 32;
 
 // One inserted frame of one robot.
 struct Place {
@@ -26,15 +28,20 @@ struct Place {
   int64_t utime = 0;     // capture time, microseconds since the epoch
   int num_landmarks = 0;
   int image_width = 0;  // width in pixels of the processed frame its keypoints refer to
+  // Landmarks stored with earlier places that this place saw again (the seed's object database,
+  // §5.7 step 5: a matched landmark's scene set gains the place instead of the landmark being
+  // stored twice). Empty except in the seed's recognition mode. Increasing ids.
+  std::vector<LandmarkId> seen_landmarks = {};
 
   bool operator==(const Place& other) const {
     return id == other.id && robot == other.robot && sequence == other.sequence &&
            utime == other.utime && num_landmarks == other.num_landmarks &&
-           image_width == other.image_width;
+           image_width == other.image_width && seen_landmarks == other.seen_landmarks;
   }
 
   // What every landmark store requires of a place (LandmarkStore::AddPlace): a robot id of
-  // 1..kMaxRobotIdLength bytes without NUL bytes and image_width >= 0. InvalidArgument otherwise.
+  // 1..kMaxRobotIdLength bytes without NUL bytes, image_width >= 0 and seen_landmarks valid
+  // ids, increasing. InvalidArgument otherwise.
   // The id and num_landmarks are the store's to set and are not checked.
   Status Validate() const;
 };
@@ -49,13 +56,21 @@ struct Landmark {
   SegmentClass segment_class = SegmentClass::kStructured;
   cv::Mat descriptors;                  // CV_8U, the stored SIFT descriptors, one 128-byte row each
   std::vector<cv::KeyPoint> keypoints;  // one per stored descriptor (x, y, size, angle kept)
+  // The object's class (seed Ch. 4, common/classification): a class name of the object
+  // classifier, e.g. "building" or "car"; empty when the object was not classified (maps of
+  // schema v1, or a server without object models).
+  std::string object_class;
+  // How sure the classifier was of object_class, in [0, 1]; 0 when there is no class.
+  float class_confidence = 0.0f;
 
   int num_descriptors() const { return descriptors.rows; }
 
   // What every landmark store requires of a landmark (LandmarkStore::AddPlace): descriptors CV_8U
   // with one channel, kDescriptorSize columns and continuous in memory, or an empty matrix; one
   // keypoint per descriptor row; sift_count >= 0; a known segment class; a box of non-negative
-  // size. InvalidArgument otherwise. The id and place are the store's to set and are not checked.
+  // size; an object class of at most kMaxObjectClassLength bytes, each an ASCII letter, digit,
+  // '_' or '-', with a confidence in [0, 1] (0 without a class). InvalidArgument otherwise. The
+  // id and place are the store's to set and are not checked.
   Status Validate() const;
 };
 

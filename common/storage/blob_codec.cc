@@ -62,6 +62,8 @@ EncodedLandmark EncodeLandmark(const Landmark& landmark, LandmarkBlobBuffers* bu
   encoded.descriptors = {num_descriptors > 0 ? landmark.descriptors.data : nullptr,
                          num_descriptors * kDescriptorSize};
   encoded.keypoints = {buffers->keypoints.data(), buffers->keypoints.size()};
+  encoded.object_class = landmark.object_class;
+  encoded.class_confidence = landmark.class_confidence;
   return encoded;
 }
 
@@ -108,6 +110,8 @@ Landmark DecodeLandmark(const EncodedLandmark& encoded) {
     landmark.keypoints[i] = cv::KeyPoint(ReadFloat(bytes), ReadFloat(bytes + 4),
                                          ReadFloat(bytes + 8), ReadFloat(bytes + 12));
   }
+  landmark.object_class = encoded.object_class;
+  landmark.class_confidence = encoded.class_confidence;
   return landmark;
 }
 

@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "common/recognition/types.h"
@@ -37,6 +38,9 @@ struct EncodedLandmark {
   int64_t num_descriptors = 0;
   ByteView descriptors;
   ByteView keypoints;
+  // Schema v2: the object class (empty when unclassified) and the classifier's confidence.
+  std::string object_class;
+  float class_confidence = 0.0f;
 };
 
 // Buffers for the BLOBs that EncodeLandmark has to build; reuse them across calls.

@@ -35,13 +35,16 @@ class Fnv1a64 {
   uint64_t hash_ = 14695981039346656037ULL;
 };
 
-// Tag 'P', then id, robot length, robot bytes, sequence, utime, num_landmarks, image_width.
+// Tag 'P', then id, robot length, robot bytes, sequence, utime, num_landmarks, image_width; then,
+// only for a place that saw stored landmarks again (schema v2), tag 'S', their number and ids.
 void HashPlace(const Place& place, Fnv1a64* hash);
 
 // Tag 'L', then id, place, sift_count, number of peaks, the peaks (float32 LE), segment class,
 // box x, y, w, h, number of descriptors, the descriptor bytes, the keypoints (x, y, size, angle
-// as float32 LE). Integers are 8 bytes LE. The stored BLOBs are already in this form, so they are
-// hashed as stored; `landmark` must have passed CheckLandmarkBlobs.
+// as float32 LE); then, only for a classified landmark (schema v2), tag 'C', the class name's
+// length and bytes and the confidence (float32 LE), so that a map without classes keeps the
+// digest it had under schema v1. Integers are 8 bytes LE. The stored BLOBs are already in this
+// form, so they are hashed as stored; `landmark` must have passed CheckLandmarkBlobs.
 void HashLandmark(const EncodedLandmark& landmark, Fnv1a64* hash);
 
 }  // namespace placerec

@@ -95,6 +95,27 @@ TEST(MapHashTest, EveryLandmarkFieldCounts) {
   for (size_t i = 0; i < changed.size(); ++i) EXPECT_NE(digest(changed[i]), base_digest) << i;
 }
 
+// A class enters the digest; its absence leaves the schema v1 digest (pinned below) as it was.
+TEST(MapHashTest, ObjectClassCountsOnlyWhenPresent) {
+  Landmark landmark = ExplicitLandmark(1);
+  LandmarkBlobBuffers buffers;
+  const auto digest = [&buffers](const Landmark& l) {
+    Fnv1a64 hash;
+    HashLandmark(EncodeLandmark(l, &buffers), &hash);
+    return hash.digest();
+  };
+  const uint64_t unclassified = digest(landmark);
+  landmark.object_class = "building";
+  landmark.class_confidence = 0.75f;
+  const uint64_t building = digest(landmark);
+  EXPECT_NE(building, unclassified);
+  landmark.class_confidence = 0.5f;
+  EXPECT_NE(digest(landmark), building);
+  landmark.class_confidence = 0.75f;
+  landmark.object_class = "buildinh";
+  EXPECT_NE(digest(landmark), building);
+}
+
 // The checksum of a fixed map is pinned: it is a persisted fingerprint (maps are compared by it
 // across builds), and since it hashes the stored BLOBs as they are, it also pins their encoding.
 // Everything below is explicit (no random numbers), so the value depends on nothing else.

@@ -48,7 +48,25 @@ Status MigrateV0ToV1(sqlite3* db) {
   return Status::Ok();
 }
 
-constexpr SchemaMigration kMigrations[] = {&MigrateV0ToV1};
+// Version 1 -> 2: every landmark keeps its object class and the classifier's confidence (seed
+// Ch. 4). Landmarks of a v1 map stay unclassified: NULL class, confidence 0. Sightings: the
+// places that saw a stored landmark again (the seed's scene sets, §5.7 step 5).
+constexpr char kSchemaV2[] = R"sql(
+ALTER TABLE landmarks ADD COLUMN object_class TEXT;
+ALTER TABLE landmarks ADD COLUMN class_confidence REAL NOT NULL DEFAULT 0;
+CREATE TABLE sightings(
+  place_id INTEGER NOT NULL REFERENCES places(id),
+  landmark_id INTEGER NOT NULL REFERENCES landmarks(id),
+  PRIMARY KEY(place_id, landmark_id)) WITHOUT ROWID;
+)sql";
+
+Status MigrateV1ToV2(sqlite3* db) {
+  const int rc = sqlite3_exec(db, kSchemaV2, nullptr, nullptr, nullptr);
+  if (rc != SQLITE_OK) return Status::IoError("upgrading to schema v2: " + SqliteMessage(db, rc));
+  return Status::Ok();
+}
+
+constexpr SchemaMigration kMigrations[] = {&MigrateV0ToV1, &MigrateV1ToV2};
 static_assert(std::size(kMigrations) == kSqliteSchemaVersion,
               "one migration step per schema version");
 

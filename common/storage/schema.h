@@ -7,6 +7,12 @@
 // box_y, box_w, box_h, num_descriptors, descriptors, keypoints), indexed on (place_id,
 // num_descriptors). The BLOB columns hold the encodings of blob_codec.h. Ids are SQLite rowids:
 // they start at 1 and increase.
+//
+// Schema v2 adds landmarks(object_class TEXT, NULL when unclassified; class_confidence REAL in
+// [0, 1], 0 when unclassified): the object classes of seed Ch. 4; and sightings(place_id,
+// landmark_id), the stored landmarks a later place saw again (Place::seen_landmarks, the seed's
+// scene sets of §5.7 step 5). A v1 map is migrated by adding the two columns and the empty table;
+// its landmarks stay unclassified.
 #pragma once
 
 #include <string>
@@ -19,7 +25,7 @@ struct sqlite3;
 namespace placerec {
 
 // Version of the schema this build writes.
-constexpr int kSqliteSchemaVersion = 1;
+constexpr int kSqliteSchemaVersion = 2;
 
 // One migration step: turns a map of version v into one of version v + 1. It runs inside the
 // driver's transaction and does not touch meta.schema_version.

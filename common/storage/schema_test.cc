@@ -64,7 +64,7 @@ TEST(SchemaTest, NewDatabaseIsVersionZeroAndMigratesToCurrent) {
   EXPECT_EQ(Query(db.get(),
                   "SELECT group_concat(name, ',') FROM (SELECT name FROM sqlite_master "
                   "ORDER BY name)"),
-            "landmarks,landmarks_place_id,meta,places,sqlite_autoindex_meta_1,"
+            "landmarks,landmarks_place_id,meta,places,sightings,sqlite_autoindex_meta_1,"
             "sqlite_autoindex_places_1");
   // Migrating a current map changes nothing.
   ASSERT_TRUE(MigrateSchemaToCurrent(db.get(), kPath).ok());
@@ -83,7 +83,7 @@ TEST(SchemaTest, OlderMapIsMigratedOneStepAtATimeKeepingItsData) {
   add_column_runs = 0;
   ASSERT_TRUE(MigrateSchema(db.get(), kPath, steps).ok());
   EXPECT_EQ(add_column_runs, 1);
-  EXPECT_EQ(VersionOf(db.get()), 2);
+  EXPECT_EQ(VersionOf(db.get()), kSqliteSchemaVersion + 1);
   EXPECT_EQ(Query(db.get(), "SELECT robot || '/' || COALESCE(note, 'none') FROM places"), "r/none");
   // Now current for these steps: nothing runs again.
   ASSERT_TRUE(MigrateSchema(db.get(), kPath, steps).ok());
@@ -93,7 +93,7 @@ TEST(SchemaTest, OlderMapIsMigratedOneStepAtATimeKeepingItsData) {
   SqliteConnection empty = NewDatabase();
   ASSERT_TRUE(MigrateSchema(empty.get(), kPath, steps).ok());
   EXPECT_EQ(add_column_runs, 2);
-  EXPECT_EQ(VersionOf(empty.get()), 2);
+  EXPECT_EQ(VersionOf(empty.get()), kSqliteSchemaVersion + 1);
 }
 
 TEST(SchemaTest, FailedStepChangesNothing) {
@@ -105,7 +105,7 @@ TEST(SchemaTest, FailedStepChangesNothing) {
   const Status status = MigrateSchema(db.get(), kPath, steps);
   EXPECT_EQ(status.code(), StatusCode::kIoError);
   EXPECT_EQ(status.message(), "test.db: step failed on purpose");
-  EXPECT_EQ(VersionOf(db.get()), 1);
+  EXPECT_EQ(VersionOf(db.get()), kSqliteSchemaVersion);
   EXPECT_EQ(Query(db.get(), "SELECT COUNT(*) FROM sqlite_master WHERE name = 'half'"), "0");
   EXPECT_EQ(Query(db.get(), "SELECT COUNT(*) FROM pragma_table_info('places') WHERE name = 'note'"),
             "0");
@@ -119,7 +119,7 @@ TEST(SchemaTest, NewerMapIsRefusedAndLeftAlone) {
   const Status status = MigrateSchemaToCurrent(db.get(), kPath);
   EXPECT_EQ(status.code(), StatusCode::kIoError);
   EXPECT_EQ(status.message(),
-            "test.db has schema version 3 but this build of placerec reads versions up to 1; "
+            "test.db has schema version 3 but this build of placerec reads versions up to 2; "
             "upgrade placerec");
   EXPECT_EQ(VersionOf(db.get()), 3);
 }
@@ -153,7 +153,8 @@ TEST(SchemaTest, ReadVersionRefusesWhatIsNotAPlacerecMap) {
 }
 
 // A version 1 map as an earlier build wrote it, laid down by hand with the v1 DDL and BLOB
-// encodings (schema.h, blob_codec.h), opens and reads back as documented.
+// encodings (schema.h, blob_codec.h), opens, is migrated to the current version and reads back
+// as documented: its landmarks without a class.
 TEST(SchemaTest, HandWrittenVersionOneMapOpensAndReads) {
   testing_storage::TempMap map("schema_v1");
   testing_storage::ExecSql(
@@ -201,16 +202,33 @@ TEST(SchemaTest, HandWrittenVersionOneMapOpensAndReads) {
   ASSERT_EQ(landmarks.size(), 1u);
   testing_storage::ExpectSameLandmark(expected, landmarks[0]);
 
-  // It stays a version 1 map and takes new places after the old ones.
+  // It is a current map now, keeps its checksum (a map without classes hashes as under v1) and
+  // takes new places, classified landmarks too, after the old ones.
+  const StatusOr<uint64_t> checksum = store->Checksum();
+  ASSERT_TRUE(checksum.ok());
+  // FNV-1a 64 of the documented serialization (checksum.h), computed by hand.
+  EXPECT_EQ(*checksum, 0x1dd3c408b7a94dbau) << std::hex << *checksum;
   Place place;
   place.robot = "r1";
   place.sequence = 6;
-  ASSERT_TRUE(store->AddPlace(&place, nullptr).ok());
+  std::vector<Landmark> classified(1);
+  classified[0].object_class = "sign";
+  classified[0].class_confidence = 0.625f;
+  ASSERT_TRUE(store->AddPlace(&place, &classified).ok());
   EXPECT_EQ(place.id, PlaceId(2));
   store.reset();
   EXPECT_EQ(
       testing_storage::QuerySql(map.path(), "SELECT value FROM meta WHERE key = 'schema_version'"),
-      "1");
+      std::to_string(kSqliteSchemaVersion));
+  EXPECT_EQ(testing_storage::QuerySql(map.path(),
+                                      "SELECT object_class || ' ' || class_confidence FROM "
+                                      "landmarks WHERE id = 2"),
+            "sign 0.625");
+  EXPECT_EQ(testing_storage::QuerySql(
+                map.path(),
+                "SELECT COUNT(*) FROM landmarks WHERE id = 1 AND object_class IS NULL "
+                "AND class_confidence = 0"),
+            "1");
 }
 
 }  // namespace

@@ -46,6 +46,8 @@ class SqliteStatement {
 
   // Parameters are numbered from 1. Bound text and blobs must outlive the next Step().
   void BindInt(int index, int64_t value) { Note(sqlite3_bind_int64(stmt_, index, value)); }
+  void BindDouble(int index, double value) { Note(sqlite3_bind_double(stmt_, index, value)); }
+  void BindNull(int index) { Note(sqlite3_bind_null(stmt_, index)); }
   void BindText(int index, const std::string& text) { BindText(index, text.data(), text.size()); }
   void BindText(int index, const char* text);
   // SQLite keeps a pointer to bound text until the step: a temporary would dangle.
@@ -62,6 +64,7 @@ class SqliteStatement {
   // Columns are numbered from 0.
   int ColumnType(int column) const { return sqlite3_column_type(stmt_, column); }
   int64_t ColumnInt(int column) const { return sqlite3_column_int64(stmt_, column); }
+  double ColumnDouble(int column) const { return sqlite3_column_double(stmt_, column); }
   std::string ColumnText(int column) const;
   // Valid until the next Step() or Reset(); {nullptr, 0} for NULL and empty blobs.
   std::pair<const uint8_t*, size_t> ColumnBlob(int column) const;

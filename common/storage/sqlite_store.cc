@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <mutex>
 #include <system_error>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -30,10 +31,14 @@ enum LandmarkColumn {
   kLandmarkNumDescriptors,
   kLandmarkDescriptors,
   kLandmarkKeypoints,
+  kLandmarkObjectClass,
+  kLandmarkClassConfidence,
 };
 constexpr char kSelectLandmarks[] =
     "SELECT id, place_id, sift_count, colour_peaks, segment_class, box_x, box_y, box_w, box_h, "
-    "num_descriptors, descriptors, keypoints FROM landmarks ORDER BY id";
+    "num_descriptors, descriptors, keypoints, object_class, class_confidence FROM landmarks ORDER "
+    "BY "
+    "id";
 
 constexpr char kSelectPlaces[] =
     "SELECT id, robot, sequence, utime, num_landmarks, image_width FROM places ORDER BY id";
@@ -41,9 +46,13 @@ constexpr char kSelectPlaces[] =
 constexpr char kInsertPlace[] =
     "INSERT INTO places(robot, sequence, utime, num_landmarks, image_width) VALUES(?, ?, ?, ?, ?)";
 
+constexpr char kInsertSighting[] = "INSERT INTO sightings(place_id, landmark_id) VALUES(?, ?)";
+constexpr char kSelectSightings[] =
+    "SELECT place_id, landmark_id FROM sightings ORDER BY place_id, landmark_id";
 constexpr char kInsertLandmark[] =
     "INSERT INTO landmarks(place_id, sift_count, colour_peaks, segment_class, box_x, box_y, box_w, "
-    "box_h, num_descriptors, descriptors, keypoints) VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)";
+    "box_h, num_descriptors, descriptors, keypoints, object_class, class_confidence) "
+    "VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)";
 
 // Reads an INTEGER column that must lie in [low, high].
 bool ReadInt(const SqliteStatement& row, int column, int64_t low, int64_t high, int64_t* value) {
@@ -88,6 +97,27 @@ Status ReadLandmarkRow(const SqliteStatement& row, const std::string& store, Enc
   }
   if (!IsKnownSegmentClass(out->segment_class)) {
     return corrupt("unknown segment_class " + std::to_string(out->segment_class));
+  }
+  // The class: NULL (unclassified, every landmark of a v1 map) or a name as Landmark::Validate
+  // allows, with a confidence in [0, 1] (0 without a class).
+  out->object_class.clear();
+  out->class_confidence = 0.0f;
+  const int class_type = row.ColumnType(kLandmarkObjectClass);
+  const int confidence_type = row.ColumnType(kLandmarkClassConfidence);
+  if (class_type != SQLITE_NULL) {
+    if (class_type != SQLITE_TEXT) return corrupt("object_class is not text");
+    out->object_class = row.ColumnText(kLandmarkObjectClass);
+  }
+  if (confidence_type != SQLITE_FLOAT && confidence_type != SQLITE_INTEGER) {
+    return corrupt("class_confidence is missing");
+  }
+  out->class_confidence = static_cast<float>(row.ColumnDouble(kLandmarkClassConfidence));
+  {
+    Landmark check;  // the class rules live in one place
+    check.object_class = out->object_class;
+    check.class_confidence = out->class_confidence;
+    const Status valid = check.Validate();
+    if (!valid.ok()) return corrupt(valid.message());
   }
   out->peaks = ReadBlob(row, kLandmarkPeaks);
   out->descriptors = ReadBlob(row, kLandmarkDescriptors);
@@ -188,6 +218,20 @@ Status SqliteStore::InsertRows(const Place& place, const std::vector<Landmark>& 
     if (rc != SQLITE_DONE) return Error("cannot insert place", rc);
     *place_id = sqlite3_last_insert_rowid(db);
   }
+  for (const LandmarkId seen : place.seen_landmarks) {
+    SqliteStatement insert;
+    int rc = SqliteStatement::Prepare(db, kInsertSighting, false, &insert);
+    if (rc == SQLITE_OK) {
+      insert.BindInt(1, *place_id);
+      insert.BindInt(2, seen.value());
+      rc = insert.Step();
+    }
+    if (rc == SQLITE_CONSTRAINT_FOREIGNKEY) {
+      return Status::InvalidArgument("place sees landmark " + std::to_string(seen.value()) +
+                                     ", which is not in the map");
+    }
+    if (rc != SQLITE_DONE) return Error("cannot insert sighting", rc);
+  }
   for (size_t i = 0; i < landmarks.size(); ++i) {
     ScopedStatementReset reset(&insert_landmark_);
     const EncodedLandmark encoded = EncodeLandmark(landmarks[i], &blob_buffers_);
@@ -199,6 +243,12 @@ Status SqliteStore::InsertRows(const Place& place, const std::vector<Landmark>& 
     insert_landmark_.BindInt(9, encoded.num_descriptors);
     insert_landmark_.BindBlob(10, encoded.descriptors.data, encoded.descriptors.size);
     insert_landmark_.BindBlob(11, encoded.keypoints.data, encoded.keypoints.size);
+    if (encoded.object_class.empty()) {
+      insert_landmark_.BindNull(12);
+    } else {
+      insert_landmark_.BindText(12, encoded.object_class);
+    }
+    insert_landmark_.BindDouble(13, encoded.class_confidence);
     const int rc = insert_landmark_.Step();
     if (rc != SQLITE_DONE) return Error("cannot insert landmark " + std::to_string(i), rc);
     landmark_ids->push_back(sqlite3_last_insert_rowid(db));
@@ -207,6 +257,18 @@ Status SqliteStore::InsertRows(const Place& place, const std::vector<Landmark>& 
 }
 
 Status SqliteStore::ScanPlaces(const std::function<void(const Place&)>& visit) const {
+  // Sightings first (few: only the seed's recognition mode writes them), then every place.
+  std::unordered_map<int64_t, std::vector<LandmarkId>> seen;
+  {
+    SqliteStatement sightings;
+    int rc = SqliteStatement::Prepare(db_.get(), kSelectSightings, false, &sightings);
+    if (rc == SQLITE_OK) {
+      while ((rc = sightings.Step()) == SQLITE_ROW) {
+        seen[sightings.ColumnInt(0)].push_back(LandmarkId(sightings.ColumnInt(1)));
+      }
+    }
+    if (rc != SQLITE_DONE) return Error("cannot read sightings", rc);
+  }
   SqliteStatement select;
   int rc = SqliteStatement::Prepare(db_.get(), kSelectPlaces, false, &select);
   if (rc != SQLITE_OK) return Error("cannot read places", rc);
@@ -227,6 +289,8 @@ Status SqliteStore::ScanPlaces(const std::function<void(const Place&)>& visit) c
     place.utime = select.ColumnInt(3);
     place.num_landmarks = static_cast<int>(num_landmarks);
     place.image_width = static_cast<int>(image_width);
+    const auto sightings = seen.find(place.id.value());
+    if (sightings != seen.end()) place.seen_landmarks = std::move(sightings->second);
     visit(place);
   }
   if (rc != SQLITE_DONE) return Error("cannot read places", rc);

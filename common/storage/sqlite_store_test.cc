@@ -121,6 +121,10 @@ TEST(SqliteStoreTest, WritesAndReadsBackAfterReopen) {
   Place second = MakePlace("beta", 3);
   std::vector<Landmark> first_landmarks = MakeLandmarks(0, 3, 12);
   std::vector<Landmark> second_landmarks = MakeLandmarks(10, 2, 40);
+  first_landmarks[1].object_class = "building";
+  first_landmarks[1].class_confidence = 0.8125f;
+  second_landmarks[0].object_class = "car";
+  second_landmarks[0].class_confidence = 1.0f;
   {
     std::unique_ptr<LandmarkStore> store = Open(map.path());
     ASSERT_NE(store, nullptr);
@@ -244,6 +248,18 @@ TEST(SqliteStoreTest, InvalidInputIsRejectedAndWritesNothing) {
   negative_count[1].sift_count = -1;
   expect_rejected(MakePlace("r", 1), negative_count, "sift_count is negative");
 
+  std::vector<Landmark> bad_class = MakeLandmarks(0, 2, 5);
+  bad_class[1].object_class = "car'; DROP TABLE places";
+  expect_rejected(MakePlace("r", 1), bad_class, "object class may hold only");
+  bad_class[1].object_class = std::string(kMaxObjectClassLength + 1, 'a');
+  expect_rejected(MakePlace("r", 1), bad_class, "object class is 33 bytes");
+  bad_class[1].object_class = "car";
+  bad_class[1].class_confidence = 1.5f;
+  expect_rejected(MakePlace("r", 1), bad_class, "class confidence must be in [0, 1]");
+  bad_class[1].object_class.clear();
+  bad_class[1].class_confidence = 0.5f;
+  expect_rejected(MakePlace("r", 1), bad_class, "and 0 without a class");
+
   expect_rejected(MakePlace("", 1), MakeLandmarks(0, 1, 5), "robot id is empty");
   expect_rejected(MakePlace(std::string(kMaxRobotIdLength + 1, 'x'), 1), MakeLandmarks(0, 1, 5),
                   "robot id is 65 bytes");
@@ -255,6 +271,43 @@ TEST(SqliteStoreTest, InvalidInputIsRejectedAndWritesNothing) {
   std::vector<Landmark> landmarks = MakeLandmarks(0, 1, 5);
   EXPECT_TRUE(store->AddPlace(&longest, &landmarks).ok());
   ExpectCounts(*store, 1, 1, 5);
+}
+
+// A place that saw stored landmarks again (the seed's scene sets) keeps them across a reopen; a
+// sighting of a landmark the map does not hold is refused and writes nothing.
+TEST(SqliteStoreTest, SightingsRoundTripAndNameStoredLandmarks) {
+  TempMap map("sightings");
+  Place first = MakePlace("a", 1);
+  std::vector<Landmark> landmarks = MakeLandmarks(0, 3, 4);
+  Place second = MakePlace("b", 1);
+  {
+    std::unique_ptr<LandmarkStore> store = Open(map.path());
+    ASSERT_NE(store, nullptr);
+    ASSERT_TRUE(store->AddPlace(&first, &landmarks).ok());
+    second.seen_landmarks = {landmarks[0].id, landmarks[2].id};
+    ASSERT_TRUE(store->AddPlace(&second, nullptr).ok());
+    const uint64_t before = ChecksumOf(*store);
+
+    Place missing = MakePlace("b", 2);
+    missing.seen_landmarks = {LandmarkId(999)};
+    const Status status = store->AddPlace(&missing, nullptr);
+    EXPECT_EQ(status.code(), StatusCode::kInvalidArgument);
+    EXPECT_TRUE(Contains(status.message(), "landmark 999, which is not in the map"))
+        << status.message();
+    Place unordered = MakePlace("b", 3);
+    unordered.seen_landmarks = {landmarks[2].id, landmarks[0].id};
+    EXPECT_EQ(store->AddPlace(&unordered, nullptr).code(), StatusCode::kInvalidArgument);
+    EXPECT_EQ(ChecksumOf(*store), before);
+    ExpectCounts(*store, 2, 3, 12);
+  }
+  std::unique_ptr<LandmarkStore> store = Open(map.path());
+  ASSERT_NE(store, nullptr);
+  const Contents contents = ReadAll(*store);
+  ASSERT_EQ(contents.places.size(), 2u);
+  EXPECT_EQ(contents.places[0], first);
+  EXPECT_EQ(contents.places[1], second);
+  EXPECT_EQ(contents.places[1].seen_landmarks,
+            (std::vector<LandmarkId>{landmarks[0].id, landmarks[2].id}));
 }
 
 TEST(SqliteStoreTest, LandmarkWithoutDescriptorsRoundTrips) {
@@ -314,10 +367,11 @@ TEST(SqliteStoreTest, ChecksumFollowsContent) {
   EXPECT_NE(ChecksumOf(*file), previous);
 }
 
-TEST(SqliteStoreTest, NewFileHasVersionOneAndWalJournal) {
+TEST(SqliteStoreTest, NewFileHasCurrentVersionAndWalJournal) {
   TempMap map("fresh");
   ASSERT_NE(Open(map.path()), nullptr);
-  EXPECT_EQ(QuerySql(map.path(), "SELECT value FROM meta WHERE key = 'schema_version'"), "1");
+  EXPECT_EQ(QuerySql(map.path(), "SELECT value FROM meta WHERE key = 'schema_version'"),
+            std::to_string(kSqliteSchemaVersion));
   EXPECT_EQ(QuerySql(map.path(), "PRAGMA journal_mode"), "wal");
   // Opening again neither fails nor changes the version.
   ASSERT_NE(Open(map.path()), nullptr);
@@ -333,7 +387,7 @@ TEST(SqliteStoreTest, RefusesNewerSchemaVersion) {
   ASSERT_FALSE(store.ok());
   const std::string& message = store.status().message();
   EXPECT_TRUE(Contains(message, "schema version 999")) << message;
-  EXPECT_TRUE(Contains(message, "up to 1")) << message;
+  EXPECT_TRUE(Contains(message, "up to " + std::to_string(kSqliteSchemaVersion))) << message;
   EXPECT_TRUE(Contains(message, "upgrade placerec")) << message;
   // The file is left as it was.
   EXPECT_EQ(QuerySql(map.path(), "SELECT value FROM meta WHERE key = 'schema_version'"), "999");
@@ -456,6 +510,10 @@ TEST(SqliteStoreTest, DamagedLandmarkIsAnIoErrorNamingIt) {
       "UPDATE landmarks SET colour_peaks = zeroblob(5) WHERE id = 2",
       "UPDATE landmarks SET segment_class = 99 WHERE id = 2",
       "UPDATE landmarks SET num_descriptors = NULL WHERE id = 2",
+      "UPDATE landmarks SET object_class = 'no spaces' WHERE id = 2",
+      "UPDATE landmarks SET object_class = X'00' WHERE id = 2",
+      "UPDATE landmarks SET object_class = 'car', class_confidence = 2 WHERE id = 2",
+      "UPDATE landmarks SET class_confidence = 'sure' WHERE id = 2",
   };
   for (const char* damage : kDamage) {
     SCOPED_TRACE(damage);

@@ -95,6 +95,8 @@ inline void ExpectSameLandmark(const Landmark& expected, const Landmark& actual)
   EXPECT_EQ(actual.colour.peaks, expected.colour.peaks);
   EXPECT_EQ(actual.box, expected.box);
   EXPECT_EQ(actual.segment_class, expected.segment_class);
+  EXPECT_EQ(actual.object_class, expected.object_class);
+  EXPECT_EQ(actual.class_confidence, expected.class_confidence);
   ASSERT_EQ(actual.descriptors.type(), CV_8U);
   ASSERT_EQ(actual.descriptors.cols, 128);
   ASSERT_EQ(actual.descriptors.rows, expected.descriptors.rows);

@@ -1,0 +1,116 @@
+// Tests of the object classes in recognition (object_classes.h): loading the shipped object
+// classifiers, the class a background or structured object gets, and which labels the map
+// leaves out.
+#include "common/pipeline/object_classes.h"
+
+#include <algorithm>
+#include <memory>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include "common/organization/filter_bank.h"
+
+namespace placerec {
+namespace {
+
+std::unique_ptr<ObjectClassLabeler> LoadShipped(const ObjectClassOptions& options) {
+  StatusOr<std::unique_ptr<ObjectClassLabeler>> labeler = ObjectClassLabeler::Load(options);
+  EXPECT_TRUE(labeler.ok()) << labeler.status().ToString();
+  return labeler.ok() ? std::move(*labeler) : nullptr;
+}
+
+// A 320x240 frame of random texture, its filter bank, and an object filling `box`.
+struct Scene {
+  Scene() {
+    cv::Mat bgr(240, 320, CV_8UC3);
+    cv::randu(bgr, cv::Scalar::all(0), cv::Scalar::all(255));
+    cv::Mat lab;
+    bgr.convertTo(lab, CV_32F, 1.0 / 255.0);
+    cv::cvtColor(lab, lab, cv::COLOR_BGR2Lab);
+    filter_bank = ComputeFilterBank(lab);
+  }
+  SceneObject Object(cv::Rect box, SegmentClass segment_class) const {
+    SceneObject object;
+    object.segment_class = segment_class;
+    object.box = box;
+    object.working_box = box;
+    object.mask = cv::Mat(box.size(), CV_8U, cv::Scalar(255));
+    return object;
+  }
+  cv::Mat filter_bank;
+};
+
+TEST(ObjectClassesTest, OptionsAreChecked) {
+  std::string error;
+  EXPECT_TRUE(ObjectClassOptions().Check(&error)) << error;
+  ObjectClassOptions bad;
+  bad.min_movable_confidence = 1.5;
+  EXPECT_FALSE(bad.Check(&error));
+  bad = ObjectClassOptions();
+  bad.movable_classes.push_back("");
+  EXPECT_FALSE(bad.Check(&error));
+}
+
+TEST(ObjectClassesTest, MissingModelsSayWhatToDo) {
+  ObjectClassOptions options;
+  options.models_dir = "/nonexistent/placerec/objects/all";
+  StatusOr<std::unique_ptr<ObjectClassLabeler>> labeler = ObjectClassLabeler::Load(options);
+  ASSERT_FALSE(labeler.ok());
+  EXPECT_NE(labeler.status().message().find("placerec-train objects"), std::string::npos)
+      << labeler.status().message();
+}
+
+// Background segments keep the segmentation's class (seed §3.4); structured ones get one of the
+// structured classes (one-per-class over them, seed §6.2.1); confidences are probabilities.
+TEST(ObjectClassesTest, BackgroundKeepsItsClassStructuredGetsAnObjectClass) {
+  const std::unique_ptr<ObjectClassLabeler> labeler = LoadShipped(ObjectClassOptions());
+  ASSERT_NE(labeler, nullptr);
+  const Scene scene;
+  const ObjectLabel sky =
+      labeler->Classify(scene.filter_bank, scene.Object({0, 0, 320, 60}, SegmentClass::kSky));
+  EXPECT_EQ(sky.name, "sky");  // however unlike sky random texture is
+  EXPECT_GE(sky.confidence, 0.0f);
+  EXPECT_LE(sky.confidence, 1.0f);
+
+  const ObjectLabel thing = labeler->Classify(
+      scene.filter_bank, scene.Object({100, 80, 60, 90}, SegmentClass::kStructured));
+  ASSERT_FALSE(thing.name.empty());
+  for (const char* background : {"sky", "tree", "road", "grass", "water"}) {
+    EXPECT_NE(thing.name, background);
+  }
+  EXPECT_GE(thing.confidence, 0.0f);
+  EXPECT_LE(thing.confidence, 1.0f);
+
+  // Nothing to describe: no class.
+  SceneObject empty = scene.Object({10, 10, 20, 20}, SegmentClass::kStructured);
+  empty.mask.setTo(0);
+  EXPECT_TRUE(labeler->Classify(scene.filter_bank, empty).name.empty());
+  EXPECT_TRUE(labeler->Classify(cv::Mat(), scene.Object({10, 10, 20, 20}, SegmentClass::kSky))
+                  .name.empty());
+  // A box outside the frame is not read.
+  EXPECT_TRUE(labeler->Classify(scene.filter_bank,
+                                scene.Object({300, 220, 40, 40}, SegmentClass::kStructured))
+                  .name.empty());
+}
+
+TEST(ObjectClassesTest, OnlySureMovableLabelsAreLeftOutAndOnlyWhenAsked) {
+  ObjectClassOptions options;
+  const std::unique_ptr<ObjectClassLabeler> keep = LoadShipped(options);
+  options.drop_movable = true;
+  options.min_movable_confidence = 0.6;
+  const std::unique_ptr<ObjectClassLabeler> drop = LoadShipped(options);
+  ASSERT_NE(keep, nullptr);
+  ASSERT_NE(drop, nullptr);
+  EXPECT_FALSE(keep->LeaveOut({"car", 0.9f}));
+  EXPECT_TRUE(drop->LeaveOut({"car", 0.9f}));
+  EXPECT_TRUE(drop->LeaveOut({"body", 0.6f}));
+  EXPECT_FALSE(drop->LeaveOut({"car", 0.5f}));
+  EXPECT_FALSE(drop->LeaveOut({"building", 0.99f}));
+  EXPECT_FALSE(drop->LeaveOut({"", 0.0f}));
+  EXPECT_FALSE(drop->LeaveOut({"not-a-class", 1.0f}));
+}
+
+}  // namespace
+}  // namespace placerec
