@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/organization/filter_bank.h"
 #include "common/organization/scene_organizer.h"
 #include "common/segmentation/segmentation.h"
 #include "common/util/logging.h"
@@ -33,6 +34,10 @@ float Confidence(float boosted_sum) {
 }  // namespace
 
 bool ObjectClassOptions::Check(std::string* error) const {
+  if (texton_stride < 1 || texton_stride > 8) {
+    *error = "texton_stride must be in [1, 8]";
+    return false;
+  }
   if (!(min_movable_confidence >= 0.0 && min_movable_confidence <= 1.0)) {
     *error = "min_movable_confidence must be in [0, 1]";
     return false;
@@ -77,11 +82,11 @@ StatusOr<std::unique_ptr<ObjectClassLabeler>> ObjectClassLabeler::Load(
                   "object classifiers' textons: " + textons.status().message() + what);
   }
   if (classifier->feature_size() != ObjectDescriptionSize(textons->size())) {
-    return Status::InvalidArgument(
-        dir + ": the classifiers read descriptions of " +
-        std::to_string(classifier->feature_size()) + " numbers, but " + textons_path + " (k = " +
-        std::to_string(textons->size()) + ") gives " +
-        std::to_string(ObjectDescriptionSize(textons->size())) + what);
+    return Status::InvalidArgument(dir + ": the classifiers read descriptions of " +
+                                   std::to_string(classifier->feature_size()) + " numbers, but " +
+                                   textons_path + " (k = " + std::to_string(textons->size()) +
+                                   ") gives " +
+                                   std::to_string(ObjectDescriptionSize(textons->size())) + what);
   }
   return std::unique_ptr<ObjectClassLabeler>(
       new ObjectClassLabeler(options, std::move(*classifier), *textons));
@@ -94,20 +99,40 @@ ObjectLabel ObjectClassLabeler::Classify(const cv::Mat& filter_bank,
   const cv::Rect frame(0, 0, filter_bank.cols, filter_bank.rows);
   const cv::Rect box = object.working_box & frame;
   if (box.area() == 0 || box != object.working_box) return label;
-  cv::Mat mask = cv::Mat::zeros(filter_bank.size(), CV_8U);
-  object.mask.copyTo(mask(box));
-  StatusOr<ObjectDescription> description =
-      DescribeObjectInFeatures(filter_bank, mask, textons_, options_.description);
-  if (!description.ok()) return label;
-  const std::vector<float> values = description->Concatenated();
-  const cv::Mat row(1, static_cast<int>(values.size()), CV_32F,
-                    const_cast<float*>(values.data()));
+  // Textons of the object's pixels on the grid (seed §4.1.1-4.1.2 from grid samples), the shape
+  // (§4.1.3) from the whole mask.
+  const int stride = options_.texton_stride;
+  const cv::Size grid((filter_bank.cols + stride - 1) / stride,
+                      (filter_bank.rows + stride - 1) / stride);
+  cv::Mat ids = cv::Mat::zeros(grid, CV_16U);
+  cv::Mat grid_mask = cv::Mat::zeros(grid, CV_8U);
+  bool any = false;
+  for (int y = box.y + (stride - box.y % stride) % stride; y < box.y + box.height; y += stride) {
+    const uint8_t* m = object.mask.ptr<uint8_t>(y - box.y);
+    const float* f = filter_bank.ptr<float>(y);
+    for (int x = box.x + (stride - box.x % stride) % stride; x < box.x + box.width; x += stride) {
+      if (m[x - box.x] == 0) continue;
+      grid_mask.at<uint8_t>(y / stride, x / stride) = 255;
+      ids.at<uint16_t>(y / stride, x / stride) =
+          static_cast<uint16_t>(textons_.Assign(f + static_cast<size_t>(x) * kTextonFeatureSize));
+      any = true;
+    }
+  }
+  if (!any) return label;
+  const int k = textons_.size();
+  StatusOr<std::vector<float>> appearance = AppearanceFeatures(ids, grid_mask, k);
+  StatusOr<std::vector<float>> parts = PartsLayoutFeatures(ids, grid_mask, k);
+  StatusOr<std::vector<float>> shape = ShapeFeatures(object.mask, options_.description);
+  if (!appearance.ok() || !parts.ok() || !shape.ok()) return label;
+  std::vector<float> values = std::move(*appearance);
+  values.insert(values.end(), parts->begin(), parts->end());
+  values.insert(values.end(), shape->begin(), shape->end());
+  const cv::Mat row(1, static_cast<int>(values.size()), CV_32F, const_cast<float*>(values.data()));
   const cv::Mat scores = classifier_.Scores(row);
   int chosen = -1;
   if (object.segment_class != SegmentClass::kStructured) {
     const std::vector<std::string>& names = classifier_.names();
-    const auto it =
-        std::find(names.begin(), names.end(), SegmentClassName(object.segment_class));
+    const auto it = std::find(names.begin(), names.end(), SegmentClassName(object.segment_class));
     if (it != names.end()) chosen = static_cast<int>(it - names.begin());
   }
   if (chosen < 0) {

@@ -25,13 +25,22 @@ struct ObjectClassOptions {
   // Directory of the object models (objects.yml and one classifier per class, the textons in
   // its parent as textons.yml); empty: DefaultModelsDir()/objects/all.
   std::string models_dir;
-  ObjectDescriptionOptions description;
+  // Speed in recognition (the description of §4.1 is otherwise the one the classifiers were
+  // trained on): textons are assigned on a grid of every texton_stride-th pixel in each
+  // direction (the appearance and parts-layout histograms are normalised, so a grid sample
+  // estimates them), and the Poisson equation is solved on at most 64 px a side instead of 128
+  // (the shape numbers are scale-free; only the discretisation is coarser).
+  int texton_stride = 2;
+  ObjectDescriptionOptions description = [] {
+    ObjectDescriptionOptions d;
+    d.shape_max_side = 64;
+    return d;
+  }();
   // Classes of things that move or are moved (seed §7.2.3: "a car or a person is a poor
   // landmark"), by class name of MSRC-21 (the shipped models) and of CamVid.
   std::vector<std::string> movable_classes = {
-      "car", "body",  "face",      "bicycle",    "cow",      "sheep", "bird", "cat",
-      "dog", "horse", "aeroplane", "boat",       "chair",    "book",  "pedestrian",
-      "bicyclist"};
+      "car", "body",  "face",      "bicycle", "cow",   "sheep", "bird",       "cat",
+      "dog", "horse", "aeroplane", "boat",    "chair", "book",  "pedestrian", "bicyclist"};
   // Leave landmarks of a movable class out of the map when their class confidence is at least
   // min_movable_confidence (seed §7.2.3; not in the seed's experiments, which store every
   // landmark).

@@ -4,6 +4,7 @@
 #include "common/pipeline/object_classes.h"
 
 #include <algorithm>
+#include <cmath>
 #include <memory>
 #include <string>
 
@@ -11,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/organization/filter_bank.h"
+#include "common/organization/scene_organizer.h"
 
 namespace placerec {
 namespace {
@@ -90,9 +92,44 @@ TEST(ObjectClassesTest, BackgroundKeepsItsClassStructuredGetsAnObjectClass) {
   EXPECT_TRUE(labeler->Classify(cv::Mat(), scene.Object({10, 10, 20, 20}, SegmentClass::kSky))
                   .name.empty());
   // A box outside the frame is not read.
-  EXPECT_TRUE(labeler->Classify(scene.filter_bank,
-                                scene.Object({300, 220, 40, 40}, SegmentClass::kStructured))
-                  .name.empty());
+  EXPECT_TRUE(
+      labeler
+          ->Classify(scene.filter_bank, scene.Object({300, 220, 40, 40}, SegmentClass::kStructured))
+          .name.empty());
+}
+
+// At texton stride 1 and the description's own Poisson grid, the labeler reads exactly the
+// description the classifiers were trained on (DescribeObjectInFeatures).
+TEST(ObjectClassesTest, FullResolutionLabelIsTheTrainedDescriptionsDecision) {
+  ObjectClassOptions options;
+  options.texton_stride = 1;
+  options.description = ObjectDescriptionOptions();
+  const std::unique_ptr<ObjectClassLabeler> labeler = LoadShipped(options);
+  ASSERT_NE(labeler, nullptr);
+  const Scene scene;
+  const SceneObject object = scene.Object({100, 80, 60, 90}, SegmentClass::kStructured);
+  cv::Mat mask = cv::Mat::zeros(scene.filter_bank.size(), CV_8U);
+  object.mask.copyTo(mask(object.working_box));
+  StatusOr<TextonModel> textons = LoadTextons(DefaultModelsDir() + "/objects/textons.yml");
+  ASSERT_TRUE(textons.ok());
+  StatusOr<ObjectDescription> description = DescribeObjectInFeatures(
+      scene.filter_bank, mask, TextonAssigner(*textons), ObjectDescriptionOptions());
+  ASSERT_TRUE(description.ok());
+  const std::vector<float> values = description->Concatenated();
+  const cv::Mat scores = labeler->classifier().Scores(
+      cv::Mat(1, static_cast<int>(values.size()), CV_32F, const_cast<float*>(values.data())));
+  const ObjectLabel label = labeler->Classify(scene.filter_bank, object);
+  const std::vector<std::string>& names = labeler->classifier().names();
+  const int c = static_cast<int>(std::find(names.begin(), names.end(), label.name) - names.begin());
+  ASSERT_LT(c, static_cast<int>(names.size()));
+  EXPECT_FLOAT_EQ(label.confidence, 1.0f / (1.0f + std::exp(-2.0f * scores.at<float>(0, c))));
+  for (int other = 0; other < scores.cols; ++other) {
+    const std::string& name = names[static_cast<size_t>(other)];
+    if (name == "sky" || name == "tree" || name == "road" || name == "grass" || name == "water") {
+      continue;
+    }
+    EXPECT_LE(scores.at<float>(0, other), scores.at<float>(0, c)) << name;
+  }
 }
 
 TEST(ObjectClassesTest, OnlySureMovableLabelsAreLeftOutAndOnlyWhenAsked) {

@@ -66,14 +66,14 @@ std::vector<PlaceMatch> SeedRankPlaces(
   }
   std::sort(ranked.begin(), ranked.end(), [](const PlaceMatch& a, const PlaceMatch& b) {
     if (a.score != b.score) return a.score > b.score;
-    if (a.matched_landmarks != b.matched_landmarks) return a.matched_landmarks > b.matched_landmarks;
+    if (a.matched_landmarks != b.matched_landmarks)
+      return a.matched_landmarks > b.matched_landmarks;
     return a.place.id < b.place.id;
   });
   if (static_cast<int>(ranked.size()) > max_matches) ranked.resize(max_matches);
   if (loop != nullptr) {
-    *loop = !ranked.empty() &&
-            SeedLoopClosure(ranked.front().matched_landmarks, query_landmarks,
-                            PlaceLandmarkCount(ranked.front().place), options);
+    *loop = !ranked.empty() && SeedLoopClosure(ranked.front().matched_landmarks, query_landmarks,
+                                               PlaceLandmarkCount(ranked.front().place), options);
   }
   return ranked;
 }

@@ -74,8 +74,8 @@ TEST(SeedDecisionTest, ScenesOfMatchedObjectsAreRanked) {
   objects.resize(1);
   SeedRankPlaces(
       objects, 3, [&](LandmarkId id) { return scenes.at(id); },
-      [&](PlaceId id) -> const Place* { return &places.at(id); },
-      [](const Place&) { return true; }, SeedLoopOptions(), 10, &loop);
+      [&](PlaceId id) -> const Place* { return &places.at(id); }, [](const Place&) { return true; },
+      SeedLoopOptions(), 10, &loop);
   EXPECT_FALSE(loop);
 }
 
