@@ -1,14 +1,20 @@
 #include "tools/classify_command.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
+#include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 #include <opencv2/core/utility.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "common/classification/object_classifier.h"
 #include "common/eval/plots.h"
@@ -73,6 +79,56 @@ int Fail(const Status& status) {
   return 1;
 }
 
+// A contact sheet of up to 48 misclassified segments (the first of each (truth, decision) pair
+// first, so that every kind of mistake shows): the segment's box in its image with some context,
+// the box drawn, "truth -> decided" below.
+Status WriteMisclassifiedSheet(const std::string& path, const std::string& dataset,
+                               const DescribedSegments& segments, const std::vector<int>& truth,
+                               const std::vector<int>& decided,
+                               const std::vector<std::string>& names) {
+  constexpr int kTiles = 48;
+  constexpr int kColumns = 8;
+  constexpr int kTile = 160;
+  constexpr int kCaption = 20;
+  std::vector<size_t> chosen;
+  std::set<std::pair<int, int>> kinds;
+  for (int pass = 0; pass < 2; ++pass) {
+    for (size_t i = 0; i < truth.size() && static_cast<int>(chosen.size()) < kTiles; ++i) {
+      if (truth[i] < 0 || decided[i] == truth[i]) continue;
+      const bool first_of_kind = kinds.insert({truth[i], decided[i]}).second;
+      if ((pass == 0) == first_of_kind &&
+          std::find(chosen.begin(), chosen.end(), i) == chosen.end()) {
+        chosen.push_back(i);
+      }
+    }
+  }
+  const int rows = std::max(1, (static_cast<int>(chosen.size()) + kColumns - 1) / kColumns);
+  cv::Mat sheet(rows * (kTile + kCaption), kColumns * kTile, CV_8UC3, cv::Scalar::all(255));
+  for (size_t t = 0; t < chosen.size(); ++t) {
+    const size_t i = chosen[t];
+    StatusOr<LabelledImage> image = ReadLabelledImage(dataset, segments.images[i]);
+    if (!image.ok()) return image.status();
+    const cv::Rect box = segments.boxes[i];
+    const int pad = std::max(box.width, box.height) / 4;
+    const cv::Rect view =
+        cv::Rect(box.x - pad, box.y - pad, box.width + 2 * pad, box.height + 2 * pad) &
+        cv::Rect(0, 0, image->bgr.cols, image->bgr.rows);
+    cv::Mat crop = image->bgr(view).clone();
+    cv::rectangle(crop, box - view.tl(), cv::Scalar(0, 0, 255), 2);
+    const double scale = static_cast<double>(kTile) / std::max(crop.cols, crop.rows);
+    cv::resize(crop, crop, cv::Size(), scale, scale, cv::INTER_AREA);
+    const int x = static_cast<int>(t % kColumns) * kTile;
+    const int y = static_cast<int>(t / kColumns) * (kTile + kCaption);
+    crop.copyTo(sheet(cv::Rect(x, y, crop.cols, crop.rows)));
+    const std::string caption =
+        names[static_cast<size_t>(truth[i])] + " -> " + names[static_cast<size_t>(decided[i])];
+    cv::putText(sheet, caption, cv::Point(x + 3, y + kTile + 14), cv::FONT_HERSHEY_SIMPLEX, 0.4,
+                cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  }
+  if (!cv::imwrite(path, sheet)) return Status::IoError("cannot write " + path);
+  return Status::Ok();
+}
+
 }  // namespace
 
 int ClassifyCommand(int argc, char** argv, const std::string& default_data_dir) {
@@ -84,25 +140,27 @@ int ClassifyCommand(int argc, char** argv, const std::string& default_data_dir) 
       "class whose binary classifier is most confident, seed §6.2.1) and writes\n"
       "OUT/classification.json (per-class and mean accuracy, confusion, the binary classifiers'\n"
       "accuracy, the feature-group and selection ablation of seed Tables 6.5-6.6 when the\n"
-      "models hold it, and the seed's figures) and OUT/confusion.png.");
+      "models hold it, and the seed's figures), OUT/confusion.png and OUT/misclassified.png (a "
+      "sheet of misclassified segments, truth -> decision).");
   parser.AddRequired(
       "dataset", &options.dataset,
       "labelled dataset directory, or its name under PLACEREC_DATA / ../shared/data");
   parser.AddRequired("out", &options.out, "output directory (created if missing)");
   parser.Add("split", &options.split, "split to classify");
   parser.Add("segments", &options.segments,
-             "segments to classify: 'truth' (ground-truth objects; 'organization' is not "
-             "implemented)");
+             "segments to classify: 'truth' (ground-truth objects) or 'organization' (the "
+             "Perceptual Organization segments recognition classifies, each given the majority "
+             "ground-truth class of its pixels)");
   parser.Add("models", &options.models,
              "object models directory (default: the shipped models/objects)");
   parser.AddSwitch("quiet", &options.quiet, "no progress lines");
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-eval classify")) {
     return *exit;
   }
-  if (options.segments != "truth") {
+  if (options.segments != "truth" && options.segments != "organization") {
     std::fprintf(stderr,
-                 "placerec-eval classify: --segments %s is not supported (only 'truth': the "
-                 "ground-truth segments)\n",
+                 "placerec-eval classify: --segments %s is not known (truth: the ground-truth "
+                 "objects; organization: the segments recognition classifies)\n",
                  options.segments.c_str());
     return 2;
   }
@@ -157,8 +215,24 @@ int ClassifyCommand(int argc, char** argv, const std::string& default_data_dir) 
   const std::vector<std::string> exclude =
       manifest.value("excluded_classes", std::vector<std::string>{});
   const TextonAssigner assigner(*textons);
-  StatusOr<DescribedSegments> segments = DescribeTruthSegments(
-      dataset, options.split, *table, assigner, exclude, segment_options, !options.quiet);
+  // Organization: the Perceptual Organization segments of recognition's preset (what
+  // recognition classifies), each with the majority ground-truth class of its pixels.
+  std::unique_ptr<SceneOrganizer> organizer;
+  std::function<cv::Mat(const LabelledImage&)> objects_of;
+  if (options.segments == "organization") {
+    StatusOr<SceneOrganizer> made = SceneOrganizer::Create(SceneOrganizerOptions::ForRecognition());
+    if (!made.ok()) return Fail(made.status());
+    organizer = std::make_unique<SceneOrganizer>(std::move(*made));
+    objects_of = [&organizer](const LabelledImage& image) {
+      const WorkingImage working =
+          MakeWorkingImage(image.bgr, organizer->options().superpixels.working_width);
+      cv::Mat ids = organizer->Segment(working).labels + 1;
+      return ids;
+    };
+  }
+  StatusOr<DescribedSegments> segments =
+      DescribeSegmentsOf(dataset, options.split, *table, assigner, exclude, segment_options,
+                         !options.quiet, objects_of);
   if (!segments.ok()) return Fail(segments.status());
 
   // Truth as class indices of the model; segments of classes without a classifier are counted
@@ -200,6 +274,7 @@ int ClassifyCommand(int argc, char** argv, const std::string& default_data_dir) 
   report["excluded_classes"] = exclude;
   report["seed"] = SeedFigures();
   std::vector<std::vector<int>> main_confusion;
+  std::vector<int> main_decided;  // the model's one-per-class decision per segment
   for (const auto& [name, classifier] : variants) {
     const cv::Mat scores = classifier.Scores(segments->features);
     const std::vector<int> decided = ObjectClassifier::Decide(scores);
@@ -225,6 +300,7 @@ int ClassifyCommand(int argc, char** argv, const std::string& default_data_dir) 
     if (name == "all") {
       for (const auto& [key, value] : v.items()) report[key] = value;
       main_confusion = all.confusion();
+      main_decided = decided;
     } else {
       v.erase("confusion");
       v["structured_one_per_class"].erase("confusion");
@@ -245,12 +321,18 @@ int ClassifyCommand(int argc, char** argv, const std::string& default_data_dir) 
   }
   if (const Status s = WriteConfusionMatrixPng(
           options.out + "/confusion.png",
-          "one-per-class, " + options.split + " ground-truth segments", names, main_confusion);
+          "one-per-class, " + options.split + " " + options.segments + " segments", names,
+          main_confusion);
       !s.ok()) {
     return Fail(s);
   }
-  std::printf("%s %s: %d ground-truth segments, %zu classes\n", dataset.c_str(),
-              options.split.c_str(), segments->size(), names.size());
+  if (const Status s = WriteMisclassifiedSheet(options.out + "/misclassified.png", dataset,
+                                               *segments, truth, main_decided, names);
+      !s.ok()) {
+    return Fail(s);
+  }
+  std::printf("%s %s: %d %s segments, %zu classes\n", dataset.c_str(), options.split.c_str(),
+              segments->size(), options.segments.c_str(), names.size());
   std::printf("%-18s %8s %8s", "variant", "mean", "struct.");
   for (const char* c : {"car", "building", "body", "face"}) std::printf(" %9s", c);
   std::printf("   (one-per-class among all | binary recall)\n");
@@ -268,7 +350,8 @@ int ClassifyCommand(int argc, char** argv, const std::string& default_data_dir) 
     }
     std::printf("\n");
   }
-  std::printf("wrote %s/classification.json, confusion.png\n", options.out.c_str());
+  std::printf("wrote %s/classification.json, confusion.png, misclassified.png\n",
+              options.out.c_str());
   return 0;
 }
 

@@ -11,6 +11,8 @@
 
 #include <unistd.h>
 
+#include <opencv2/imgproc.hpp>
+
 #include "common/image/image.h"
 #include "common/organization/filter_bank.h"
 #include "common/organization/scene_organizer.h"
@@ -110,6 +112,14 @@ StatusOr<DescribedSegments> DescribeTruthSegments(const std::string& dataset,
                                                   const std::vector<std::string>& exclude,
                                                   const TruthSegmentOptions& options,
                                                   bool progress) {
+  return DescribeSegmentsOf(dataset, split, table, textons, exclude, options, progress, {});
+}
+
+StatusOr<DescribedSegments> DescribeSegmentsOf(
+    const std::string& dataset, const std::string& split, const ClassTable& table,
+    const TextonAssigner& textons, const std::vector<std::string>& exclude,
+    const TruthSegmentOptions& options, bool progress,
+    const std::function<cv::Mat(const LabelledImage&)>& objects_of) {
   std::string error;
   if (!options.Check(&error)) return Status::InvalidArgument(error);
   if (table.empty()) return Status::InvalidArgument(dataset + " has no classes.txt");
@@ -125,14 +135,19 @@ StatusOr<DescribedSegments> DescribeTruthSegments(const std::string& dataset,
 
   // 1. The segments of every image (layers only), then the per-class subsample.
   std::vector<std::vector<Segment>> per_image(ids->size());
-  std::map<int, std::vector<std::pair<size_t, size_t>>> by_class;  // class -> (image, segment)
+  std::vector<cv::Mat> found_objects(objects_of ? ids->size() : 0);  // objects_of's layers
+  std::map<int, std::vector<std::pair<size_t, size_t>>> by_class;    // class -> (image, segment)
   ProgressLine listing(ids->size(), kLogProgressEvery);
   for (size_t i = 0; i < ids->size(); ++i) {
     StatusOr<LabelledImage> image = ReadLabelledImage(dataset, (*ids)[i]);
     if (!image.ok()) return image.status();
-    if (image->objects.empty() || image->classes.empty()) {
+    if ((!objects_of && image->objects.empty()) || image->classes.empty()) {
       return Status::InvalidArgument(dataset + ": image " + (*ids)[i] +
                                      " lacks objects/ or classes/ ground truth");
+    }
+    if (objects_of) {
+      found_objects[i] = objects_of(*image);
+      image->objects = found_objects[i];
     }
     per_image[i] = FindSegments(*image, table, excluded, options);
     for (size_t s = 0; s < per_image[i].size(); ++s) {
@@ -163,7 +178,8 @@ StatusOr<DescribedSegments> DescribeTruthSegments(const std::string& dataset,
     if (any) {
       StatusOr<LabelledImage> image = ReadLabelledImage(dataset, (*ids)[i]);
       if (!image.ok()) return image.status();
-      const cv::Mat objects = LayerAtSize(image->objects, image->bgr.size());
+      const cv::Mat objects =
+          LayerAtSize(objects_of ? found_objects[i] : image->objects, image->bgr.size());
       const cv::Mat bank = ComputeFilterBank(ToLab(image->bgr));
       for (size_t s = 0; s < per_image[i].size(); ++s) {
         if (!keep[i][s]) continue;
@@ -181,6 +197,7 @@ StatusOr<DescribedSegments> DescribeTruthSegments(const std::string& dataset,
         out.class_ids.push_back(segment.class_id);
         out.images.push_back((*ids)[i]);
         out.objects.push_back(segment.object);
+        out.boxes.push_back(cv::boundingRect(mask));
       }
       ++out.images_read;
     }

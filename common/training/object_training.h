@@ -11,6 +11,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <string>
 #include <vector>
@@ -49,6 +50,7 @@ struct DescribedSegments {
   std::vector<int> class_ids;       // dataset class id of each row
   std::vector<std::string> images;  // image id of each row
   std::vector<int> objects;         // object id in the image's objects layer
+  std::vector<cv::Rect> boxes;      // the object's bounding box in image pixels
   int images_read = 0;
 
   int size() const { return features.rows; }
@@ -63,6 +65,16 @@ StatusOr<DescribedSegments> DescribeTruthSegments(const std::string& dataset,
                                                   const std::vector<std::string>& exclude,
                                                   const TruthSegmentOptions& options,
                                                   bool progress);
+
+// The same for the segments a segmenter finds instead of the ground-truth objects:
+// `objects_of(image)` gives the image's segment id per pixel (CV_32S, 0 = none, any size: it is
+// scaled to the image with nearest neighbours). Each segment gets the majority ground-truth
+// class of its pixels, as above (at least min_labelled_fraction of it labelled).
+StatusOr<DescribedSegments> DescribeSegmentsOf(
+    const std::string& dataset, const std::string& split, const ClassTable& table,
+    const TextonAssigner& textons, const std::vector<std::string>& exclude,
+    const TruthSegmentOptions& options, bool progress,
+    const std::function<cv::Mat(const LabelledImage&)>& objects_of);
 
 // One model of the ablation (seed Table 6.5: feature groups; Table 6.6: selection or the full
 // set).
