@@ -54,6 +54,9 @@ int Main(int argc, char** argv) {
   parser.Add("max-image-pixels", &options.decode.max_pixels,
              "frames of more pixels (width x height) are rejected; JPEG and PNG sizes are read "
              "from the header before decoding");
+  parser.Add("robot-restart-gap", &options.sequence_rule.restart_gap_s,
+             "seconds after a robot's last accepted insert from which a lower sequence begins a "
+             "new run of the robot (a restart) instead of being refused as out of order");
   AddRecognizerFlags(&parser, &options.recognizer);
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 1, "placerec-server")) {
     return *exit;

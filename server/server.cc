@@ -53,7 +53,8 @@ bool ServerOptions::Check(std::string* error) const {
     *error = "--status-period must be positive and at most 3600 seconds";
     return false;
   }
-  return store.Check(error) && decode.Check(error) && recognizer.Check(error);
+  return store.Check(error) && decode.Check(error) && sequence_rule.Check(error) &&
+         recognizer.Check(error);
 }
 
 StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
@@ -78,7 +79,8 @@ Server::Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map,
                std::unique_ptr<Segmenter> segmenter)
     : options_(options),
       map_(std::move(map)),
-      processor_(options.recognizer, options.decode, map_.get(), std::move(segmenter)),
+      processor_(options.recognizer, options.decode, map_.get(), std::move(segmenter),
+                 options.sequence_rule),
       lcm_(options.lcm_url) {
   queue_ = std::make_unique<LaneWorkQueue<Job>>(options_.workers, options_.queue_capacity,
                                                 [this](Job& job) { Work(job); });

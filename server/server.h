@@ -22,6 +22,7 @@
 #include "placerec/result_t.hpp"
 #include "placerec/status_t.hpp"
 #include "server/frame_processor.h"
+#include "server/sequence_gate.h"
 #include "server/server_stats.h"
 #include "server/work_queue.h"
 
@@ -41,6 +42,7 @@ struct ServerOptions {
   double status_period_s = 1.0;
   SqliteStoreOptions store;
   DecodeOptions decode;
+  SequenceRuleOptions sequence_rule;
   RecognizerOptions recognizer;
 
   bool Check(std::string* error) const;

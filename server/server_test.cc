@@ -103,6 +103,11 @@ TEST(ServerOptionsTest, DefaultsPassAndBadValuesNameTheirFlag) {
        [](ServerOptions* o) { o->status_period_s = std::numeric_limits<double>::quiet_NaN(); }},
       {"--status-period",
        [](ServerOptions* o) { o->status_period_s = std::numeric_limits<double>::infinity(); }},
+      {"--robot-restart-gap", [](ServerOptions* o) { o->sequence_rule.restart_gap_s = -1; }},
+      {"--robot-restart-gap",
+       [](ServerOptions* o) {
+         o->sequence_rule.restart_gap_s = std::numeric_limits<double>::quiet_NaN();
+       }},
       // The parts' own checks run too.
       {"max_image_width", [](ServerOptions* o) { o->recognizer.analyzer.max_image_width = 10; }},
   });
