@@ -164,12 +164,34 @@ void Server::OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string&
   }
   stats_.SawRobot(job.frame.robot);
   const std::string robot = job.frame.robot;
-  if (!queue_->Push(robot, &job)) {
-    result_t answer = AnswerTemplate(job.frame);
+  LaneWorkQueue<Job>::PushResult pushed = queue_->Push(robot, &job);
+  if (pushed.evicted) {
+    // The queue was full and `robot` held less than its share: the robot holding the most gave
+    // way with its newest frame.
+    result_t answer = AnswerTemplate(pushed.evicted->frame);
     SetError(result_t::STATUS_OVERLOADED,
-             "server overloaded: " + std::to_string(queue_->capacity()) +
-                 " frames are already waiting; the frame was not processed, send it again later",
+             "server overloaded: robot '" + pushed.evicted_lane + "' held " +
+                 std::to_string(pushed.evicted_lane_waiting) + " of the " +
+                 std::to_string(pushed.waiting) +
+                 " waiting frames, more than its share while robot '" + robot +
+                 "' waited, so its newest frame gave way; it was not processed, send it again "
+                 "later",
              &answer);
+    Publish(&answer, false);
+  }
+  if (!pushed.queued) {
+    result_t answer = AnswerTemplate(job.frame);
+    if (pushed.stopped) {
+      SetError(result_t::STATUS_SHUTTING_DOWN,
+               "the server is shutting down; the frame was not processed", &answer);
+    } else {
+      SetError(result_t::STATUS_OVERLOADED,
+               "server overloaded: the queue is full (" + std::to_string(pushed.waiting) +
+                   " frames waiting, " + std::to_string(pushed.lane_waiting) +
+                   " of them this robot's, its share while other robots wait); the frame was "
+                   "not processed, send it again later",
+               &answer);
+    }
     Publish(&answer, false);
   }
 }
