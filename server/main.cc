@@ -42,6 +42,9 @@ int Main(int argc, char** argv) {
              "frames waiting for a worker before new ones are answered 'overloaded'");
   parser.Add("status-period", &options.status_period_s,
              "seconds between heartbeats on PLACEREC_STATUS");
+  parser.AddSwitch("repair", &options.repair,
+                   "before serving, drop the places of a damaged map that do not read back whole "
+                   "(the damaged file is kept as <db>.damaged) and report how many");
   parser.AddSwitch("sqlite-sync-normal", &sqlite_normal,
                    "SQLite synchronous=NORMAL: commits survive a killed server but not a power "
                    "loss (default FULL: both)");

@@ -62,6 +62,20 @@ StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
   if (!options.Check(&error)) return Status::InvalidArgument(error);
   StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.recognizer.analyzer);
   if (!segmenter.ok()) return segmenter.status();
+  if (options.repair) {
+    StatusOr<MapRepairReport> repaired = RepairSqliteMap(options.db_path, options.store);
+    if (!repaired.ok()) return repaired.status();
+    if (repaired->rewritten) {
+      LOG(WARNING) << "repaired map " << options.db_path << ": dropped " << repaired->places_dropped
+                   << " damaged places, kept " << repaired->places_kept << " places ("
+                   << repaired->landmarks_kept
+                   << " landmarks); damage found: " << repaired->problems
+                   << "; the damaged file is kept as " << repaired->damaged_copy;
+    } else {
+      LOG(INFO) << "map " << options.db_path << " is whole (" << repaired->places_kept
+                << " places); nothing to repair";
+    }
+  }
   StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(options.db_path, options.store);
   if (!store.ok()) return store.status();
   StatusOr<std::unique_ptr<PlaceMap>> map =

@@ -40,6 +40,10 @@ struct ServerOptions {
   int queue_capacity = 16;
   // Seconds between two heartbeats on PLACEREC_STATUS.
   double status_period_s = 1.0;
+  // Before serving, repair a damaged map (RepairSqliteMap): drop the places that do not read
+  // back whole, keep the damaged file as <db>.damaged and log how many places were dropped. A
+  // damaged map is refused at start-up otherwise.
+  bool repair = false;
   SqliteStoreOptions store;
   DecodeOptions decode;
   SequenceRuleOptions sequence_rule;
