@@ -177,9 +177,24 @@ void Server::OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string&
     return;
   }
   stats_.SawRobot(job.frame.robot);
+  result_t recorded;
+  switch (answers_.Begin(job.frame, &recorded)) {
+    case AnswerRecord::Seen::kInFlight:
+      VLOG(1) << "frame " << job.frame.sequence << " of robot '" << job.frame.robot
+              << "' sent again while it is processed; its answer is on its way";
+      return;
+    case AnswerRecord::Seen::kAnswered:
+      VLOG(1) << "frame " << job.frame.sequence << " of robot '" << job.frame.robot
+              << "' sent again: its answer is sent again";
+      Publish(&recorded, false);
+      return;
+    case AnswerRecord::Seen::kNew:
+      break;
+  }
   const std::string robot = job.frame.robot;
   LaneWorkQueue<Job>::PushResult pushed = queue_->Push(robot, &job);
   if (pushed.evicted) {
+    answers_.Forget(pushed.evicted->frame);
     // The queue was full and `robot` held less than its share: the robot holding the most gave
     // way with its newest frame.
     result_t answer = AnswerTemplate(pushed.evicted->frame);
@@ -194,6 +209,7 @@ void Server::OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string&
     Publish(&answer, false);
   }
   if (!pushed.queued) {
+    answers_.Forget(job.frame);
     result_t answer = AnswerTemplate(job.frame);
     if (pushed.stopped) {
       SetError(result_t::STATUS_SHUTTING_DOWN,
@@ -238,6 +254,7 @@ void Server::Work(Job& job) {
     LOG(WARNING) << "frame " << job.frame.sequence << " of robot '" << job.frame.robot
                  << "': " << WireStatusName(answer.status) << ": " << answer.message;
   }
+  answers_.Finish(job.frame, answer);
   Publish(&answer, true);
 }
 

@@ -21,6 +21,7 @@
 #include "placerec/frame_t.hpp"
 #include "placerec/result_t.hpp"
 #include "placerec/status_t.hpp"
+#include "server/answer_record.h"
 #include "server/frame_processor.h"
 #include "server/sequence_gate.h"
 #include "server/server_stats.h"
@@ -92,6 +93,8 @@ class Server {
   lcm::LCM lcm_;
   std::mutex publish_mutex_;
   ServerStats stats_;
+  // Frames in flight and recent answers per robot, so that a re-sent frame is not processed twice.
+  AnswerRecord answers_;
   std::atomic<bool> stop_requested_{false};
   int64_t dropped_logged_ = 0;
   // Last: its workers use everything above, so it is destroyed (joined) first.

@@ -889,6 +889,59 @@ TEST_F(ServiceTest, AFloodFromOneRobotLeavesAnotherRobotsFramesAnswered) {
   StopTheServer();
 }
 
+// Issue 23 item 7: a frame whose answer does not come (here: sent before the server runs, as a
+// datagram lost in a burst would be) is sent again by the client with the same request id, and
+// answered. A frame the server already processed that comes again is answered from the server's
+// record, not processed twice (the insert would have been refused as out of order).
+TEST_F(ServiceTest, AFrameWithoutAnAnswerIsSentAgainAndNotProcessedTwice) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
+  ClientOptions options;
+  options.lcm_url = TestLcmUrl();
+  options.retry_after_s = 1;
+  StatusOr<std::unique_ptr<PlacerecClient>> retrying = PlacerecClient::Connect(options);
+  ASSERT_TRUE(retrying.ok());
+  const OutgoingFrame frame = FrameOf(run, 0, "r", 0);
+  StatusOr<PendingFrame> early = (*retrying)->Publish(frame);  // nobody listens yet
+  ASSERT_TRUE(early.ok());
+  StartTheServer();
+  const FrameResult first = (*retrying)->Wait(*early, 60);
+  ASSERT_TRUE(first.ok()) << DescribeResult(first) << ServerLog();
+
+  // The same frame twice more, as a sender whose answer was lost sends it again.
+  AnswerSpy spy;
+  ASSERT_TRUE(spy.good());
+  frame_t again;
+  again.utime = frame.utime;
+  again.sequence = frame.sequence;
+  again.request_id = early->request_id;
+  again.insert = frame.insert;
+  again.encoding = static_cast<int8_t>(frame.image.encoding);
+  again.width = frame.image.width;
+  again.height = frame.image.height;
+  again.robot = frame.robot;
+  again.data = frame.image.bytes;
+  again.size = static_cast<int32_t>(again.data.size());
+  ASSERT_EQ(spy.Publish(again), 0);
+  ASSERT_TRUE(spy.WaitFor(1, 60)) << ServerLog();
+  ASSERT_EQ(spy.Publish(again), 0);
+  ASSERT_TRUE(spy.WaitFor(2, 60)) << ServerLog();
+  for (const auto& [channel, answer] : spy.answers()) {
+    EXPECT_EQ(channel, "PLACEREC_RESULT_r");
+    EXPECT_EQ(int{answer.status}, int{result_t::STATUS_OK}) << answer.message;
+    EXPECT_EQ(answer.request_id, early->request_id);
+    EXPECT_EQ(answer.place_id, first.place_id);
+    EXPECT_EQ(answer.map_places, first.map_places);
+  }
+  // The robot goes on as if nothing had happened.
+  const FrameResult next = client_->Send(FrameOf(run, 1, "r", 1));
+  EXPECT_TRUE(next.ok()) << DescribeResult(next);
+  EXPECT_LE(next.map_places, first.map_places + 1);
+  StopTheServer();
+  EXPECT_EQ(ReadMap(db_).places.size(), static_cast<size_t>(next.map_places));
+}
+
 // --help documents every flag; bad flags and an unusable LCM URL (also from LCM_DEFAULT_URL) are
 // reported with a message and a non-zero exit code. No network needed.
 TEST(ServiceCommandLineTest, HelpAndErrors) {
