@@ -202,6 +202,10 @@ bool ClientOptions::Check(std::string* error) const {
     *error = "--timeout must be positive (seconds)";
     return false;
   }
+  if (!(retry_after_s >= 0) || retry_after_s > 3600) {
+    *error = "--retry-after must be between 0 and 3600 seconds";
+    return false;
+  }
   return true;
 }
 
@@ -302,10 +306,13 @@ StatusOr<PendingFrame> PlacerecClient::Publish(const OutgoingFrame& frame) {
     awaited_[pending.request_id] = pending;
   }
   message.request_id = pending.request_id;
+  auto bytes = std::make_shared<std::vector<uint8_t>>(message.getEncodedSize());
+  message.encode(bytes->data(), 0, static_cast<int>(bytes->size()));
+  pending.message = bytes;
   int rc = 0;
   {
     std::lock_guard lock(publish_mutex_);
-    rc = lcm_->publish(kFrameChannel, &message);
+    rc = lcm_->publish(kFrameChannel, bytes->data(), static_cast<unsigned int>(bytes->size()));
   }
   if (rc != 0) {
     std::lock_guard lock(mutex_);
@@ -320,8 +327,30 @@ FrameResult PlacerecClient::Wait(const PendingFrame& pending, double timeout_s) 
   const auto deadline = std::chrono::steady_clock::now() +
                         std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                             std::chrono::duration<double>(timeout_s));
+  const auto retry = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(options_.retry_after_s));
+  const bool retries = options_.retry_after_s > 0 && pending.message != nullptr;
+  auto next_send = pending.sent + retry;
+  int sends = pending.sends;
   std::unique_lock lock(mutex_);
-  answered_.wait_until(lock, deadline, [&] { return answers_.count(pending.request_id) > 0; });
+  for (;;) {
+    const auto until = retries ? std::min(deadline, next_send) : deadline;
+    if (answered_.wait_until(lock, until, [&] { return answers_.count(pending.request_id) > 0; }) ||
+        until == deadline) {
+      break;
+    }
+    // No answer yet: send the same frame (same request id) again.
+    lock.unlock();
+    {
+      std::lock_guard publish(publish_mutex_);
+      if (lcm_->publish(kFrameChannel, pending.message->data(),
+                        static_cast<unsigned int>(pending.message->size())) == 0) {
+        ++sends;
+      }
+    }
+    next_send = std::chrono::steady_clock::now() + retry;
+    lock.lock();
+  }
   auto it = answers_.find(pending.request_id);
   if (it == answers_.end()) {
     awaited_.erase(pending.request_id);  // a late answer is ignored
@@ -330,10 +359,11 @@ FrameResult PlacerecClient::Wait(const PendingFrame& pending, double timeout_s) 
     timeout.robot = pending.robot;
     timeout.sequence = pending.sequence;
     timeout.request_id = pending.request_id;
-    char text[160];
+    char text[200];
     std::snprintf(text, sizeof(text),
-                  "no answer within %.1f s (is placerec-server running on this LCM network?)",
-                  timeout_s);
+                  "no answer within %.1f s, sent %d time%s (is placerec-server running on this "
+                  "LCM network?)",
+                  timeout_s, sends, sends == 1 ? "" : "s");
     timeout.message = text;
     return timeout;
   }

@@ -142,6 +142,11 @@ struct ClientOptions {
   std::string lcm_url;
   // How long Send waits for an answer, seconds.
   double timeout_s = 60.0;
+  // When no answer came within this many seconds, the frame is sent again with the same request
+  // id (a datagram lost in a burst, or a server that was restarting), and again after each
+  // further interval until the timeout; the server answers a frame it already processed from its
+  // record instead of processing it twice. 0 never sends again.
+  double retry_after_s = 5.0;
 
   bool Check(std::string* error) const;
 };
@@ -152,6 +157,9 @@ struct PendingFrame {
   int64_t sequence = 0;
   int64_t request_id = 0;
   std::chrono::steady_clock::time_point sent;
+  // The encoded frame_t, kept to send it again (ClientOptions::retry_after_s).
+  std::shared_ptr<const std::vector<uint8_t>> message;
+  int sends = 1;  // how often Wait published it
 };
 
 // Thread-safe: several threads may publish and wait at once (e.g. one per robot).
@@ -165,7 +173,8 @@ class PlacerecClient {
   // Publishes `frame` (subscribing to its answer channel first); the answer is collected in the
   // background. An error when LCM refuses the message.
   StatusOr<PendingFrame> Publish(const OutgoingFrame& frame);
-  // Waits up to `timeout_s` for the answer; code kTimeout when none came.
+  // Waits up to `timeout_s` for the answer, sending the frame again every
+  // options().retry_after_s; code kTimeout when none came.
   FrameResult Wait(const PendingFrame& pending, double timeout_s);
   // Publish, then wait options.timeout_s.
   FrameResult Send(const OutgoingFrame& frame);

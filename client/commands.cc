@@ -26,6 +26,9 @@ void AddConnectionFlags(FlagParser* parser, ClientOptions* options) {
               "LCM URL (empty: LCM's default, i.e. $LCM_DEFAULT_URL or "
               "udpm://239.255.76.67:7667?ttl=0)");
   parser->Add("timeout", &options->timeout_s, "seconds to wait for each answer");
+  parser->Add("retry-after", &options->retry_after_s,
+              "send a frame again (same request id) when its answer has not come after this "
+              "many seconds, and again after each further interval until the timeout; 0: never");
 }
 
 StatusOr<std::unique_ptr<PlacerecClient>> ConnectOrReport(const ClientOptions& options,

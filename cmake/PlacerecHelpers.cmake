@@ -3,8 +3,9 @@ include(${CMAKE_CURRENT_LIST_DIR}/PlacerecCheckIncludes.cmake)
 # One helper per kind of target. Every target gets the same warnings; PLACEREC_WERROR makes them errors.
 
 function(placerec_set_warnings target)
-  target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic -Wshadow=local
-                         -Wnon-virtual-dtor -Wno-unused-parameter)
+  target_compile_options(${target} PRIVATE -Wall -Wextra -Wpedantic
+                         $<$<CXX_COMPILER_ID:GNU>:-Wshadow=local> -Wnon-virtual-dtor
+                         -Wno-unused-parameter)
   if(PLACEREC_WERROR)
     target_compile_options(${target} PRIVATE -Werror)
   endif()

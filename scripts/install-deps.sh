@@ -12,6 +12,7 @@ packages=(
   libsqlite3-dev sqlite3
   libgoogle-glog-dev libboost-program-options-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev clang-format
+  clang-15 libfuzzer-15-dev
   iproute2 util-linux procps
 )
 

@@ -10,10 +10,43 @@
 #include "server/protocol.h"
 
 namespace placerec {
+namespace {
+
+// The segmenter of a robot's run: the processor's own, which the run never calls (frames are
+// analyzed once, by the processor), so that a run costs no model loading (the object
+// classifiers are shared too).
+class SharedSegmenter : public Segmenter {
+ public:
+  explicit SharedSegmenter(const Segmenter* segmenter) : segmenter_(segmenter) {}
+  SceneSegmentation Segment(const WorkingImage& image,
+                            cv::Mat* filter_bank = nullptr) const override {
+    return segmenter_->Segment(image, filter_bank);
+  }
+  std::string name() const override { return segmenter_->name(); }
+  int working_width() const override { return segmenter_->working_width(); }
+
+ private:
+  const Segmenter* segmenter_;
+};
+
+}  // namespace
 
 FrameProcessor::FrameProcessor(const RecognizerOptions& options, const DecodeOptions& decode,
-                               PlaceMap* map, std::unique_ptr<Segmenter> segmenter)
-    : decode_(decode), map_(map), recognizer_(options, map, std::move(segmenter)) {}
+                               PlaceMap* map, std::unique_ptr<Segmenter> segmenter,
+                               const SequenceRuleOptions& sequence_rule)
+    : options_(options),
+      decode_(decode),
+      map_(map),
+      analyzer_(options, map, std::move(segmenter)),
+      gate_(sequence_rule) {
+  map_->ForEachPlace([this](const Place& place) { gate_.AddStored(place.robot, place.sequence); });
+}
+
+std::unique_ptr<Recognizer> FrameProcessor::NewRun() const {
+  return std::make_unique<Recognizer>(options_, map_,
+                                      std::make_unique<SharedSegmenter>(&analyzer_.segmenter()),
+                                      analyzer_.labeler());
+}
 
 result_t FrameProcessor::Process(const frame_t& frame) {
   try {
@@ -41,7 +74,27 @@ result_t FrameProcessor::ProcessOrThrow(const frame_t& frame) {
   std::string why;
   if (!IsValidWireRobotId(frame.robot, &why)) return fail(result_t::STATUS_BAD_REQUEST, why);
   const FrameRequest request = ToFrameRequest(frame);
-  const Status valid = recognizer_.Validate(request);
+  // The robot's run: its current one, or a new one when the robot has none or restarted. A new
+  // run replaces the current one only once its first frame is accepted.
+  bool new_run = false;
+  if (request.insert) {
+    const StatusOr<SequenceGate::Admission> admission =
+        gate_.Admit(request.robot, request.sequence, SequenceGate::Clock::now());
+    if (!admission.ok()) return fail(result_t::STATUS_BAD_REQUEST, admission.status().message());
+    new_run = *admission == SequenceGate::Admission::kNewRun;
+  }
+  Recognizer* recognizer = nullptr;
+  std::unique_ptr<Recognizer> fresh;
+  if (!new_run) {
+    std::lock_guard lock(runs_mutex_);
+    const auto it = runs_.find(request.robot);
+    if (it != runs_.end()) recognizer = it->second.get();
+  }
+  if (recognizer == nullptr) {
+    fresh = NewRun();
+    recognizer = fresh.get();
+  }
+  const Status valid = recognizer->Validate(request);
   if (!valid.ok()) return fail(WireStatus(valid.code()), valid.message());
   const StatusOr<ImageEncoding> encoding = ImageEncodingFromWire(frame.encoding);
   if (!encoding.ok())
@@ -54,8 +107,20 @@ result_t FrameProcessor::ProcessOrThrow(const frame_t& frame) {
                                         frame.width, frame.height, decode_);
   if (!image.ok()) return fail(WireStatus(image.status().code()), image.status().message());
   const double decode_ms = timer.ElapsedMs();
-  RecognitionResult result = recognizer_.Recognize(request, recognizer_.Analyze(*image));
+  RecognitionResult result = recognizer->Recognize(request, analyzer_.Analyze(*image));
   result.timings.insert(result.timings.begin(), {"decode", decode_ms});
+  if (request.insert && result.status.ok()) {
+    gate_.Accepted(request.robot, request.sequence, result.place.IsValid(),
+                   SequenceGate::Clock::now());
+    if (fresh) {
+      if (new_run) {
+        LOG(INFO) << "robot '" << request.robot << "' begins a new run at sequence "
+                  << request.sequence;
+      }
+      std::lock_guard lock(runs_mutex_);
+      runs_[request.robot] = std::move(fresh);
+    }
+  }
   FillAnswer(result, &answer);
   if (!result.status.ok()) {
     LOG(WARNING) << "frame " << frame.sequence << " of robot '" << frame.robot

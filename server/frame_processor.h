@@ -1,21 +1,30 @@
-// Answers one frame message (DESIGN.md "LCM protocol"): checks the request, decodes the image and
-// runs the recognizer, whose map commits the frame's landmarks before it returns, then builds the
-// answer. Every failure becomes an error answer that says what was wrong; nothing throws.
+// Answers one frame message (DESIGN.md "LCM protocol"): checks the request (including the
+// sequence rule of server/sequence_gate.h), decodes the image and runs the recognizer, whose map
+// commits the frame's landmarks before it returns, then builds the answer. Every failure becomes
+// an error answer that says what was wrong; nothing throws.
 #pragma once
+
+#include <memory>
+#include <mutex>
+#include <string>
+#include <unordered_map>
 
 #include "common/image/image.h"
 #include "common/pipeline/place_map.h"
 #include "common/pipeline/recognizer.h"
 #include "placerec/frame_t.hpp"
 #include "placerec/result_t.hpp"
+#include "server/sequence_gate.h"
 
 namespace placerec {
 
 class FrameProcessor {
  public:
-  // `map` must outlive the processor; a null `segmenter` is made from the options.
+  // `map` must outlive the processor; a null `segmenter` is made from the options. The sequence
+  // rule learns the robots' stored places from `map`.
   FrameProcessor(const RecognizerOptions& options, const DecodeOptions& decode, PlaceMap* map,
-                 std::unique_ptr<Segmenter> segmenter = nullptr);
+                 std::unique_ptr<Segmenter> segmenter = nullptr,
+                 const SequenceRuleOptions& sequence_rule = SequenceRuleOptions());
 
   // Frames of one robot must come one at a time and in order; frames of different robots may be
   // processed from different threads at once (Recognizer's contract).
@@ -25,10 +34,19 @@ class FrameProcessor {
 
  private:
   result_t ProcessOrThrow(const frame_t& frame);
+  // A recognizer for one run of a robot: its own short-term memory, the shared segmenter.
+  std::unique_ptr<Recognizer> NewRun() const;
 
+  RecognizerOptions options_;
   DecodeOptions decode_;
   PlaceMap* map_;
-  Recognizer recognizer_;
+  // Analyzes every frame (stateless) and owns the segmenter the runs share.
+  Recognizer analyzer_;
+  SequenceGate gate_;
+  std::mutex runs_mutex_;
+  // Each robot's current run. A robot's entry is only replaced from its own frames, which come
+  // one at a time, so the recognizer a frame uses stays valid while it runs.
+  std::unordered_map<std::string, std::unique_ptr<Recognizer>> runs_;
 };
 
 }  // namespace placerec

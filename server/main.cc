@@ -42,6 +42,9 @@ int Main(int argc, char** argv) {
              "frames waiting for a worker before new ones are answered 'overloaded'");
   parser.Add("status-period", &options.status_period_s,
              "seconds between heartbeats on PLACEREC_STATUS");
+  parser.AddSwitch("repair", &options.repair,
+                   "before serving, drop the places of a damaged map that do not read back whole "
+                   "(the damaged file is kept as <db>.damaged) and report how many");
   parser.AddSwitch("sqlite-sync-normal", &sqlite_normal,
                    "SQLite synchronous=NORMAL: commits survive a killed server but not a power "
                    "loss (default FULL: both)");
@@ -54,6 +57,9 @@ int Main(int argc, char** argv) {
   parser.Add("max-image-pixels", &options.decode.max_pixels,
              "frames of more pixels (width x height) are rejected; JPEG and PNG sizes are read "
              "from the header before decoding");
+  parser.Add("robot-restart-gap", &options.sequence_rule.restart_gap_s,
+             "seconds after a robot's last accepted insert from which a lower sequence begins a "
+             "new run of the robot (a restart) instead of being refused as out of order");
   AddRecognizerFlags(&parser, &options.recognizer);
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 1, "placerec-server")) {
     return *exit;

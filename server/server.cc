@@ -54,7 +54,8 @@ bool ServerOptions::Check(std::string* error) const {
     *error = "--status-period must be positive and at most 3600 seconds";
     return false;
   }
-  return store.Check(error) && decode.Check(error) && recognizer.Check(error);
+  return store.Check(error) && decode.Check(error) && sequence_rule.Check(error) &&
+         recognizer.Check(error);
 }
 
 StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
@@ -68,6 +69,20 @@ StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
     StatusOr<std::unique_ptr<ObjectClassLabeler>> labeler =
         ObjectClassLabeler::Load(options.recognizer.classes);
     if (!labeler.ok()) return labeler.status();
+  }
+  if (options.repair) {
+    StatusOr<MapRepairReport> repaired = RepairSqliteMap(options.db_path, options.store);
+    if (!repaired.ok()) return repaired.status();
+    if (repaired->rewritten) {
+      LOG(WARNING) << "repaired map " << options.db_path << ": dropped " << repaired->places_dropped
+                   << " damaged places, kept " << repaired->places_kept << " places ("
+                   << repaired->landmarks_kept
+                   << " landmarks); damage found: " << repaired->problems
+                   << "; the damaged file is kept as " << repaired->damaged_copy;
+    } else {
+      LOG(INFO) << "map " << options.db_path << " is whole (" << repaired->places_kept
+                << " places); nothing to repair";
+    }
   }
   StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(options.db_path, options.store);
   if (!store.ok()) return store.status();
@@ -86,7 +101,8 @@ Server::Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map,
                std::unique_ptr<Segmenter> segmenter)
     : options_(options),
       map_(std::move(map)),
-      processor_(options.recognizer, options.decode, map_.get(), std::move(segmenter)),
+      processor_(options.recognizer, options.decode, map_.get(), std::move(segmenter),
+                 options.sequence_rule),
       lcm_(options.lcm_url) {
   queue_ = std::make_unique<LaneWorkQueue<Job>>(options_.workers, options_.queue_capacity,
                                                 [this](Job& job) { Work(job); });
@@ -169,13 +185,51 @@ void Server::OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string&
     return;
   }
   stats_.SawRobot(job.frame.robot);
+  result_t recorded;
+  switch (answers_.Begin(job.frame, &recorded)) {
+    case AnswerRecord::Seen::kInFlight:
+      VLOG(1) << "frame " << job.frame.sequence << " of robot '" << job.frame.robot
+              << "' sent again while it is processed; its answer is on its way";
+      return;
+    case AnswerRecord::Seen::kAnswered:
+      VLOG(1) << "frame " << job.frame.sequence << " of robot '" << job.frame.robot
+              << "' sent again: its answer is sent again";
+      Publish(&recorded, false);
+      return;
+    case AnswerRecord::Seen::kNew:
+      break;
+  }
   const std::string robot = job.frame.robot;
-  if (!queue_->Push(robot, &job)) {
-    result_t answer = AnswerTemplate(job.frame);
+  LaneWorkQueue<Job>::PushResult pushed = queue_->Push(robot, &job);
+  if (pushed.evicted) {
+    answers_.Forget(pushed.evicted->frame);
+    // The queue was full and `robot` held less than its share: the robot holding the most gave
+    // way with its newest frame.
+    result_t answer = AnswerTemplate(pushed.evicted->frame);
     SetError(result_t::STATUS_OVERLOADED,
-             "server overloaded: " + std::to_string(queue_->capacity()) +
-                 " frames are already waiting; the frame was not processed, send it again later",
+             "server overloaded: robot '" + pushed.evicted_lane + "' held " +
+                 std::to_string(pushed.evicted_lane_waiting) + " of the " +
+                 std::to_string(pushed.waiting) +
+                 " waiting frames, more than its share while robot '" + robot +
+                 "' waited, so its newest frame gave way; it was not processed, send it again "
+                 "later",
              &answer);
+    Publish(&answer, false);
+  }
+  if (!pushed.queued) {
+    answers_.Forget(job.frame);
+    result_t answer = AnswerTemplate(job.frame);
+    if (pushed.stopped) {
+      SetError(result_t::STATUS_SHUTTING_DOWN,
+               "the server is shutting down; the frame was not processed", &answer);
+    } else {
+      SetError(result_t::STATUS_OVERLOADED,
+               "server overloaded: the queue is full (" + std::to_string(pushed.waiting) +
+                   " frames waiting, " + std::to_string(pushed.lane_waiting) +
+                   " of them this robot's, its share while other robots wait); the frame was "
+                   "not processed, send it again later",
+               &answer);
+    }
     Publish(&answer, false);
   }
 }
@@ -208,6 +262,7 @@ void Server::Work(Job& job) {
     LOG(WARNING) << "frame " << job.frame.sequence << " of robot '" << job.frame.robot
                  << "': " << WireStatusName(answer.status) << ": " << answer.message;
   }
+  answers_.Finish(job.frame, answer);
   Publish(&answer, true);
 }
 

@@ -21,7 +21,9 @@
 #include "placerec/frame_t.hpp"
 #include "placerec/result_t.hpp"
 #include "placerec/status_t.hpp"
+#include "server/answer_record.h"
 #include "server/frame_processor.h"
+#include "server/sequence_gate.h"
 #include "server/server_stats.h"
 #include "server/work_queue.h"
 
@@ -39,8 +41,13 @@ struct ServerOptions {
   int queue_capacity = 16;
   // Seconds between two heartbeats on PLACEREC_STATUS.
   double status_period_s = 1.0;
+  // Before serving, repair a damaged map (RepairSqliteMap): drop the places that do not read
+  // back whole, keep the damaged file as <db>.damaged and log how many places were dropped. A
+  // damaged map is refused at start-up otherwise.
+  bool repair = false;
   SqliteStoreOptions store;
   DecodeOptions decode;
+  SequenceRuleOptions sequence_rule;
   RecognizerOptions recognizer;
 
   bool Check(std::string* error) const;
@@ -86,6 +93,8 @@ class Server {
   lcm::LCM lcm_;
   std::mutex publish_mutex_;
   ServerStats stats_;
+  // Frames in flight and recent answers per robot, so that a re-sent frame is not processed twice.
+  AnswerRecord answers_;
   std::atomic<bool> stop_requested_{false};
   int64_t dropped_logged_ = 0;
   // Last: its workers use everything above, so it is destroyed (joined) first.

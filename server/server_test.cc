@@ -103,6 +103,11 @@ TEST(ServerOptionsTest, DefaultsPassAndBadValuesNameTheirFlag) {
        [](ServerOptions* o) { o->status_period_s = std::numeric_limits<double>::quiet_NaN(); }},
       {"--status-period",
        [](ServerOptions* o) { o->status_period_s = std::numeric_limits<double>::infinity(); }},
+      {"--robot-restart-gap", [](ServerOptions* o) { o->sequence_rule.restart_gap_s = -1; }},
+      {"--robot-restart-gap",
+       [](ServerOptions* o) {
+         o->sequence_rule.restart_gap_s = std::numeric_limits<double>::quiet_NaN();
+       }},
       // The parts' own checks run too.
       {"max_image_width", [](ServerOptions* o) { o->recognizer.analyzer.max_image_width = 10; }},
   });
@@ -213,6 +218,53 @@ TEST(ServerTest, HeartbeatReportsTheMapReloadedFromItsFile) {
   EXPECT_EQ(status.frames_overloaded, 0);
   EXPECT_EQ(status.messages_dropped, 0);
   EXPECT_EQ(status.frames_per_second, 0.0);
+}
+
+// Issue 23 item 6: a map with 4 KB of random bytes in a page was served as if whole. Now the
+// server refuses it at start-up, saying what to do; with --repair it drops the damaged places,
+// keeps the damaged file beside the map and serves the rest.
+TEST(ServerTest, ADamagedMapIsRefusedUnlessRepaired) {
+  const TempDir dir("damaged");
+  const std::string db = dir.File("map.db");
+  constexpr int kPlaces = 10;
+  {
+    StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(db, SqliteStoreOptions());
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    std::mt19937 rng(3);
+    for (int p = 0; p < kPlaces; ++p) {
+      Place place{PlaceId(), "robot", p, 1000000 * p, 0, 320};
+      std::vector<Landmark> landmarks = {RandomLandmark(60, &rng), RandomLandmark(60, &rng)};
+      ASSERT_TRUE((*store)->AddPlace(&place, &landmarks).ok());
+    }
+  }
+  {
+    std::fstream file(db, std::ios::in | std::ios::out | std::ios::binary);
+    file.seekg(0, std::ios::end);
+    const int64_t pages = static_cast<int64_t>(file.tellg()) / 4096;
+    ASSERT_GT(pages, 20);
+    std::mt19937 random(11);
+    std::string noise(4096, '\0');
+    for (char& c : noise) c = static_cast<char>(random());
+    file.seekp(pages / 2 * 4096);
+    file.write(noise.data(), static_cast<std::streamsize>(noise.size()));
+  }
+  StatusOr<std::unique_ptr<Server>> refused = Server::Create(TestOptions(db));
+  ASSERT_FALSE(refused.ok()) << "a damaged map was served";
+  EXPECT_EQ(refused.status().code(), StatusCode::kIoError);
+  EXPECT_NE(refused.status().message().find("is damaged"), std::string::npos)
+      << refused.status().message();
+  EXPECT_NE(refused.status().message().find("--repair"), std::string::npos)
+      << refused.status().message();
+
+  ServerOptions repair = TestOptions(db);
+  repair.repair = true;
+  StatusOr<std::unique_ptr<Server>> repaired = Server::Create(repair);
+  ASSERT_TRUE(repaired.ok()) << repaired.status().ToString();
+  const status_t status = (*repaired)->CurrentStatus();
+  EXPECT_GT(status.map_places, 0);
+  EXPECT_LT(status.map_places, kPlaces);
+  EXPECT_EQ(status.map_landmarks, 2 * status.map_places);
+  EXPECT_TRUE(std::filesystem::exists(db + ".damaged"));
 }
 
 // Run serves until Stop, from another thread or before it even started, and then returns OK.

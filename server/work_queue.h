@@ -1,13 +1,18 @@
 // The server's bounded work queue: jobs are grouped in lanes (one per robot); a fixed pool of
 // worker threads runs them, jobs of one lane strictly one at a time and in the order they were
 // pushed, different lanes at once. The queue holds at most `capacity` jobs that have not started;
-// a full queue refuses new jobs instead of growing, so the caller can answer "overloaded".
+// a full queue refuses new jobs instead of growing, so the caller can answer "overloaded". Lanes
+// share a full queue fairly: a lane may fill the queue while no other lane waits, but a job of a
+// lane holding fewer waiting jobs than the largest lane (by two or more) pushes out that lane's
+// newest waiting job, which the caller answers instead. So one robot's flood cannot keep another
+// robot's frames out; at worst each of k waiting robots keeps about capacity / k frames.
 #pragma once
 
 #include <condition_variable>
 #include <deque>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 #include <unordered_map>
@@ -34,19 +39,60 @@ class LaneWorkQueue {
   LaneWorkQueue& operator=(const LaneWorkQueue&) = delete;
   ~LaneWorkQueue() { Shutdown(); }
 
-  // Queues *job behind the earlier jobs of `lane` and moves it out of *job. Returns false, leaving
-  // *job untouched, when `capacity` jobs are already waiting or the queue is shut down.
-  bool Push(const std::string& lane, Job* job) {
+  struct PushResult {
+    bool queued = false;
+    bool stopped = false;  // refused because the queue is shut down
+    int waiting = 0;       // jobs waiting before the push
+    int lane_waiting = 0;  // of them, the pushing lane's
+    // Set when a full queue made room by pushing out the newest waiting job of the lane that
+    // held the most: that job (never started) and its lane, with the lane's waiting jobs before.
+    std::optional<Job> evicted;
+    std::string evicted_lane;
+    int evicted_lane_waiting = 0;
+  };
+
+  // Queues *job behind the earlier jobs of `lane` and moves it out of *job. When `capacity` jobs
+  // are already waiting, the job is queued only if some other lane holds at least two more
+  // waiting jobs than `lane`: that lane's newest waiting job is moved into the result's
+  // `evicted`. Otherwise, or when the queue is shut down, `queued` is false and *job untouched.
+  PushResult Push(const std::string& lane, Job* job) {
+    PushResult result;
     {
       std::lock_guard lock(mutex_);
-      if (stopping_ || depth_ >= capacity_) return false;
+      result.waiting = depth_;
+      const auto own = lanes_.find(lane);
+      result.lane_waiting = own == lanes_.end() ? 0 : static_cast<int>(own->second.jobs.size());
+      if (stopping_) {
+        result.stopped = true;
+        return result;
+      }
+      if (depth_ >= capacity_) {
+        auto largest = lanes_.end();
+        for (auto it = lanes_.begin(); it != lanes_.end(); ++it) {
+          if (largest == lanes_.end() || it->second.jobs.size() > largest->second.jobs.size()) {
+            largest = it;
+          }
+        }
+        if (largest == lanes_.end() ||
+            static_cast<int>(largest->second.jobs.size()) < result.lane_waiting + 2) {
+          return result;
+        }
+        result.evicted_lane = largest->first;
+        result.evicted_lane_waiting = static_cast<int>(largest->second.jobs.size());
+        result.evicted.emplace(std::move(largest->second.jobs.back()));
+        largest->second.jobs.pop_back();
+        --depth_;
+        // The lane keeps at least one waiting job (it held two more than `lane`), so it stays in
+        // ready_ or busy as it was.
+      }
       Lane& l = lanes_[lane];
       l.jobs.push_back(std::move(*job));
       ++depth_;
       if (!l.busy && l.jobs.size() == 1) ready_.push_back(lane);
+      result.queued = true;
     }
     wake_.notify_one();
-    return true;
+    return result;
   }
 
   // Stops taking jobs, lets the running ones finish, joins the workers and returns the jobs that

@@ -122,7 +122,7 @@ TEST(LaneWorkQueueTest, EachLaneInOrderAndNeverTwiceAtOnce) {
     for (int i = 0; i < 60; ++i) {
       for (const char* lane : {"a", "b", "c"}) {
         TestJob job{lane, i};
-        ASSERT_TRUE(queue.Push(lane, &job));
+        ASSERT_TRUE(queue.Push(lane, &job).queued);
       }
     }
     ASSERT_TRUE(finished.WaitFor(180));
@@ -146,24 +146,89 @@ TEST(LaneWorkQueueTest, RefusesJobsBeyondCapacity) {
   });
   TestJob a{"a", 0};
   TestJob b{"b", 0};
-  ASSERT_TRUE(queue.Push("a", &a));
-  ASSERT_TRUE(queue.Push("b", &b));
+  ASSERT_TRUE(queue.Push("a", &a).queued);
+  ASSERT_TRUE(queue.Push("b", &b).queued);
   ASSERT_TRUE(started.WaitFor(2));
   EXPECT_EQ(queue.running(), 2);
-  for (int i = 1; i <= 3; ++i) {
-    TestJob job{"a", i};
-    ASSERT_TRUE(queue.Push("a", &job));
+  // Lanes a, b and c hold one waiting job each: none holds two more than d's none, so d is
+  // refused, and so is a.
+  for (const char* lane : {"a", "b", "c"}) {
+    TestJob job{lane, 1};
+    ASSERT_TRUE(queue.Push(lane, &job).queued);
   }
   EXPECT_EQ(queue.depth(), 3);
-  TestJob refused{"c", 9};
-  EXPECT_FALSE(queue.Push("c", &refused));
-  EXPECT_EQ(refused.lane, "c");  // left untouched
+  TestJob refused{"d", 9};
+  const auto full = queue.Push("d", &refused);
+  EXPECT_FALSE(full.queued);
+  EXPECT_FALSE(full.stopped);
+  EXPECT_FALSE(full.evicted.has_value());
+  EXPECT_EQ(full.waiting, 3);
+  EXPECT_EQ(full.lane_waiting, 0);
+  EXPECT_EQ(refused.lane, "d");  // left untouched
   EXPECT_EQ(refused.index, 9);
+  TestJob a2{"a", 2};
+  const auto own = queue.Push("a", &a2);
+  EXPECT_FALSE(own.queued);
+  EXPECT_EQ(own.lane_waiting, 1);
   gate.Open();
   ASSERT_TRUE(done.WaitFor(5));
   EXPECT_EQ(queue.depth(), 0);
-  TestJob again{"c", 10};
-  EXPECT_TRUE(queue.Push("c", &again));
+  TestJob again{"d", 10};
+  EXPECT_TRUE(queue.Push("d", &again).queued);
+}
+
+// Issue 23 item 2: a robot that filled the queue alone gives way to another robot, newest frame
+// first, until neither holds two more waiting frames than the other; the rest of its frames still
+// run in order.
+TEST(LaneWorkQueueTest, ALaneThatFilledTheQueueGivesWayToAnother) {
+  Gate gate;
+  Counter started;
+  Counter done;
+  std::mutex mutex;
+  std::map<std::string, std::vector<int>> order;
+  LaneWorkQueue<TestJob> queue(1, 4, [&](TestJob& job) {
+    started.Increment();
+    gate.Wait();
+    {
+      std::lock_guard lock(mutex);
+      order[job.lane].push_back(job.index);
+    }
+    done.Increment();
+  });
+  TestJob running{"a", 0};
+  ASSERT_TRUE(queue.Push("a", &running).queued);
+  ASSERT_TRUE(started.WaitFor(1));
+  for (int i = 1; i <= 4; ++i) {
+    TestJob job{"a", i};
+    ASSERT_TRUE(queue.Push("a", &job).queued);
+  }
+  TestJob refused{"a", 5};
+  EXPECT_FALSE(queue.Push("a", &refused).queued);  // a's own flood is refused
+  std::vector<int> evicted;
+  for (int i = 0; i < 3; ++i) {
+    TestJob job{"b", i};
+    auto pushed = queue.Push("b", &job);
+    if (i < 2) {
+      ASSERT_TRUE(pushed.queued) << i;
+      ASSERT_TRUE(pushed.evicted.has_value()) << i;
+      EXPECT_EQ(pushed.evicted_lane, "a");
+      EXPECT_EQ(pushed.evicted_lane_waiting, 4 - i);
+      EXPECT_EQ(pushed.waiting, 4);
+      evicted.push_back(pushed.evicted->index);
+    } else {
+      // a and b hold 2 each: b is at its share.
+      EXPECT_FALSE(pushed.queued);
+      EXPECT_FALSE(pushed.evicted.has_value());
+      EXPECT_EQ(pushed.lane_waiting, 2);
+    }
+  }
+  EXPECT_EQ(evicted, (std::vector<int>{4, 3}));
+  EXPECT_EQ(queue.depth(), 4);
+  gate.Open();
+  ASSERT_TRUE(done.WaitFor(5));
+  std::lock_guard lock(mutex);
+  EXPECT_EQ(order["a"], (std::vector<int>{0, 1, 2}));
+  EXPECT_EQ(order["b"], (std::vector<int>{0, 1}));
 }
 
 TEST(LaneWorkQueueTest, ShutdownReturnsWhatNeverStarted) {
@@ -177,7 +242,7 @@ TEST(LaneWorkQueueTest, ShutdownReturnsWhatNeverStarted) {
   });
   for (int i = 0; i < 4; ++i) {
     TestJob job{"a", i};
-    ASSERT_TRUE(queue.Push("a", &job));
+    ASSERT_TRUE(queue.Push("a", &job).queued);
   }
   ASSERT_TRUE(started.WaitFor(1));
   EXPECT_EQ(queue.running(), 1);
@@ -194,7 +259,7 @@ TEST(LaneWorkQueueTest, ShutdownReturnsWhatNeverStarted) {
   ASSERT_EQ(pending.size(), 3u);
   for (int i = 0; i < 3; ++i) EXPECT_EQ(pending[i].index, i + 1);
   TestJob late{"a", 5};
-  EXPECT_FALSE(queue.Push("a", &late));
+  EXPECT_TRUE(queue.Push("a", &late).stopped);
   EXPECT_TRUE(queue.Shutdown().empty());
 }
 

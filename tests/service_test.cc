@@ -458,7 +458,8 @@ TEST_F(ServiceTest, BadInputGetsErrorAnswersAndTheServerGoesOn) {
   std::string why;
   if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
   const std::vector<Answer> offline = OfflineAnswers(run, 6);
-  StartTheServer();
+  // "sequence going back" below must come within the restart gap, however slow the machine.
+  StartTheServer({"--robot-restart-gap", "3600"});
   AnswerSpy spy;
   ASSERT_TRUE(spy.good());
 
@@ -807,6 +808,138 @@ TEST_F(ServiceTest, FullQueueAndShutdownStillAnswerEveryFrame) {
   ASSERT_TRUE(code.ok());
   EXPECT_EQ(*code, 0) << ServerLog();
   server_.reset();
+}
+
+// Issue 23 item 2: a robot flooding the server (50 frames per second, far beyond what it
+// processes) used to fill the shared queue, and another robot's frames were answered
+// "overloaded" (11 of 12). Now the flooding robot gives way: every frame of the quiet robot is
+// answered ok, and the flood's "overloaded" answers say why. The quiet robot's latencies alone and
+// under the flood are reported (RecordProperty and stdout), not asserted: timing on a shared
+// machine is no test.
+TEST_F(ServiceTest, AFloodFromOneRobotLeavesAnotherRobotsFramesAnswered) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
+  constexpr int kQuiet = 8;  // frames of the quiet robot alone, then as many under the flood
+  constexpr int kFloodImages = 30;
+  StartTheServer();  // the defaults: 2 workers, a queue of 16
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v.empty() ? 0.0 : (v[(v.size() - 1) / 2] + v[v.size() / 2]) / 2;
+  };
+  std::vector<double> alone;
+  for (int i = 0; i < kQuiet; ++i) {
+    const FrameResult r = client_->Send(FrameOf(run, i, "quiet", i));
+    ASSERT_TRUE(r.ok()) << DescribeResult(r) << ServerLog();
+    alone.push_back(r.latency_ms);
+  }
+
+  ClientOptions options;
+  options.lcm_url = TestLcmUrl();
+  StatusOr<std::unique_ptr<PlacerecClient>> flood_client = PlacerecClient::Connect(options);
+  ASSERT_TRUE(flood_client.ok());
+  std::vector<OutgoingFrame> flood_frames;
+  for (int i = 0; i < kFloodImages; ++i) flood_frames.push_back(FrameOf(run, 40 + i, "flood", 0));
+  std::atomic<bool> stop{false};
+  std::vector<PendingFrame> flood_sent;
+  std::thread flooder([&] {
+    for (int64_t s = 0; !stop.load(); ++s) {
+      OutgoingFrame frame = flood_frames[s % kFloodImages];
+      frame.sequence = s;
+      StatusOr<PendingFrame> p = (*flood_client)->Publish(frame);
+      if (p.ok()) flood_sent.push_back(*p);
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  });
+  std::this_thread::sleep_for(std::chrono::seconds(1));  // the flood fills the queue
+  std::vector<double> flooded;
+  std::vector<FrameResult> quiet;
+  for (int i = kQuiet; i < 2 * kQuiet; ++i) {
+    quiet.push_back(client_->Send(FrameOf(run, i, "quiet", i)));
+    flooded.push_back(quiet.back().latency_ms);
+  }
+  stop = true;
+  flooder.join();
+  for (const FrameResult& r : quiet) {
+    EXPECT_TRUE(r.ok()) << "robot quiet's frame " << r.sequence << ": " << DescribeResult(r);
+  }
+  int flood_ok = 0;
+  int flood_overloaded = 0;
+  for (const PendingFrame& p : flood_sent) {
+    const FrameResult r = (*flood_client)->Wait(p, 120);
+    if (r.ok()) ++flood_ok;
+    if (r.code == AnswerCode::kOverloaded) {
+      ++flood_overloaded;
+      // Refused at a full queue, or pushed out by the quiet robot's frame: either way the
+      // answer says why.
+      EXPECT_TRUE(r.message.find("the queue is full") != std::string::npos ||
+                  r.message.find("more than its share") != std::string::npos)
+          << r.message;
+    }
+  }
+  EXPECT_GT(flood_overloaded, 0) << "the flood never filled the queue";
+  const double ratio = median(flooded) / std::max(1e-9, median(alone));
+  RecordProperty("quiet_median_latency_alone_ms", std::to_string(median(alone)));
+  RecordProperty("quiet_median_latency_flooded_ms", std::to_string(median(flooded)));
+  RecordProperty("flood_frames_sent", std::to_string(flood_sent.size()));
+  std::printf(
+      "flood: %zu frames sent by robot flood (%d ok, %d overloaded); robot quiet's median "
+      "latency alone %.0f ms, under the flood %.0f ms: ratio %.2f\n",
+      flood_sent.size(), flood_ok, flood_overloaded, median(alone), median(flooded), ratio);
+  StopTheServer();
+}
+
+// Issue 23 item 7: a frame whose answer does not come (here: sent before the server runs, as a
+// datagram lost in a burst would be) is sent again by the client with the same request id, and
+// answered. A frame the server already processed that comes again is answered from the server's
+// record, not processed twice (the insert would have been refused as out of order).
+TEST_F(ServiceTest, AFrameWithoutAnAnswerIsSentAgainAndNotProcessedTwice) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
+  ClientOptions options;
+  options.lcm_url = TestLcmUrl();
+  options.retry_after_s = 1;
+  StatusOr<std::unique_ptr<PlacerecClient>> retrying = PlacerecClient::Connect(options);
+  ASSERT_TRUE(retrying.ok());
+  const OutgoingFrame frame = FrameOf(run, 0, "r", 0);
+  StatusOr<PendingFrame> early = (*retrying)->Publish(frame);  // nobody listens yet
+  ASSERT_TRUE(early.ok());
+  StartTheServer();
+  const FrameResult first = (*retrying)->Wait(*early, 60);
+  ASSERT_TRUE(first.ok()) << DescribeResult(first) << ServerLog();
+
+  // The same frame twice more, as a sender whose answer was lost sends it again.
+  AnswerSpy spy;
+  ASSERT_TRUE(spy.good());
+  frame_t again;
+  again.utime = frame.utime;
+  again.sequence = frame.sequence;
+  again.request_id = early->request_id;
+  again.insert = frame.insert;
+  again.encoding = static_cast<int8_t>(frame.image.encoding);
+  again.width = frame.image.width;
+  again.height = frame.image.height;
+  again.robot = frame.robot;
+  again.data = frame.image.bytes;
+  again.size = static_cast<int32_t>(again.data.size());
+  ASSERT_EQ(spy.Publish(again), 0);
+  ASSERT_TRUE(spy.WaitFor(1, 60)) << ServerLog();
+  ASSERT_EQ(spy.Publish(again), 0);
+  ASSERT_TRUE(spy.WaitFor(2, 60)) << ServerLog();
+  for (const auto& [channel, answer] : spy.answers()) {
+    EXPECT_EQ(channel, "PLACEREC_RESULT_r");
+    EXPECT_EQ(int{answer.status}, int{result_t::STATUS_OK}) << answer.message;
+    EXPECT_EQ(answer.request_id, early->request_id);
+    EXPECT_EQ(answer.place_id, first.place_id);
+    EXPECT_EQ(answer.map_places, first.map_places);
+  }
+  // The robot goes on as if nothing had happened.
+  const FrameResult next = client_->Send(FrameOf(run, 1, "r", 1));
+  EXPECT_TRUE(next.ok()) << DescribeResult(next);
+  EXPECT_LE(next.map_places, first.map_places + 1);
+  StopTheServer();
+  EXPECT_EQ(ReadMap(db_).places.size(), static_cast<size_t>(next.map_places));
 }
 
 // --help documents every flag; bad flags and an unusable LCM URL (also from LCM_DEFAULT_URL) are

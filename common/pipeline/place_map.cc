@@ -118,6 +118,11 @@ MapCounts PlaceMap::Counts() const {
   return counts;
 }
 
+void PlaceMap::ForEachPlace(const std::function<void(const Place&)>& visit) const {
+  std::shared_lock lock(mutex_);
+  for (const auto& [id, place] : places_) visit(place);
+}
+
 StatusOr<uint64_t> PlaceMap::Checksum() const {
   std::shared_lock lock(mutex_);
   return store_->Checksum();

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <shared_mutex>
 #include <string>
@@ -61,6 +62,9 @@ class PlaceMap {
   Status Insert(Place* place, std::vector<Landmark>* landmarks);
 
   MapCounts Counts() const;
+  // Calls `visit` for every place in the map (in no particular order), under the map's read lock:
+  // `visit` must not call back into the map.
+  void ForEachPlace(const std::function<void(const Place&)>& visit) const;
   StatusOr<uint64_t> Checksum() const;
   std::string Describe() const;
   // Milliseconds Open spent loading the store and building the index.

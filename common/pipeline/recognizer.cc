@@ -45,7 +45,7 @@ AnalyzerOptions AnalyzerFor(const RecognizerOptions& options) {
 
 Recognizer::Recognizer(const RecognizerOptions& options, PlaceMap* map,
                        std::unique_ptr<Segmenter> segmenter,
-                       std::unique_ptr<ObjectClassLabeler> labeler)
+                       std::shared_ptr<const ObjectClassLabeler> labeler)
     : options_(EffectiveOptions(options)),
       map_(map),
       analyzer_(AnalyzerFor(options_), std::move(segmenter)),

@@ -116,7 +116,7 @@ class Recognizer {
   // report it load them themselves. No labeler is used when options.classes.enabled is false.
   Recognizer(const RecognizerOptions& options, PlaceMap* map,
              std::unique_ptr<Segmenter> segmenter = nullptr,
-             std::unique_ptr<ObjectClassLabeler> labeler = nullptr);
+             std::shared_ptr<const ObjectClassLabeler> labeler = nullptr);
 
   // Analyze + Recognize. Frames of different robots may be processed from different threads at
   // once; frames of one robot must arrive in order, one at a time.
@@ -133,6 +133,8 @@ class Recognizer {
 
   const RecognizerOptions& options() const { return options_; }
   const Segmenter& segmenter() const { return analyzer_.segmenter(); }
+  // The object classifiers (null without object classes); recognizers may share them.
+  const std::shared_ptr<const ObjectClassLabeler>& labeler() const { return labeler_; }
   PlaceMap& map() { return *map_; }
 
  private:
@@ -165,7 +167,7 @@ class Recognizer {
   RecognizerOptions options_;
   PlaceMap* map_;
   FrameAnalyzer analyzer_;
-  std::unique_ptr<ObjectClassLabeler> labeler_;
+  std::shared_ptr<const ObjectClassLabeler> labeler_;
   mutable std::mutex robots_mutex_;
   std::map<std::string, std::unique_ptr<RobotState>> robots_;
 };

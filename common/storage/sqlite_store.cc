@@ -1,8 +1,14 @@
 #include "common/storage/sqlite_store.h"
 
+#include <unistd.h>
+
 #include <climits>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
+#include <regex>
+#include <set>
+#include <sstream>
 #include <system_error>
 #include <unordered_map>
 #include <utility>
@@ -54,6 +60,17 @@ constexpr char kInsertLandmark[] =
     "box_h, num_descriptors, descriptors, keypoints, object_class, class_confidence) "
     "VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)";
 
+constexpr char kSelectPlaceById[] =
+    "SELECT robot, sequence, utime, num_landmarks, image_width FROM places WHERE id = ?";
+constexpr char kSelectLandmarkById[] =
+    "SELECT id, place_id, sift_count, colour_peaks, segment_class, box_x, box_y, box_w, box_h, "
+    "num_descriptors, descriptors, keypoints FROM landmarks WHERE id = ?";
+
+// What every refusal of a damaged map ends with.
+constexpr char kDamagedMapAdvice[] =
+    "restore the map from a backup, or repair it: placerec-server --repair drops the damaged "
+    "places, reports how many, and keeps the damaged file beside the map";
+
 // Reads an INTEGER column that must lie in [low, high].
 bool ReadInt(const SqliteStatement& row, int column, int64_t low, int64_t high, int64_t* value) {
   if (row.ColumnType(column) != SQLITE_INTEGER) return false;
@@ -72,7 +89,7 @@ Status ReadLandmarkRow(const SqliteStatement& row, const std::string& store, Enc
   out->id = row.ColumnInt(kLandmarkId);
   const auto corrupt = [&](const std::string& what) {
     return Status::IoError(store + ": landmark " + std::to_string(out->id) +
-                           " is corrupt: " + what);
+                           " is corrupt: " + what + "; " + kDamagedMapAdvice);
   };
   const struct {
     int column;
@@ -391,6 +408,208 @@ Status ConfigureConnection(sqlite3* db, const std::string& path,
       path);
 }
 
+// SQLite's quick_check complaints about the open database (at most `limit`), one per element,
+// without the "*** in database main ***" heading; empty when the file is whole.
+std::vector<std::string> QuickCheck(sqlite3* db, int limit) {
+  const std::string sql = "PRAGMA quick_check(" + std::to_string(limit) + ")";
+  SqliteStatement check;
+  int rc = SqliteStatement::Prepare(db, sql.c_str(), false, &check);
+  if (rc != SQLITE_OK) return {"quick_check cannot run: " + SqliteMessage(db, rc)};
+  std::vector<std::string> problems;
+  while ((rc = check.Step()) == SQLITE_ROW) {
+    std::istringstream lines(check.ColumnText(0));
+    std::string line;
+    while (std::getline(lines, line)) {
+      if (line != "ok" && !line.empty() && line.rfind("*** in database", 0) != 0) {
+        problems.push_back(line);
+      }
+    }
+  }
+  if (rc != SQLITE_DONE) problems.push_back("quick_check stopped: " + SqliteMessage(db, rc));
+  return problems;
+}
+
+std::string Join(const std::vector<std::string>& parts, size_t max_parts) {
+  std::string joined;
+  for (size_t i = 0; i < parts.size() && i < max_parts; ++i) {
+    joined += (i > 0 ? "; " : "") + parts[i];
+  }
+  if (parts.size() > max_parts) joined += "; ...";
+  return joined;
+}
+
+// The places a quick_check complaint "On tree page P cell C: ..." names: the row of cell C of
+// table leaf page P (read from the file, whose layout SQLite documents: page header, cell pointer
+// array, cell = payload size and rowid varints) is a place, or a landmark whose place is read by
+// its id. Complaints about anything else (interior pages, indexes, unused pages) name no place:
+// rows under a damaged interior page fail to read and are dropped by the reading itself.
+std::set<int64_t> PlacesNamedByQuickCheck(sqlite3* db, const std::string& path,
+                                          const std::vector<std::string>& problems) {
+  std::set<int64_t> places;
+  std::ifstream file(path, std::ios::binary);
+  uint8_t header[100];
+  if (!file.read(reinterpret_cast<char*>(header), sizeof(header))) return places;
+  const uint32_t raw_page_size = (uint32_t{header[16]} << 8) | header[17];
+  const size_t page_size = raw_page_size == 1 ? 65536 : raw_page_size;
+  const std::regex cell_pattern("tree page ([0-9]+) cell ([0-9]+)");
+  for (const std::string& problem : problems) {
+    std::smatch match;
+    if (!std::regex_search(problem, match, cell_pattern)) continue;
+    const int64_t page = std::stoll(match[1].str());
+    const size_t cell = std::stoul(match[2].str());
+    if (page < 1 || page_size < 512) continue;
+    std::vector<uint8_t> bytes(page_size);
+    file.clear();
+    file.seekg(static_cast<std::streamoff>((page - 1) * static_cast<int64_t>(page_size)));
+    if (!file.read(reinterpret_cast<char*>(bytes.data()),
+                   static_cast<std::streamsize>(page_size))) {
+      continue;
+    }
+    const size_t base = page == 1 ? 100 : 0;
+    if (bytes[base] != 0x0D) continue;  // not a table leaf
+    const size_t cells = (size_t{bytes[base + 3]} << 8) | bytes[base + 4];
+    const size_t pointer = base + 8 + 2 * cell;
+    if (cell >= cells || pointer + 2 > page_size) continue;
+    size_t at = (size_t{bytes[pointer]} << 8) | bytes[pointer + 1];
+    // Two varints: the payload size (skipped), then the rowid.
+    int64_t rowid = 0;
+    for (int varint = 0; varint < 2; ++varint) {
+      uint64_t value = 0;
+      for (int i = 0; i < 9 && at < page_size; ++i) {
+        const uint8_t b = bytes[at++];
+        if (i == 8) {
+          value = (value << 8) | b;
+          break;
+        }
+        value = (value << 7) | (b & 0x7f);
+        if ((b & 0x80) == 0) break;
+      }
+      rowid = static_cast<int64_t>(value);
+    }
+    // Which table the page belongs to.
+    SqliteStatement owner;
+    int rc =
+        SqliteStatement::Prepare(db, "SELECT name FROM dbstat WHERE pageno = ?", false, &owner);
+    if (rc == SQLITE_OK) {
+      owner.BindInt(1, page);
+      rc = owner.Step();
+    }
+    if (rc != SQLITE_ROW) continue;
+    const std::string table = owner.ColumnText(0);
+    if (table == "places") {
+      places.insert(rowid);
+    } else if (table == "landmarks") {
+      SqliteStatement select;
+      rc = SqliteStatement::Prepare(db, "SELECT place_id FROM landmarks WHERE id = ?", false,
+                                    &select);
+      if (rc == SQLITE_OK) {
+        select.BindInt(1, rowid);
+        rc = select.Step();
+      }
+      if (rc == SQLITE_ROW && select.ColumnType(0) == SQLITE_INTEGER) {
+        places.insert(select.ColumnInt(0));
+      }
+    }
+  }
+  return places;
+}
+
+// A place read back whole with its landmarks, for RepairSqliteMap.
+struct WholePlace {
+  Place place;
+  std::vector<Landmark> landmarks;
+};
+
+// Reads place `id` and its landmarks by point lookups. Returns false with the reason in *why
+// when the place row is missing (*why empty then) or anything of it is damaged.
+bool ReadWholePlace(sqlite3* db, const std::string& store, int64_t id, WholePlace* out,
+                    std::string* why) {
+  why->clear();
+  const std::string name = "place " + std::to_string(id);
+  SqliteStatement select;
+  int rc = SqliteStatement::Prepare(db, kSelectPlaceById, false, &select);
+  if (rc == SQLITE_OK) {
+    select.BindInt(1, id);
+    rc = select.Step();
+  }
+  if (rc == SQLITE_DONE) return false;  // no such row (ids may have gaps)
+  if (rc != SQLITE_ROW) {
+    *why = name + " cannot be read: " + SqliteMessage(db, rc);
+    return false;
+  }
+  int64_t num_landmarks = 0;
+  int64_t image_width = 0;
+  if (select.ColumnType(0) != SQLITE_TEXT || select.ColumnType(1) != SQLITE_INTEGER ||
+      select.ColumnType(2) != SQLITE_INTEGER || !ReadInt(select, 3, 0, INT_MAX, &num_landmarks) ||
+      !ReadInt(select, 4, 0, INT_MAX, &image_width)) {
+    *why = name + " is corrupt: a field is missing or out of range";
+    return false;
+  }
+  out->place = Place();
+  out->place.id = PlaceId(id);
+  out->place.robot = select.ColumnText(0);
+  out->place.sequence = select.ColumnInt(1);
+  out->place.utime = select.ColumnInt(2);
+  out->place.num_landmarks = static_cast<int>(num_landmarks);
+  out->place.image_width = static_cast<int>(image_width);
+  // The landmark ids from the (place_id, ...) index, then each row by its id.
+  std::vector<int64_t> ids;
+  SqliteStatement list;
+  rc = SqliteStatement::Prepare(db, "SELECT id FROM landmarks WHERE place_id = ? ORDER BY id",
+                                false, &list);
+  if (rc == SQLITE_OK) {
+    list.BindInt(1, id);
+    while ((rc = list.Step()) == SQLITE_ROW) ids.push_back(list.ColumnInt(0));
+  }
+  if (rc != SQLITE_DONE) {
+    *why = name + ": its landmarks cannot be listed: " + SqliteMessage(db, rc);
+    return false;
+  }
+  if (static_cast<int64_t>(ids.size()) != num_landmarks) {
+    *why = name + " has " + std::to_string(ids.size()) + " landmarks of its " +
+           std::to_string(num_landmarks);
+    return false;
+  }
+  out->landmarks.clear();
+  for (int64_t landmark_id : ids) {
+    SqliteStatement row;
+    rc = SqliteStatement::Prepare(db, kSelectLandmarkById, false, &row);
+    if (rc == SQLITE_OK) {
+      row.BindInt(1, landmark_id);
+      rc = row.Step();
+    }
+    if (rc != SQLITE_ROW) {
+      *why = name + ": landmark " + std::to_string(landmark_id) +
+             " cannot be read: " + SqliteMessage(db, rc);
+      return false;
+    }
+    EncodedLandmark encoded;
+    const Status checked = ReadLandmarkRow(row, store, &encoded);
+    if (!checked.ok() || encoded.place != id) {
+      *why = name + ": landmark " + std::to_string(landmark_id) + " is corrupt";
+      return false;
+    }
+    out->landmarks.push_back(DecodeLandmark(encoded));
+  }
+  return true;
+}
+
+// Moves `from` (and its -wal and -shm companions) to `to`; companions that do not exist are
+// skipped.
+Status MoveMapFiles(const std::string& from, const std::string& to) {
+  for (const char* suffix : {"", "-wal", "-shm"}) {
+    std::error_code error;
+    const std::string source = from + suffix;
+    if (!std::filesystem::exists(source, error)) continue;
+    std::filesystem::rename(source, to + suffix, error);
+    if (error) {
+      return Status::IoError("cannot move " + source + " to " + to + suffix + ": " +
+                             error.message());
+    }
+  }
+  return Status::Ok();
+}
+
 }  // namespace
 
 bool SqliteStoreOptions::Check(std::string* error) const {
@@ -414,6 +633,21 @@ StatusOr<std::unique_ptr<LandmarkStore>> OpenSqliteStore(const std::string& path
   }
   StatusOr<SqliteConnection> db = OpenConnection(path, options);
   if (!db.ok()) return db.status();
+  // SQLite falls back to reading a file it may not write; every frame's landmarks would then fail
+  // to commit, so such a map is refused now. SQLite also keeps <map>-wal and <map>-shm beside it.
+  if (sqlite3_db_readonly(db->get(), "main") == 1) {
+    return Status::IoError("map " + path +
+                           " cannot be written (a read-only file or file system): make it "
+                           "writable (e.g. chmod u+w), or copy it to where it can be written");
+  }
+  if (path != ":memory:") {
+    const std::filesystem::path parent = std::filesystem::absolute(path).parent_path();
+    if (access(parent.c_str(), W_OK | X_OK) != 0) {
+      return Status::IoError("the folder " + parent.string() + " of map " + path +
+                             " cannot be written, but SQLite keeps the map's -wal and -shm "
+                             "files there: make it writable, or move the map");
+    }
+  }
 
   // Refuse what is not ours before changing anything in the file.
   StatusOr<int> version = ReadSchemaVersion(db->get(), path);
@@ -421,6 +655,13 @@ StatusOr<std::unique_ptr<LandmarkStore>> OpenSqliteStore(const std::string& path
   if (*version > kSqliteSchemaVersion) return NewerSchemaVersionError(path, *version);
   if (*version == 0 && options.must_exist) {
     return Status::NotFound(path + " holds no placerec map (an empty database)");
+  }
+  if (options.quick_check && *version > 0) {
+    const std::vector<std::string> problems = QuickCheck(db->get(), 5);
+    if (!problems.empty()) {
+      return Status::IoError("map " + path + " is damaged (SQLite quick_check: " +
+                             Join(problems, 3) + "); " + kDamagedMapAdvice);
+    }
   }
 
   PLACEREC_RETURN_IF_ERROR(ConfigureConnection(db->get(), path, options));
@@ -440,6 +681,114 @@ StatusOr<std::unique_ptr<LandmarkStore>> OpenSqliteStore(const std::string& path
   }
   return std::unique_ptr<LandmarkStore>(std::make_unique<SqliteStore>(
       path, std::move(db).value(), std::move(insert_place), std::move(insert_landmark)));
+}
+
+StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
+                                          const SqliteStoreOptions& options) {
+  std::string error;
+  if (!options.Check(&error)) return Status::InvalidArgument(error);
+  if (path.empty() || path == ":memory:") {
+    return Status::InvalidArgument("repair needs a map file, not '" + path + "'");
+  }
+  std::error_code ignored;
+  if (!std::filesystem::exists(path, ignored)) {
+    return Status::NotFound("no placerec map at " + path + " to repair");
+  }
+  MapRepairReport report;
+  std::vector<WholePlace> kept;
+  if (std::filesystem::exists(path + "-wal", ignored) &&
+      std::filesystem::file_size(path + "-wal", ignored) > 0) {
+    // Commits still in the WAL (a killed server) move into the file first, so that the pages
+    // read from the file below are the current ones.
+    sqlite3* raw = nullptr;
+    const int rc = sqlite3_open_v2(path.c_str(), &raw, SQLITE_OPEN_READWRITE, nullptr);
+    SqliteConnection db(raw);
+    if (rc == SQLITE_OK) {
+      sqlite3_exec(db.get(), "PRAGMA wal_checkpoint(TRUNCATE)", nullptr, nullptr, nullptr);
+    }
+  }
+  {
+    // Read-only: the damaged file is not changed by the reading.
+    sqlite3* raw = nullptr;
+    const int rc = sqlite3_open_v2(path.c_str(), &raw, SQLITE_OPEN_READONLY, nullptr);
+    SqliteConnection db(raw);
+    if (rc != SQLITE_OK) {
+      return Status::IoError("cannot open map " + path + ": " + SqliteMessage(raw, rc));
+    }
+    sqlite3_extended_result_codes(db.get(), 1);
+    StatusOr<int> version = ReadSchemaVersion(db.get(), path);
+    if (!version.ok()) {
+      return Status::IoError(version.status().message() +
+                             "; it cannot be repaired: restore it from a backup");
+    }
+    if (*version > kSqliteSchemaVersion) return NewerSchemaVersionError(path, *version);
+    if (*version == 0) return Status::NotFound(path + " holds no placerec map to repair");
+    const std::vector<std::string> problems = QuickCheck(db.get(), 1000);
+    report.problems = Join(problems, 3);
+    // Damage inside a BLOB's overflow pages reads back without an error; quick_check names the
+    // cell whose chain is broken.
+    const std::set<int64_t> named = PlacesNamedByQuickCheck(db.get(), path, problems);
+
+    SqliteStatement max_id;
+    int step = SqliteStatement::Prepare(db.get(), "SELECT COALESCE(MAX(id), 0) FROM places", false,
+                                        &max_id);
+    if (step == SQLITE_OK) step = max_id.Step();
+    if (step != SQLITE_ROW) {
+      return Status::IoError("map " + path + ": its places cannot be listed (" +
+                             SqliteMessage(db.get(), step) +
+                             "); it cannot be repaired: restore it from a backup");
+    }
+    const int64_t last = max_id.ColumnInt(0);
+    constexpr int64_t kMaxPlaceId = 100000000;
+    if (last < 0 || last > kMaxPlaceId) {
+      return Status::IoError("map " + path + ": its largest place id " + std::to_string(last) +
+                             " is not believable; it cannot be repaired: restore it from a backup");
+    }
+    const std::string store = "sqlite:" + path;
+    for (int64_t id = 1; id <= last; ++id) {
+      WholePlace place;
+      std::string why;
+      const bool whole = ReadWholePlace(db.get(), store, id, &place, &why);
+      if (whole && named.count(id) > 0) {
+        why = "place " + std::to_string(id) + " has a landmark in a damaged page";
+      }
+      if (whole && why.empty()) {
+        kept.push_back(std::move(place));
+      } else if (!why.empty()) {
+        ++report.places_dropped;
+        if (report.places_dropped <= 3) {
+          report.problems += (report.problems.empty() ? "" : "; ") + why;
+        }
+      }
+    }
+  }
+  for (const WholePlace& place : kept) {
+    ++report.places_kept;
+    report.landmarks_kept += static_cast<int64_t>(place.landmarks.size());
+  }
+  if (report.problems.empty() && report.places_dropped == 0) return report;  // whole: untouched
+
+  // Write the kept places to a new map beside the old one, then swap the files.
+  const std::string fresh = path + ".repairing";
+  for (const char* suffix : {"", "-wal", "-shm"}) std::filesystem::remove(fresh + suffix, ignored);
+  {
+    SqliteStoreOptions write = options;
+    write.must_exist = false;
+    StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(fresh, write);
+    if (!store.ok()) return store.status();
+    for (WholePlace& place : kept) {
+      place.place.id = PlaceId();
+      PLACEREC_RETURN_IF_ERROR((*store)->AddPlace(&place.place, &place.landmarks));
+    }
+  }  // closed: the new map is one file again
+  report.damaged_copy = path + ".damaged";
+  for (const char* suffix : {"", "-wal", "-shm"}) {
+    std::filesystem::remove(report.damaged_copy + suffix, ignored);
+  }
+  PLACEREC_RETURN_IF_ERROR(MoveMapFiles(path, report.damaged_copy));
+  PLACEREC_RETURN_IF_ERROR(MoveMapFiles(fresh, path));
+  report.rewritten = true;
+  return report;
 }
 
 }  // namespace placerec

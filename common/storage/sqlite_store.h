@@ -21,14 +21,39 @@ struct SqliteStoreOptions {
   int busy_timeout_ms = 5000;
   // Open an existing file only (no creation); for inspection tools.
   bool must_exist = false;
+  // Run SQLite's PRAGMA quick_check when an existing map is opened (it reads the whole file
+  // once): a damaged file is refused with a message saying how to restore or repair it.
+  bool quick_check = true;
 
   bool Check(std::string* error) const;
 };
 
 // Opens (creating when allowed) the map at `path`; ":memory:" gives a private in-memory map.
 // Fails with NotFound for a missing map when options.must_exist is set, and with IoError for a
-// file that is not a placerec map or has a newer schema version; such files are left untouched.
+// file that is not a placerec map, has a newer schema version or (options.quick_check) is damaged;
+// such files are left untouched.
 StatusOr<std::unique_ptr<LandmarkStore>> OpenSqliteStore(const std::string& path,
                                                          const SqliteStoreOptions& options);
+
+// What RepairSqliteMap found and did.
+struct MapRepairReport {
+  // The damage found: SQLite's quick_check complaints, then the first unreadable rows. Empty
+  // when the map is whole.
+  std::string problems;
+  bool rewritten = false;      // the map was rewritten from its readable places
+  std::string damaged_copy;    // where the damaged file was moved (when rewritten)
+  int64_t places_kept = 0;     // places whose row and every landmark read back whole
+  int64_t landmarks_kept = 0;  // their landmarks
+  int64_t places_dropped = 0;  // place rows that were damaged, or had a damaged or missing landmark
+};
+
+// Repairs the map at `path`: reads it (read-only) place by place with point lookups, so that a
+// damaged page costs only the rows on it; a place is kept when its row and all its landmarks
+// read back whole. When quick_check or a row found damage, the kept places are written to a new
+// map (place and landmark ids are renumbered; robot, sequence and contents stay), the damaged
+// file is moved to `path`.damaged (with its -wal) and the new map takes its place. A whole map is
+// left as it is. IoError when the file is not a placerec map or its places cannot be listed.
+StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
+                                          const SqliteStoreOptions& options);
 
 }  // namespace placerec

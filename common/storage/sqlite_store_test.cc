@@ -2,11 +2,14 @@
 
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
+#include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <random>
 #include <string>
 #include <thread>
@@ -533,6 +536,149 @@ TEST(SqliteStoreTest, DamagedLandmarkIsAnIoErrorNamingIt) {
     EXPECT_EQ(visited, 1);  // the landmark before the damaged one
     EXPECT_EQ(store->Checksum().status().code(), StatusCode::kIoError);
   }
+}
+
+std::string ReadFileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+void CopyFile(const std::string& from, const std::string& to) {
+  std::ifstream in(from, std::ios::binary);
+  std::ofstream out(to, std::ios::binary);
+  out << in.rdbuf();
+}
+
+// Issue 23 item 6: 4 KB of random bytes in a page of the map; the store opened it and served
+// what it could read. Now opening refuses it, saying what to do, and RepairSqliteMap keeps
+// exactly the places that read back whole.
+TEST(SqliteStoreTest, RandomBytesInAPageAreRefusedAtOpenAndRepairDropsTheDamagedPlaces) {
+  constexpr int kPlaces = 12;
+  constexpr int kLandmarksPerPlace = 2;
+  TempMap map("page");
+  {
+    std::unique_ptr<LandmarkStore> store = Open(map.path());
+    ASSERT_NE(store, nullptr);
+    for (int p = 0; p < kPlaces; ++p) {
+      Place place = MakePlace("r", p);
+      std::vector<Landmark> landmarks = MakeLandmarks(10 * p, kLandmarksPerPlace, 60);
+      ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
+    }
+  }  // closed: checkpointed into the one file
+  TempMap copy("page_copy");
+  CopyFile(map.path(), copy.path());
+  std::string bytes = ReadFileBytes(copy.path());
+  constexpr size_t kPage = 4096;
+  ASSERT_EQ(bytes.size() % kPage, 0u);
+  const size_t pages = bytes.size() / kPage;
+  ASSERT_GT(pages, 20u);
+  std::mt19937 random(7);
+  const size_t damaged_page = pages * 2 / 3;
+  for (size_t i = 0; i < kPage; ++i) bytes[damaged_page * kPage + i] = static_cast<char>(random());
+  {
+    std::ofstream out(copy.path(), std::ios::binary | std::ios::trunc);
+    out << bytes;
+  }
+
+  StatusOr<std::unique_ptr<LandmarkStore>> refused = OpenSqliteStore(copy.path(), {});
+  ASSERT_FALSE(refused.ok()) << "a damaged map was opened";
+  EXPECT_EQ(refused.status().code(), StatusCode::kIoError);
+  EXPECT_TRUE(Contains(refused.status().message(), "is damaged (SQLite quick_check: "))
+      << refused.status().message();
+  EXPECT_TRUE(Contains(refused.status().message(), "restore the map from a backup"));
+  EXPECT_TRUE(Contains(refused.status().message(), "--repair"));
+  EXPECT_EQ(ReadFileBytes(copy.path()), bytes);  // the refusal changed nothing
+
+  StatusOr<MapRepairReport> report = RepairSqliteMap(copy.path(), {});
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_TRUE(report->rewritten);
+  EXPECT_FALSE(report->problems.empty());
+  EXPECT_GT(report->places_dropped, 0) << report->problems;
+  EXPECT_LT(report->places_dropped, kPlaces);
+  EXPECT_EQ(report->places_kept + report->places_dropped, kPlaces);
+  EXPECT_EQ(report->landmarks_kept, report->places_kept * kLandmarksPerPlace);
+  EXPECT_EQ(report->damaged_copy, copy.path() + ".damaged");
+  EXPECT_EQ(ReadFileBytes(report->damaged_copy), bytes);
+  for (const char* suffix : {"", "-wal", "-shm"}) {
+    std::remove((report->damaged_copy + suffix).c_str());
+  }
+
+  // The repaired map opens, passes the check, and holds the kept places exactly.
+  EXPECT_EQ(QuerySql(copy.path(), "PRAGMA integrity_check"), "ok");
+  std::unique_ptr<LandmarkStore> repaired = Open(copy.path());
+  ASSERT_NE(repaired, nullptr);
+  const Contents contents = ReadAll(*repaired);
+  ASSERT_EQ(static_cast<int64_t>(contents.places.size()), report->places_kept);
+  ASSERT_EQ(contents.landmarks.size(), contents.places.size() * kLandmarksPerPlace);
+  for (size_t i = 0; i < contents.places.size(); ++i) {
+    const Place& place = contents.places[i];
+    EXPECT_EQ(place.robot, "r");
+    const int p = static_cast<int>(place.sequence);
+    EXPECT_EQ(place.utime, MakePlace("r", p).utime);
+    std::vector<Landmark> expected = MakeLandmarks(10 * p, kLandmarksPerPlace, 60);
+    for (int k = 0; k < kLandmarksPerPlace; ++k) {
+      Landmark& e = expected[k];
+      const Landmark& actual = contents.landmarks[i * kLandmarksPerPlace + k];
+      e.id = actual.id;
+      e.place = place.id;
+      testing_storage::ExpectSameLandmark(e, actual);
+    }
+  }
+  repaired.reset();
+
+  // A whole map is left alone.
+  for (const std::string& whole : {copy.path(), map.path()}) {
+    const std::string before = ReadFileBytes(whole);
+    StatusOr<MapRepairReport> again = RepairSqliteMap(whole, {});
+    ASSERT_TRUE(again.ok()) << again.status().ToString();
+    EXPECT_FALSE(again->rewritten);
+    EXPECT_EQ(again->places_dropped, 0);
+    EXPECT_TRUE(again->problems.empty()) << again->problems;
+    EXPECT_EQ(ReadFileBytes(whole), before);
+  }
+  EXPECT_EQ(RepairSqliteMap(copy.path() + ".missing", {}).status().code(), StatusCode::kNotFound);
+}
+
+// Issue 23 item 8: a read-only map was opened, and every insert failed later (status 7). Now
+// opening refuses it. Root may write any file, so as root the store is opened in a child process
+// that has given up root for user nobody (65534); the file is made read-only (0444) as well.
+TEST(SqliteStoreTest, ReadOnlyMapIsRefusedAtOpen) {
+  TempMap map("readonly");
+  {
+    std::unique_ptr<LandmarkStore> store = Open(map.path());
+    ASSERT_NE(store, nullptr);
+    Place place = MakePlace("r", 1);
+    std::vector<Landmark> landmarks = MakeLandmarks(0, 2, 6);
+    ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
+  }
+  ASSERT_EQ(chmod(map.path().c_str(), 0444), 0);
+  const std::string before = ReadFileBytes(map.path());
+  int pipe_fds[2];
+  ASSERT_EQ(pipe(pipe_fds), 0);
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    close(pipe_fds[0]);
+    if (getuid() == 0 && (setgid(65534) != 0 || setuid(65534) != 0)) _exit(3);
+    StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(map.path(), {});
+    const std::string said = store.ok() ? "opened" : store.status().ToString();
+    const ssize_t written = write(pipe_fds[1], said.data(), said.size());
+    _exit(written == static_cast<ssize_t>(said.size()) ? 0 : 4);
+  }
+  close(pipe_fds[1]);
+  std::string said;
+  char buffer[512];
+  ssize_t n = 0;
+  while ((n = read(pipe_fds[0], buffer, sizeof(buffer))) > 0) said.append(buffer, n);
+  close(pipe_fds[0]);
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  ASSERT_TRUE(WIFEXITED(status));
+  ASSERT_EQ(WEXITSTATUS(status), 0) << "the child could not give up root or report";
+  EXPECT_TRUE(Contains(said, "cannot be written")) << said;
+  EXPECT_TRUE(Contains(said, map.path())) << said;
+  EXPECT_EQ(ReadFileBytes(map.path()), before);
+  chmod(map.path().c_str(), 0644);
 }
 
 TEST(SqliteStoreTest, InMemoryStoresAreSeparate) {

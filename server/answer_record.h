@@ -1,0 +1,115 @@
+// The server's record of recent frames per robot (issue 23 item 7): a client that gets no answer
+// sends the same frame again with the same request id; the server must not process it twice (an
+// insert would then be refused as out of order, or stored twice). A frame is known by its
+// robot, request id, sequence, capture time and insert flag. A frame still queued or running is
+// "in flight" (the duplicate is dropped: the answer is on its way); a processed one keeps its
+// answer, which a duplicate gets again. Each robot keeps its last `per_robot` frames; robots
+// beyond `max_robots` are not recorded (their duplicates are processed again). Thread-safe.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <unordered_map>
+#include <utility>
+
+#include "placerec/frame_t.hpp"
+#include "placerec/result_t.hpp"
+
+namespace placerec {
+
+class AnswerRecord {
+ public:
+  explicit AnswerRecord(size_t per_robot = 16, size_t max_robots = 1000)
+      : per_robot_(per_robot), max_robots_(max_robots) {}
+
+  enum class Seen {
+    kNew,       // not recorded: process it (it is now in flight)
+    kInFlight,  // the same frame is queued or running: drop this copy
+    kAnswered,  // processed before: send *answer again
+  };
+
+  // Looks `frame` up; a new frame is recorded as in flight.
+  Seen Begin(const frame_t& frame, result_t* answer) {
+    std::lock_guard lock(mutex_);
+    auto robot = frames_.find(frame.robot);
+    if (robot == frames_.end()) {
+      if (frames_.size() >= max_robots_) return Seen::kNew;
+      robot = frames_.emplace(frame.robot, std::deque<Entry>()).first;
+    }
+    std::deque<Entry>& entries = robot->second;
+    for (const Entry& entry : entries) {
+      if (!entry.key.Matches(frame)) continue;
+      if (!entry.answer) return Seen::kInFlight;
+      *answer = *entry.answer;
+      return Seen::kAnswered;
+    }
+    entries.push_back(Entry{Key::Of(frame), std::nullopt});
+    // Drop the oldest answered entries beyond the bound; frames in flight always stay.
+    for (auto it = entries.begin(); entries.size() > per_robot_ && it != entries.end();) {
+      it = it->answer ? entries.erase(it) : std::next(it);
+    }
+    return Seen::kNew;
+  }
+
+  // `frame` (recorded by Begin) was processed: keep its answer for duplicates.
+  void Finish(const frame_t& frame, const result_t& answer) {
+    std::lock_guard lock(mutex_);
+    Entry* entry = Find(frame);
+    if (entry != nullptr) entry->answer = answer;
+  }
+
+  // `frame` (recorded by Begin) was not processed (overloaded, shutting down): forget it, so that
+  // it is processed when it comes again.
+  void Forget(const frame_t& frame) {
+    std::lock_guard lock(mutex_);
+    const auto robot = frames_.find(frame.robot);
+    if (robot == frames_.end()) return;
+    std::deque<Entry>& entries = robot->second;
+    for (auto it = entries.begin(); it != entries.end(); ++it) {
+      if (it->key.Matches(frame)) {
+        entries.erase(it);
+        break;
+      }
+    }
+    if (entries.empty()) frames_.erase(robot);
+  }
+
+ private:
+  struct Key {
+    int64_t request_id = 0;
+    int64_t sequence = 0;
+    int64_t utime = 0;
+    bool insert = false;
+    static Key Of(const frame_t& frame) {
+      return Key{frame.request_id, frame.sequence, frame.utime, frame.insert != 0};
+    }
+    bool Matches(const frame_t& frame) const {
+      return request_id == frame.request_id && sequence == frame.sequence && utime == frame.utime &&
+             insert == frame.insert;
+    }
+  };
+  struct Entry {
+    Key key;
+    std::optional<result_t> answer;  // empty while in flight
+  };
+
+  Entry* Find(const frame_t& frame) {
+    const auto robot = frames_.find(frame.robot);
+    if (robot == frames_.end()) return nullptr;
+    for (Entry& entry : robot->second) {
+      if (entry.key.Matches(frame)) return &entry;
+    }
+    return nullptr;
+  }
+
+  const size_t per_robot_;
+  const size_t max_robots_;
+  std::mutex mutex_;
+  std::unordered_map<std::string, std::deque<Entry>> frames_;
+};
+
+}  // namespace placerec

@@ -1,0 +1,81 @@
+// Tests of the server's record of recent frames (answer_record.h): a frame in flight, a frame
+// answered, a frame forgotten, the bound per robot and on robots.
+#include "server/answer_record.h"
+
+#include <string>
+
+#include <gtest/gtest.h>
+
+namespace placerec {
+namespace {
+
+frame_t Frame(const std::string& robot, int64_t request_id, int64_t sequence) {
+  frame_t frame;
+  frame.robot = robot;
+  frame.request_id = request_id;
+  frame.sequence = sequence;
+  frame.utime = 1000 + sequence;
+  frame.insert = true;
+  return frame;
+}
+
+result_t Answer(int64_t place_id) {
+  result_t answer;
+  answer.place_id = place_id;
+  return answer;
+}
+
+TEST(AnswerRecordTest, InFlightThenAnsweredAndOnlyTheSameFrameMatches) {
+  AnswerRecord record;
+  result_t answer;
+  const frame_t frame = Frame("a", 7, 3);
+  EXPECT_EQ(record.Begin(frame, &answer), AnswerRecord::Seen::kNew);
+  EXPECT_EQ(record.Begin(frame, &answer), AnswerRecord::Seen::kInFlight);
+  record.Finish(frame, Answer(42));
+  ASSERT_EQ(record.Begin(frame, &answer), AnswerRecord::Seen::kAnswered);
+  EXPECT_EQ(answer.place_id, 42);
+  // Another robot, request id, sequence, capture time or insert flag is another frame.
+  frame_t other = frame;
+  other.robot = "b";
+  EXPECT_EQ(record.Begin(other, &answer), AnswerRecord::Seen::kNew);
+  other = frame;
+  other.request_id = 8;
+  EXPECT_EQ(record.Begin(other, &answer), AnswerRecord::Seen::kNew);
+  other = frame;
+  other.utime += 1;
+  EXPECT_EQ(record.Begin(other, &answer), AnswerRecord::Seen::kNew);
+  other = frame;
+  other.insert = false;
+  EXPECT_EQ(record.Begin(other, &answer), AnswerRecord::Seen::kNew);
+}
+
+TEST(AnswerRecordTest, AFrameNotProcessedIsForgotten) {
+  AnswerRecord record;
+  result_t answer;
+  const frame_t frame = Frame("a", 1, 1);
+  EXPECT_EQ(record.Begin(frame, &answer), AnswerRecord::Seen::kNew);
+  record.Forget(frame);
+  EXPECT_EQ(record.Begin(frame, &answer), AnswerRecord::Seen::kNew);
+}
+
+TEST(AnswerRecordTest, KeepsTheLastFramesPerRobotAndFramesInFlight) {
+  AnswerRecord record(/*per_robot=*/3, /*max_robots=*/2);
+  result_t answer;
+  const frame_t in_flight = Frame("a", 0, 0);
+  EXPECT_EQ(record.Begin(in_flight, &answer), AnswerRecord::Seen::kNew);
+  for (int i = 1; i <= 5; ++i) {
+    const frame_t frame = Frame("a", i, i);
+    EXPECT_EQ(record.Begin(frame, &answer), AnswerRecord::Seen::kNew);
+    record.Finish(frame, Answer(i));
+  }
+  EXPECT_EQ(record.Begin(in_flight, &answer), AnswerRecord::Seen::kInFlight);
+  EXPECT_EQ(record.Begin(Frame("a", 5, 5), &answer), AnswerRecord::Seen::kAnswered);
+  EXPECT_EQ(record.Begin(Frame("a", 1, 1), &answer), AnswerRecord::Seen::kNew);  // dropped
+  // Two robots at most are recorded: a third's frames are new every time.
+  EXPECT_EQ(record.Begin(Frame("b", 1, 1), &answer), AnswerRecord::Seen::kNew);
+  EXPECT_EQ(record.Begin(Frame("c", 1, 1), &answer), AnswerRecord::Seen::kNew);
+  EXPECT_EQ(record.Begin(Frame("c", 1, 1), &answer), AnswerRecord::Seen::kNew);
+}
+
+}  // namespace
+}  // namespace placerec

@@ -1,0 +1,168 @@
+// Tests of the frame processor (frame_processor.h) in-process, on raw frames of the pipeline
+// tests' synthetic street: the sequence rule of issue 23 item 3 as a robot meets it (a forged
+// sequence far ahead, its own restart, a server restart in between).
+#include "server/frame_processor.h"
+
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdint>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+
+#include "common/pipeline/pipeline_test_util.h"
+#include "common/storage/sqlite_store.h"
+
+namespace placerec {
+namespace {
+
+using pipeline_test::kStep;
+using pipeline_test::SyntheticAnalyzerOptions;
+using pipeline_test::View;
+using pipeline_test::World;
+
+RecognizerOptions TestOptions() {
+  RecognizerOptions options;
+  options.analyzer = SyntheticAnalyzerOptions();
+  return options;
+}
+
+std::unique_ptr<PlaceMap> OpenMap(const std::string& path) {
+  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(path, SqliteStoreOptions());
+  EXPECT_TRUE(store.ok()) << store.status().ToString();
+  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), TestOptions().index);
+  EXPECT_TRUE(map.ok()) << map.status().ToString();
+  return std::move(*map);
+}
+
+std::unique_ptr<FrameProcessor> NewProcessor(PlaceMap* map, double restart_gap_s) {
+  SequenceRuleOptions rule;
+  rule.restart_gap_s = restart_gap_s;
+  return std::make_unique<FrameProcessor>(TestOptions(), DecodeOptions(), map, nullptr, rule);
+}
+
+// Frame `sequence` of robot `robot`: the view `step` steps along the street, as raw BGR.
+frame_t Frame(const std::string& robot, int64_t sequence, int step) {
+  static const cv::Mat world = World(3);
+  const cv::Mat view = View(world, step * kStep);
+  frame_t frame;
+  frame.utime = 1000000 * (step + 1);
+  frame.sequence = sequence;
+  frame.request_id = sequence;
+  frame.insert = true;
+  frame.encoding = frame_t::ENCODING_RAW_BGR8;
+  frame.width = view.cols;
+  frame.height = view.rows;
+  frame.robot = robot;
+  frame.data.assign(view.data, view.data + view.total() * view.elemSize());
+  frame.size = static_cast<int32_t>(frame.data.size());
+  return frame;
+}
+
+class TempMap {
+ public:
+  TempMap()
+      : path_(::testing::TempDir() + "/placerec_frame_processor_" + std::to_string(getpid()) +
+              ".db") {
+    Remove();
+  }
+  ~TempMap() { Remove(); }
+  const std::string& path() const { return path_; }
+
+ private:
+  void Remove() {
+    for (const char* suffix : {"", "-wal", "-shm"}) std::remove((path_ + suffix).c_str());
+  }
+  std::string path_;
+};
+
+// The attack of issue 23 item 3: one insert with sequence 2^63-1 made every later insert of the
+// robot fail until the server restarted. Now the robot is refused for the restart gap only, and
+// the forged place keeps its sequence.
+TEST(FrameProcessorTest, AForgedSequenceLocksTheRobotOutOnlyForTheRestartGap) {
+  std::unique_ptr<PlaceMap> map = OpenMap(":memory:");
+  std::unique_ptr<FrameProcessor> processor = NewProcessor(map.get(), 1.0);
+  for (int s = 0; s < 2; ++s) {
+    const result_t answer = processor->Process(Frame("r", s, s));
+    ASSERT_EQ(int{answer.status}, int{result_t::STATUS_OK}) << answer.message;
+  }
+  const int64_t forged_sequence = std::numeric_limits<int64_t>::max();
+  const result_t forged = processor->Process(Frame("r", forged_sequence, 5));
+  ASSERT_EQ(int{forged.status}, int{result_t::STATUS_OK}) << forged.message;
+  const result_t locked = processor->Process(Frame("r", 2, 2));
+  EXPECT_EQ(int{locked.status}, int{result_t::STATUS_BAD_REQUEST});
+  EXPECT_NE(locked.message.find("is not after 9223372036854775807"), std::string::npos)
+      << locked.message;
+  EXPECT_NE(locked.message.find("1 s after its last accepted frame"), std::string::npos)
+      << locked.message;
+  EXPECT_EQ(locked.map_places, forged.map_places);  // the refusal changed nothing
+
+  std::this_thread::sleep_for(std::chrono::milliseconds(1100));
+  for (int s = 2; s < 4; ++s) {
+    const result_t answer = processor->Process(Frame("r", s, s));
+    EXPECT_EQ(int{answer.status}, int{result_t::STATUS_OK})
+        << "sequence " << s << ": " << answer.message;
+  }
+}
+
+// A robot that restarts numbers its frames from 0 again; the server restarted in between. The
+// robot's last sequence comes back from the map, and a sequence the map holds is refused with the
+// next free one, which the robot can then use.
+TEST(FrameProcessorTest, LastSequencesSurviveARestartAndStoredOnesAreNeverReused) {
+  TempMap file;
+  std::vector<int64_t> stored;
+  {
+    std::unique_ptr<PlaceMap> map = OpenMap(file.path());
+    std::unique_ptr<FrameProcessor> processor = NewProcessor(map.get(), 3600);
+    for (int s = 0; s < 4; ++s) {
+      const result_t answer = processor->Process(Frame("r", s, s));
+      ASSERT_EQ(int{answer.status}, int{result_t::STATUS_OK}) << answer.message;
+      if (answer.place_id >= 0) stored.push_back(s);
+    }
+  }
+  ASSERT_FALSE(stored.empty());
+  const int64_t first_stored = stored.front();
+  int64_t next_free = first_stored + 1;
+  for (int64_t s : stored) {
+    if (s == next_free) ++next_free;
+  }
+  {
+    // Restarted server, restart gap of an hour: the order still holds.
+    std::unique_ptr<PlaceMap> map = OpenMap(file.path());
+    const int64_t places = map->Counts().places;
+    std::unique_ptr<FrameProcessor> processor = NewProcessor(map.get(), 3600);
+    const result_t back = processor->Process(Frame("r", first_stored, 0));
+    EXPECT_EQ(int{back.status}, int{result_t::STATUS_BAD_REQUEST});
+    EXPECT_NE(back.message.find("is not after " + std::to_string(stored.back())), std::string::npos)
+        << back.message;
+    EXPECT_EQ(map->Counts().places, places);
+  }
+  {
+    // Restarted server, no restart gap: the robot restarts at a stored sequence and is told the
+    // next free one, which is accepted.
+    std::unique_ptr<PlaceMap> map = OpenMap(file.path());
+    const int64_t places = map->Counts().places;
+    std::unique_ptr<FrameProcessor> processor = NewProcessor(map.get(), 0);
+    const result_t reused = processor->Process(Frame("r", first_stored, 0));
+    EXPECT_EQ(int{reused.status}, int{result_t::STATUS_BAD_REQUEST});
+    EXPECT_NE(reused.message.find("already in the map"), std::string::npos) << reused.message;
+    EXPECT_NE(
+        reused.message.find("the next free sequence after it is " + std::to_string(next_free)),
+        std::string::npos)
+        << reused.message;
+    EXPECT_EQ(map->Counts().places, places);
+    const result_t resumed = processor->Process(Frame("r", next_free, 6));
+    EXPECT_EQ(int{resumed.status}, int{result_t::STATUS_OK}) << resumed.message;
+  }
+}
+
+}  // namespace
+}  // namespace placerec

@@ -1,0 +1,82 @@
+#include "server/sequence_gate.h"
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+namespace placerec {
+
+bool SequenceRuleOptions::Check(std::string* error) const {
+  if (!(restart_gap_s >= 0) || restart_gap_s > 86400) {
+    *error = "--robot-restart-gap must be between 0 and 86400 seconds";
+    return false;
+  }
+  return true;
+}
+
+void SequenceGate::AddStored(const std::string& robot, int64_t sequence) {
+  std::lock_guard lock(mutex_);
+  auto [it, added] = robots_.try_emplace(robot);
+  Robot& r = it->second;
+  if (added || sequence > r.last) r.last = sequence;
+  r.last_accepted = start_;
+  r.stored.insert(sequence);
+}
+
+bool SequenceGate::NextFree(const Robot& robot, int64_t sequence, int64_t* next) {
+  int64_t candidate = sequence;
+  for (auto it = robot.stored.upper_bound(sequence); it != robot.stored.end(); ++it) {
+    if (candidate == std::numeric_limits<int64_t>::max()) return false;
+    if (*it != candidate + 1) break;
+    candidate = *it;
+  }
+  if (candidate == std::numeric_limits<int64_t>::max()) return false;
+  *next = candidate + 1;
+  return true;
+}
+
+StatusOr<SequenceGate::Admission> SequenceGate::Admit(const std::string& robot, int64_t sequence,
+                                                      Clock::time_point now) const {
+  std::lock_guard lock(mutex_);
+  const auto it = robots_.find(robot);
+  if (it == robots_.end()) return Admission::kSameRun;
+  const Robot& r = it->second;
+  const std::string frame = "sequence " + std::to_string(sequence) + " of robot '" + robot + "'";
+  Admission admission = Admission::kSameRun;
+  if (sequence <= r.last) {
+    const double silent_s = std::chrono::duration<double>(now - r.last_accepted).count();
+    if (silent_s < options_.restart_gap_s) {
+      char gap[64];
+      std::snprintf(gap, sizeof(gap), "%g", options_.restart_gap_s);
+      return Status::InvalidArgument(
+          frame + " is not after " + std::to_string(r.last) +
+          " (frames of a robot must come in order; a robot that restarted may begin again from a "
+          "lower sequence " +
+          gap + " s after its last accepted frame)");
+    }
+    admission = Admission::kNewRun;
+  }
+  if (r.stored.count(sequence) > 0) {
+    int64_t next = 0;
+    const std::string advice =
+        NextFree(r, sequence, &next)
+            ? "; the next free sequence after it is " + std::to_string(next)
+            : "; no sequence after it is free, choose a lower one that is not stored";
+    return Status::InvalidArgument(frame +
+                                   " is already in the map: a robot's places are named by their "
+                                   "sequence, so a restarted robot must not reuse one" +
+                                   advice);
+  }
+  return admission;
+}
+
+void SequenceGate::Accepted(const std::string& robot, int64_t sequence, bool stored,
+                            Clock::time_point now) {
+  std::lock_guard lock(mutex_);
+  Robot& r = robots_[robot];
+  r.last = sequence;
+  r.last_accepted = now;
+  if (stored) r.stored.insert(sequence);
+}
+
+}  // namespace placerec

@@ -1,0 +1,76 @@
+// The sequence rule for inserted frames (issue 23 item 3), kept by the server so that neither a
+// forged frame nor a robot's own restart locks the robot out, and so that the rule survives a
+// server restart:
+//
+// - A place is named by its robot and sequence (the map stores each pair once), so an insert
+//   whose sequence is already stored for its robot is refused, and the answer names the next
+//   free sequence after it.
+// - Within a run of the robot, sequences increase: an insert whose sequence is not after the
+//   robot's last accepted one is refused (a late or repeated datagram) ...
+// - ... unless the robot's last accepted insert is at least `restart_gap_s` old (server clock):
+//   then the frame begins a new run of the robot (it restarted, or a forged frame took a sequence
+//   far ahead) and the robot's short-term memory starts afresh.
+// At start the gate learns every stored place from the map: each robot's last sequence is its
+// largest stored one, accepted "at start-up".
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <mutex>
+#include <set>
+#include <string>
+#include <unordered_map>
+
+#include "common/util/status.h"
+
+namespace placerec {
+
+struct SequenceRuleOptions {
+  // Seconds after a robot's last accepted insert from which a lower sequence begins a new run
+  // of the robot instead of being refused as out of order.
+  double restart_gap_s = 5.0;
+
+  bool Check(std::string* error) const;
+};
+
+class SequenceGate {
+ public:
+  using Clock = std::chrono::steady_clock;
+
+  // What an admitted insert is.
+  enum class Admission {
+    kSameRun,  // after the robot's last sequence (or the robot's first insert)
+    kNewRun,   // not after it, but the robot was silent long enough: a restart
+  };
+
+  explicit SequenceGate(const SequenceRuleOptions& options, Clock::time_point start = Clock::now())
+      : options_(options), start_(start) {}
+
+  // A place the map holds (loaded at start): raises the robot's last sequence to it.
+  void AddStored(const std::string& robot, int64_t sequence);
+
+  // Whether an insert of `robot` with `sequence` arriving at `now` may go ahead; an
+  // InvalidArgument error saying why and what to send instead otherwise. Changes nothing.
+  StatusOr<Admission> Admit(const std::string& robot, int64_t sequence,
+                            Clock::time_point now) const;
+
+  // An admitted insert succeeded at `now`; `stored` when it added a place to the map (a frame
+  // that showed nothing new is answered without one).
+  void Accepted(const std::string& robot, int64_t sequence, bool stored, Clock::time_point now);
+
+ private:
+  struct Robot {
+    int64_t last = 0;
+    Clock::time_point last_accepted;
+    std::set<int64_t> stored;
+  };
+  // The smallest sequence after `sequence` not stored for `robot`; false when there is none.
+  static bool NextFree(const Robot& robot, int64_t sequence, int64_t* next);
+
+  const SequenceRuleOptions options_;
+  const Clock::time_point start_;
+  mutable std::mutex mutex_;
+  std::unordered_map<std::string, Robot> robots_;
+};
+
+}  // namespace placerec
