@@ -40,11 +40,12 @@ enum LandmarkColumn {
   kLandmarkObjectClass,
   kLandmarkClassConfidence,
 };
+// The columns of LandmarkColumn, in order.
+#define PLACEREC_LANDMARK_COLUMNS                                                       \
+  "id, place_id, sift_count, colour_peaks, segment_class, box_x, box_y, box_w, box_h, " \
+  "num_descriptors, descriptors, keypoints, object_class, class_confidence"
 constexpr char kSelectLandmarks[] =
-    "SELECT id, place_id, sift_count, colour_peaks, segment_class, box_x, box_y, box_w, box_h, "
-    "num_descriptors, descriptors, keypoints, object_class, class_confidence FROM landmarks ORDER "
-    "BY "
-    "id";
+    "SELECT " PLACEREC_LANDMARK_COLUMNS " FROM landmarks ORDER BY id";
 
 constexpr char kSelectPlaces[] =
     "SELECT id, robot, sequence, utime, num_landmarks, image_width FROM places ORDER BY id";
@@ -63,8 +64,8 @@ constexpr char kInsertLandmark[] =
 constexpr char kSelectPlaceById[] =
     "SELECT robot, sequence, utime, num_landmarks, image_width FROM places WHERE id = ?";
 constexpr char kSelectLandmarkById[] =
-    "SELECT id, place_id, sift_count, colour_peaks, segment_class, box_x, box_y, box_w, box_h, "
-    "num_descriptors, descriptors, keypoints FROM landmarks WHERE id = ?";
+    "SELECT " PLACEREC_LANDMARK_COLUMNS " FROM landmarks WHERE id = ?";
+#undef PLACEREC_LANDMARK_COLUMNS
 
 // What every refusal of a damaged map ends with.
 constexpr char kDamagedMapAdvice[] =
