@@ -373,9 +373,12 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
   // Exclusive locking mode before the first access: the connection takes the file's exclusive
   // lock and keeps it until it closes. A server holds a shared lock on its map for as long as it
   // has it open (WAL mode), so a map in use is refused here instead of changing under the server.
-  PLACEREC_RETURN_IF_ERROR(SqliteExec(c, "PRAGMA locking_mode = EXCLUSIVE", path));
+  // A dry run only reads (one snapshot), and may run beside a server.
+  if (!options.dry_run) {
+    PLACEREC_RETURN_IF_ERROR(SqliteExec(c, "PRAGMA locking_mode = EXCLUSIVE", path));
+  }
   PLACEREC_RETURN_IF_ERROR(SqliteExec(c, "PRAGMA foreign_keys = ON", path));
-  rc = sqlite3_exec(c, "BEGIN EXCLUSIVE", nullptr, nullptr, nullptr);
+  rc = sqlite3_exec(c, options.dry_run ? "BEGIN" : "BEGIN EXCLUSIVE", nullptr, nullptr, nullptr);
   if ((rc & 0xff) == SQLITE_BUSY || (rc & 0xff) == SQLITE_LOCKED) {
     return Status::IoError("map " + path + kHeldOpenAdvice);
   }

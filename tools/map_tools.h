@@ -95,7 +95,7 @@ struct PruneOptions {
   // Drop the places of this robot; empty: every robot. With before_utime too, only that robot's
   // places before the time.
   std::string robot;
-  // Count what would be dropped, change nothing.
+  // Count what would be dropped, change nothing; reads only, so it may run beside a server.
   bool dry_run = false;
   // How long to wait for another connection's lock before refusing the map (milliseconds).
   int busy_timeout_ms = 200;

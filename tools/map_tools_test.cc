@@ -235,8 +235,13 @@ TEST(MapToolsTest, PruneRefusesAMapHeldOpenAndLeavesItUnchanged) {
   ASSERT_FALSE(report.ok());
   EXPECT_NE(report.status().message().find("open in another process"), std::string::npos)
       << report.status().ToString();
-  // Reading commands still work, and the holder can go on writing.
+  // Reading commands (and a dry run) still work, and the holder can go on writing.
   EXPECT_TRUE(ReadMapInfo(map.path()).ok());
+  PruneOptions dry = options;
+  dry.dry_run = true;
+  const StatusOr<PruneReport> counted = PruneMap(map.path(), dry);
+  ASSERT_TRUE(counted.ok()) << counted.status().ToString();
+  EXPECT_EQ(counted->places, 3);
   EXPECT_EQ(*server->Checksum(), *checksum);
   AddPlace(server.get(), "left", 3, kStart + 3 * kDay, 1, {"sign"});
   server.reset();

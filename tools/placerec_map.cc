@@ -90,7 +90,8 @@ int PruneCommand(int argc, char** argv) {
       "Drops the places captured before a time, or of a robot (both: that robot's places before\n"
       "the time), with their landmarks, the sightings of those landmarks and the sightings by\n"
       "those places, in one transaction: the server's next start sees a consistent map, and on\n"
-      "any error nothing changes. Refuses a map another process (a running server) holds open.\n"
+      "any error nothing changes. Refuses a map another process (a running server) holds open\n"
+      "(--dry-run only counts, and may run beside it).\n"
       "The file keeps its size; SQLite reuses the freed pages.");
   parser.AddRequired("db", &db, "map file");
   parser.Add("before", &before,
