@@ -1,0 +1,183 @@
+// `placerec-map export`: places.csv and route.png of a map (map_tools.h).
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "common/util/paths.h"
+#include "tools/map_tools.h"
+
+namespace placerec {
+namespace {
+
+// A CSV field, quoted when it holds a separator, a quote or a line break.
+std::string CsvField(const std::string& text) {
+  if (text.find_first_of(",\"\n\r") == std::string::npos) return text;
+  std::string quoted = "\"";
+  for (const char c : text) {
+    quoted += c;
+    if (c == '"') quoted += '"';
+  }
+  return quoted + "\"";
+}
+
+// Colours (BGR) of the object classes in the picture, by their order of name; unclassified grey.
+cv::Scalar ClassColour(size_t index) {
+  static const cv::Scalar kPalette[] = {
+      {180, 119, 31}, {14, 127, 255},  {44, 160, 44},  {40, 39, 214},  {189, 103, 148},
+      {75, 86, 140},  {194, 119, 227}, {34, 189, 188}, {207, 190, 23}, {127, 127, 127}};
+  return kPalette[index % (sizeof(kPalette) / sizeof(kPalette[0]) - 1)];
+}
+const cv::Scalar kUnclassified(200, 200, 200);
+
+void Text(cv::Mat* image, const std::string& text, int x, int y, double scale = 0.45) {
+  cv::putText(*image, text, {x, y}, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(20, 20, 20), 1,
+              cv::LINE_AA);
+}
+
+// The picture: per robot (in order of first place) a caption, a strip of its places in time
+// order coloured by landmark count (viridis, one scale for the whole map), a strip of the class
+// shares of their landmarks, and the robot's class counts; a legend at the bottom.
+cv::Mat DrawRoute(const std::vector<PlaceSummary>& places) {
+  constexpr int kLeft = 10, kWidth = 1200, kCaption = 22, kCountStrip = 36, kClassStrip = 18;
+  constexpr int kClassLine = 20, kGap = 14, kLegend = 60;
+  std::vector<std::string> robots;
+  std::map<std::string, std::vector<const PlaceSummary*>> by_robot;
+  std::map<std::string, int64_t> class_totals;
+  int64_t max_landmarks = 1;
+  for (const PlaceSummary& place : places) {
+    if (by_robot.find(place.robot) == by_robot.end()) robots.push_back(place.robot);
+    by_robot[place.robot].push_back(&place);
+    max_landmarks = std::max(max_landmarks, place.landmarks);
+    for (const auto& [name, count] : place.classes) class_totals[name] += count;
+  }
+  std::map<std::string, cv::Scalar> colours;
+  size_t next_colour = 0;
+  for (const auto& [name, count] : class_totals) {
+    colours[name] = name.empty() ? kUnclassified : ClassColour(next_colour++);
+  }
+  const int block = kCaption + kCountStrip + kClassStrip + kClassLine + kGap;
+  const int height = 30 + block * static_cast<int>(robots.size()) + kLegend;
+  cv::Mat image(height, kLeft * 2 + kWidth, CV_8UC3, cv::Scalar(255, 255, 255));
+  Text(&image,
+       std::to_string(places.size()) + " places of " + std::to_string(robots.size()) +
+           " robots; colour: landmarks per place (0 .. " + std::to_string(max_landmarks) + ")",
+       kLeft, 20, 0.5);
+  cv::Mat scale(1, 256, CV_8UC1);
+  for (int i = 0; i < 256; ++i) scale.at<uint8_t>(0, i) = static_cast<uint8_t>(i);
+  cv::Mat scale_colours;
+  cv::applyColorMap(scale, scale_colours, cv::COLORMAP_VIRIDIS);
+  const auto count_colour = [&](double landmarks) {
+    const int level = std::clamp(static_cast<int>(255.0 * landmarks / max_landmarks), 0, 255);
+    const cv::Vec3b c = scale_colours.at<cv::Vec3b>(0, level);
+    return cv::Scalar(c[0], c[1], c[2]);
+  };
+
+  int y = 30;
+  for (const std::string& robot : robots) {
+    std::vector<const PlaceSummary*> list = by_robot[robot];
+    std::stable_sort(list.begin(), list.end(), [](const PlaceSummary* l, const PlaceSummary* r) {
+      return l->utime != r->utime ? l->utime < r->utime : l->sequence < r->sequence;
+    });
+    int64_t landmarks = 0;
+    std::map<std::string, int64_t> classes;
+    for (const PlaceSummary* place : list) {
+      landmarks += place->landmarks;
+      for (const auto& [name, count] : place->classes) classes[name] += count;
+    }
+    char caption[256];
+    std::snprintf(caption, sizeof(caption), "%s: %zu places, %lld landmarks, %.1f s", robot.c_str(),
+                  list.size(), static_cast<long long>(landmarks),
+                  (list.back()->utime - list.front()->utime) / 1e6);
+    Text(&image, caption, kLeft, y + 16);
+    y += kCaption;
+    // Pixel column x shows places [x n / W, (x + 1) n / W): several places share a column on a
+    // long run (their mean count and summed classes), a short run's places span several columns.
+    const int n = static_cast<int>(list.size());
+    for (int x = 0; x < kWidth; ++x) {
+      const int first = static_cast<int>(static_cast<int64_t>(x) * n / kWidth);
+      const int last =
+          std::max(first + 1, static_cast<int>(static_cast<int64_t>(x + 1) * n / kWidth));
+      double sum = 0;
+      std::map<std::string, int64_t> shares;
+      int64_t share_total = 0;
+      for (int i = first; i < last && i < n; ++i) {
+        sum += static_cast<double>(list[i]->landmarks);
+        for (const auto& [name, count] : list[i]->classes) {
+          shares[name] += count;
+          share_total += count;
+        }
+      }
+      const cv::Scalar colour =
+          sum > 0 ? count_colour(sum / (last - first)) : cv::Scalar(60, 60, 60);
+      cv::line(image, {kLeft + x, y}, {kLeft + x, y + kCountStrip - 3}, colour);
+      int top = y + kCountStrip;
+      int64_t done = 0;
+      for (const auto& [name, count] : shares) {
+        const int from = top + static_cast<int>(done * (kClassStrip - 2) / share_total);
+        done += count;
+        const int to = top + static_cast<int>(done * (kClassStrip - 2) / share_total);
+        if (to > from) cv::line(image, {kLeft + x, from}, {kLeft + x, to - 1}, colours[name]);
+      }
+    }
+    y += kCountStrip + kClassStrip;
+    const std::string counts = FormatClassCounts(classes);
+    Text(&image, counts.empty() ? "no landmarks" : "classes " + counts, kLeft, y + 14, 0.4);
+    y += kClassLine + kGap;
+  }
+  // Legend: the count scale, then the class colours.
+  for (int x = 0; x < 256; ++x) {
+    cv::line(image, {kLeft + x, y}, {kLeft + x, y + 12}, count_colour(max_landmarks * x / 255.0));
+  }
+  Text(&image, "0", kLeft, y + 28, 0.4);
+  Text(&image, std::to_string(max_landmarks) + " landmarks", kLeft + 220, y + 28, 0.4);
+  int x = kLeft + 340;
+  for (const auto& [name, colour] : colours) {
+    const std::string label = name.empty() ? "unclassified" : name;
+    cv::rectangle(image, cv::Rect(x, y, 12, 12), colour, cv::FILLED);
+    Text(&image, label, x + 16, y + 11, 0.4);
+    x += 24 + 8 * static_cast<int>(label.size());
+    if (x > kLeft + kWidth - 80) break;
+  }
+  return image;
+}
+
+}  // namespace
+
+StatusOr<ExportReport> ExportMap(const std::string& path, const std::string& out_dir) {
+  StatusOr<std::vector<PlaceSummary>> places = ReadPlaceSummaries(path);
+  if (!places.ok()) return places.status();
+  if (!MakeDirectories(out_dir)) {
+    return Status::IoError("cannot create " + out_dir + ": choose a folder you can write");
+  }
+  ExportReport report;
+  report.csv_path = out_dir + "/places.csv";
+  report.picture_path = out_dir + "/route.png";
+  {
+    std::ofstream csv(report.csv_path);
+    csv << "id,robot,sequence,utime,landmarks,descriptors,classes\n";
+    std::map<std::string, int> robots;
+    for (const PlaceSummary& place : *places) {
+      csv << place.id << ',' << CsvField(place.robot) << ',' << place.sequence << ',' << place.utime
+          << ',' << place.landmarks << ',' << place.descriptors << ','
+          << CsvField(FormatClassCounts(place.classes)) << '\n';
+      robots[place.robot] = 1;
+    }
+    report.robots = static_cast<int64_t>(robots.size());
+    if (!csv.flush()) return Status::IoError("cannot write " + report.csv_path);
+  }
+  report.places = static_cast<int64_t>(places->size());
+  const cv::Mat picture = DrawRoute(*places);
+  if (!cv::imwrite(report.picture_path, picture)) {
+    return Status::IoError("cannot write " + report.picture_path);
+  }
+  return report;
+}
+
+}  // namespace placerec

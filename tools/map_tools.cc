@@ -1,0 +1,751 @@
+#include "tools/map_tools.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <set>
+#include <system_error>
+#include <unordered_map>
+
+#include "common/recognition/types.h"
+#include "common/storage/schema.h"
+#include "common/storage/sqlite_db.h"
+#include "common/storage/sqlite_store.h"
+#include "proto/channels.h"
+
+namespace placerec {
+namespace {
+
+// What a refusal of a map held open by another process says.
+constexpr char kHeldOpenAdvice[] =
+    " is open in another process (a running placerec-server?): stop the server and run the "
+    "command again, or work on a copy of the map; info, export and check read a map while the "
+    "server runs";
+
+int64_t FileBytes(const std::string& path) {
+  std::error_code error;
+  const auto size = std::filesystem::file_size(path, error);
+  return error ? 0 : static_cast<int64_t>(size);
+}
+
+// Opens the map at `path` for reading only (a running server may hold it) and reads its schema
+// version: NotFound for a missing file or an empty database, IoError for a foreign or newer one.
+StatusOr<SqliteConnection> OpenReadOnly(const std::string& path, int* version) {
+  std::error_code ignored;
+  if (!std::filesystem::exists(path, ignored)) {
+    return Status::NotFound("no placerec map at " + path +
+                            ": give the map file a server or placerec-eval wrote (--db)");
+  }
+  sqlite3* raw = nullptr;
+  const int rc = sqlite3_open_v2(path.c_str(), &raw, SQLITE_OPEN_READONLY, nullptr);
+  SqliteConnection db(raw);
+  if (rc != SQLITE_OK) {
+    return Status::IoError("cannot open map " + path + ": " + SqliteMessage(raw, rc));
+  }
+  sqlite3_extended_result_codes(db.get(), 1);
+  sqlite3_busy_timeout(db.get(), 2000);
+  StatusOr<int> read = ReadSchemaVersion(db.get(), path);
+  if (!read.ok()) return read.status();
+  if (*read > kSqliteSchemaVersion) return NewerSchemaVersionError(path, *read);
+  if (*read == 0) return Status::NotFound(path + " holds no placerec map (an empty database)");
+  *version = *read;
+  return StatusOr<SqliteConnection>(std::move(db));
+}
+
+// Runs `sql` and calls `row` for each result row; the error names `what` and `path`.
+Status ForEachRow(sqlite3* db, const std::string& sql, const std::string& path,
+                  const std::string& what, const std::function<void(SqliteStatement&)>& bind,
+                  const std::function<void(const SqliteStatement&)>& row) {
+  SqliteStatement select;
+  int rc = SqliteStatement::Prepare(db, sql.c_str(), false, &select);
+  if (rc == SQLITE_OK) {
+    if (bind) bind(select);
+    while ((rc = select.Step()) == SQLITE_ROW) row(select);
+  }
+  if (rc != SQLITE_DONE) {
+    return Status::IoError("map " + path + ": cannot " + what + ": " + SqliteMessage(db, rc));
+  }
+  return Status::Ok();
+}
+
+std::string FormatUtime(int64_t utime) {
+  const time_t seconds = static_cast<time_t>(utime / 1000000);
+  std::tm tm{};
+  gmtime_r(&seconds, &tm);
+  char text[32];
+  std::strftime(text, sizeof(text), "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return text;
+}
+
+std::string FormatBytes(int64_t bytes) {
+  char text[32];
+  if (bytes >= (int64_t{1} << 20)) {
+    std::snprintf(text, sizeof(text), "%.1f MiB", static_cast<double>(bytes) / (1 << 20));
+  } else {
+    std::snprintf(text, sizeof(text), "%.1f KiB", static_cast<double>(bytes) / 1024);
+  }
+  return text;
+}
+
+// Removes `path` and its SQLite companions.
+void RemoveMapFiles(const std::string& path) {
+  std::error_code ignored;
+  for (const char* suffix : {"", "-wal", "-shm", "-journal"}) {
+    std::filesystem::remove(path + suffix, ignored);
+  }
+}
+
+}  // namespace
+
+// ---- info -----------------------------------------------------------------------------------
+
+nlohmann::json MapInfo::ToJson() const {
+  nlohmann::json json;
+  json["path"] = path;
+  json["file_bytes"] = file_bytes;
+  json["wal_bytes"] = wal_bytes;
+  json["schema_version"] = schema_version;
+  json["places"] = places;
+  json["landmarks"] = landmarks;
+  json["descriptors"] = descriptors;
+  json["sightings"] = sightings;
+  json["robots"] = nlohmann::json::array();
+  for (const RobotInfo& robot : robots) {
+    json["robots"].push_back({{"robot", robot.robot},
+                              {"places", robot.places},
+                              {"landmarks", robot.landmarks},
+                              {"descriptors", robot.descriptors},
+                              {"first_sequence", robot.first_sequence},
+                              {"last_sequence", robot.last_sequence},
+                              {"first_utime", robot.first_utime},
+                              {"last_utime", robot.last_utime},
+                              {"span_s", (robot.last_utime - robot.first_utime) / 1e6}});
+  }
+  json["classes"] = nlohmann::json::array();
+  for (const ClassInfo& item : classes) {
+    json["classes"].push_back(
+        {{"class",
+          item.object_class.empty() ? nlohmann::json() : nlohmann::json(item.object_class)},
+         {"landmarks", item.landmarks},
+         {"descriptors", item.descriptors}});
+  }
+  return json;
+}
+
+std::string MapInfo::ToText() const {
+  std::string text;
+  char line[512];
+  std::snprintf(line, sizeof(line), "map %s: schema version %d, %s", path.c_str(), schema_version,
+                FormatBytes(file_bytes).c_str());
+  text += line;
+  if (wal_bytes > 0) text += " (+ " + FormatBytes(wal_bytes) + " not yet checkpointed in -wal)";
+  std::snprintf(line, sizeof(line),
+                "\n  %lld places, %lld landmarks, %lld descriptors, %lld sightings\n",
+                static_cast<long long>(places), static_cast<long long>(landmarks),
+                static_cast<long long>(descriptors), static_cast<long long>(sightings));
+  text += line;
+  text += "by robot:\n";
+  for (const RobotInfo& robot : robots) {
+    std::snprintf(
+        line, sizeof(line),
+        "  %-20s %6lld places %8lld landmarks %10lld descriptors  sequence %lld..%lld  "
+        "%s .. %s (%.1f s)\n",
+        robot.robot.c_str(), static_cast<long long>(robot.places),
+        static_cast<long long>(robot.landmarks), static_cast<long long>(robot.descriptors),
+        static_cast<long long>(robot.first_sequence), static_cast<long long>(robot.last_sequence),
+        FormatUtime(robot.first_utime).c_str(), FormatUtime(robot.last_utime).c_str(),
+        (robot.last_utime - robot.first_utime) / 1e6);
+    text += line;
+  }
+  text += "by object class:\n";
+  for (const ClassInfo& item : classes) {
+    std::snprintf(line, sizeof(line), "  %-20s %8lld landmarks %10lld descriptors\n",
+                  item.object_class.empty() ? "(unclassified)" : item.object_class.c_str(),
+                  static_cast<long long>(item.landmarks), static_cast<long long>(item.descriptors));
+    text += line;
+  }
+  return text;
+}
+
+StatusOr<MapInfo> ReadMapInfo(const std::string& path) {
+  MapInfo info;
+  info.path = path;
+  StatusOr<SqliteConnection> db = OpenReadOnly(path, &info.schema_version);
+  if (!db.ok()) return db.status();
+  sqlite3* c = db->get();
+  info.file_bytes = FileBytes(path);
+  info.wal_bytes = FileBytes(path + "-wal");
+  // One read transaction: every count from the same snapshot while a server writes.
+  SqliteTransaction snapshot(c);
+  const int rc = snapshot.Begin(/*immediate=*/false);
+  if (rc != SQLITE_OK) return Status::IoError("map " + path + ": " + SqliteMessage(c, rc));
+  const bool v2 = info.schema_version >= 2;
+  PLACEREC_RETURN_IF_ERROR(ForEachRow(
+      c,
+      std::string("SELECT (SELECT COUNT(*) FROM places), (SELECT COUNT(*) FROM landmarks), "
+                  "(SELECT COALESCE(SUM(num_descriptors), 0) FROM landmarks), ") +
+          (v2 ? "(SELECT COUNT(*) FROM sightings)" : "0"),
+      path, "count the map", nullptr, [&](const SqliteStatement& row) {
+        info.places = row.ColumnInt(0);
+        info.landmarks = row.ColumnInt(1);
+        info.descriptors = row.ColumnInt(2);
+        info.sightings = row.ColumnInt(3);
+      }));
+  PLACEREC_RETURN_IF_ERROR(ForEachRow(
+      c,
+      "SELECT robot, COUNT(*), MIN(sequence), MAX(sequence), MIN(utime), MAX(utime) FROM places "
+      "GROUP BY robot ORDER BY robot",
+      path, "list robots", nullptr, [&](const SqliteStatement& row) {
+        RobotInfo robot;
+        robot.robot = row.ColumnText(0);
+        robot.places = row.ColumnInt(1);
+        robot.first_sequence = row.ColumnInt(2);
+        robot.last_sequence = row.ColumnInt(3);
+        robot.first_utime = row.ColumnInt(4);
+        robot.last_utime = row.ColumnInt(5);
+        info.robots.push_back(robot);
+      }));
+  PLACEREC_RETURN_IF_ERROR(ForEachRow(
+      c,
+      "SELECT p.robot, COUNT(*), COALESCE(SUM(l.num_descriptors), 0) FROM landmarks l JOIN "
+      "places p ON p.id = l.place_id GROUP BY p.robot",
+      path, "count landmarks by robot", nullptr, [&](const SqliteStatement& row) {
+        const std::string robot = row.ColumnText(0);
+        for (RobotInfo& item : info.robots) {
+          if (item.robot == robot) {
+            item.landmarks = row.ColumnInt(1);
+            item.descriptors = row.ColumnInt(2);
+          }
+        }
+      }));
+  PLACEREC_RETURN_IF_ERROR(ForEachRow(
+      c,
+      v2 ? "SELECT COALESCE(object_class, ''), COUNT(*), COALESCE(SUM(num_descriptors), 0) FROM "
+           "landmarks GROUP BY 1 ORDER BY 1"
+         : "SELECT '', COUNT(*), COALESCE(SUM(num_descriptors), 0) FROM landmarks",
+      path, "count landmarks by class", nullptr, [&](const SqliteStatement& row) {
+        if (row.ColumnInt(1) == 0) return;
+        info.classes.push_back({row.ColumnText(0), row.ColumnInt(1), row.ColumnInt(2)});
+      }));
+  return info;
+}
+
+// ---- export ---------------------------------------------------------------------------------
+
+StatusOr<std::vector<PlaceSummary>> ReadPlaceSummaries(const std::string& path) {
+  int version = 0;
+  StatusOr<SqliteConnection> db = OpenReadOnly(path, &version);
+  if (!db.ok()) return db.status();
+  sqlite3* c = db->get();
+  SqliteTransaction snapshot(c);
+  const int rc = snapshot.Begin(/*immediate=*/false);
+  if (rc != SQLITE_OK) return Status::IoError("map " + path + ": " + SqliteMessage(c, rc));
+  std::vector<PlaceSummary> places;
+  std::unordered_map<int64_t, size_t> index;
+  PLACEREC_RETURN_IF_ERROR(
+      ForEachRow(c, "SELECT id, robot, sequence, utime FROM places ORDER BY id", path,
+                 "list places", nullptr, [&](const SqliteStatement& row) {
+                   PlaceSummary place;
+                   place.id = row.ColumnInt(0);
+                   place.robot = row.ColumnText(1);
+                   place.sequence = row.ColumnInt(2);
+                   place.utime = row.ColumnInt(3);
+                   index[place.id] = places.size();
+                   places.push_back(std::move(place));
+                 }));
+  PLACEREC_RETURN_IF_ERROR(ForEachRow(
+      c,
+      version >= 2 ? "SELECT place_id, COALESCE(object_class, ''), COUNT(*), "
+                     "COALESCE(SUM(num_descriptors), 0) FROM landmarks GROUP BY 1, 2"
+                   : "SELECT place_id, '', COUNT(*), COALESCE(SUM(num_descriptors), 0) FROM "
+                     "landmarks GROUP BY 1",
+      path, "count landmarks by place", nullptr, [&](const SqliteStatement& row) {
+        const auto found = index.find(row.ColumnInt(0));
+        if (found == index.end()) return;  // a landmark without its place: check reports it
+        PlaceSummary& place = places[found->second];
+        place.landmarks += row.ColumnInt(2);
+        place.descriptors += row.ColumnInt(3);
+        place.classes[row.ColumnText(1)] += row.ColumnInt(2);
+      }));
+  return places;
+}
+
+std::string FormatClassCounts(const std::map<std::string, int64_t>& classes) {
+  std::string text;
+  for (const auto& [name, count] : classes) {
+    if (name.empty() || count == 0) continue;
+    text += (text.empty() ? "" : ";") + name + ":" + std::to_string(count);
+  }
+  const auto unclassified = classes.find("");
+  if (unclassified != classes.end() && unclassified->second > 0) {
+    text += (text.empty() ? "" : ";") + std::string("unclassified:") +
+            std::to_string(unclassified->second);
+  }
+  return text;
+}
+
+// ---- prune ----------------------------------------------------------------------------------
+
+bool PruneOptions::Check(std::string* error) const {
+  if (before_utime < 0) {
+    *error = "--before must be a time after 1970";
+    return false;
+  }
+  if (before_utime == 0 && robot.empty()) {
+    *error = "say what to drop: --before UTIME_OR_ISO_DATE, --robot ID, or both";
+    return false;
+  }
+  if (busy_timeout_ms < 0) {
+    *error = "busy_timeout_ms must be >= 0";
+    return false;
+  }
+  return true;
+}
+
+StatusOr<int64_t> ParseTimeArgument(const std::string& text) {
+  if (!text.empty() &&
+      std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+    if (text.size() > 18) return Status::InvalidArgument("--before " + text + " is too large");
+    return static_cast<int64_t>(std::stoll(text));
+  }
+  std::tm tm{};
+  int consumed = 0;
+  int year = 0, month = 0, day = 0, hour = 0, minute = 0, second = 0;
+  const int fields = std::sscanf(text.c_str(), "%4d-%2d-%2d%n", &year, &month, &day, &consumed);
+  bool ok = fields == 3;
+  size_t at = static_cast<size_t>(consumed);
+  if (ok && at < text.size()) {
+    int more = 0;
+    ok = (text[at] == 'T' || text[at] == ' ') &&
+         std::sscanf(text.c_str() + at + 1, "%2d:%2d%n", &hour, &minute, &more) == 2;
+    at += 1 + static_cast<size_t>(more);
+    if (ok && at < text.size() && text[at] == ':') {
+      more = 0;
+      ok = std::sscanf(text.c_str() + at + 1, "%2d%n", &second, &more) == 1;
+      at += 1 + static_cast<size_t>(more);
+    }
+    if (ok && at < text.size() && text[at] == 'Z') ++at;
+    ok = ok && at == text.size();
+  }
+  ok = ok && month >= 1 && month <= 12 && day >= 1 && day <= 31 && hour >= 0 && hour < 24 &&
+       minute >= 0 && minute < 60 && second >= 0 && second < 61 && year >= 1970;
+  if (!ok) {
+    return Status::InvalidArgument(
+        "cannot read the time '" + text +
+        "': give microseconds since the epoch (e.g. 1764576000000000) or an ISO date or UTC "
+        "time (2026-12-01, 2026-12-01T08:30, 2026-12-01T08:30:15Z)");
+  }
+  tm.tm_year = year - 1900;
+  tm.tm_mon = month - 1;
+  tm.tm_mday = day;
+  tm.tm_hour = hour;
+  tm.tm_min = minute;
+  tm.tm_sec = second;
+  return static_cast<int64_t>(timegm(&tm)) * 1000000;
+}
+
+StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& options) {
+  std::string error;
+  if (!options.Check(&error)) return Status::InvalidArgument(error);
+  std::error_code ignored;
+  if (!std::filesystem::exists(path, ignored)) {
+    return Status::NotFound("no placerec map at " + path);
+  }
+  sqlite3* raw = nullptr;
+  int rc = sqlite3_open_v2(path.c_str(), &raw, SQLITE_OPEN_READWRITE, nullptr);
+  SqliteConnection db(raw);
+  if (rc != SQLITE_OK) {
+    return Status::IoError("cannot open map " + path + ": " + SqliteMessage(raw, rc));
+  }
+  sqlite3* c = db.get();
+  if (sqlite3_db_readonly(c, "main") == 1) {
+    return Status::IoError("map " + path +
+                           " cannot be written (a read-only file or folder): make it writable, or "
+                           "prune a writable copy");
+  }
+  sqlite3_extended_result_codes(c, 1);
+  sqlite3_busy_timeout(c, options.busy_timeout_ms);
+  // Exclusive locking mode before the first access: the connection takes the file's exclusive
+  // lock and keeps it until it closes. A server holds a shared lock on its map for as long as it
+  // has it open (WAL mode), so a map in use is refused here instead of changing under the server.
+  // A dry run only reads (one snapshot), and may run beside a server.
+  if (!options.dry_run) {
+    PLACEREC_RETURN_IF_ERROR(SqliteExec(c, "PRAGMA locking_mode = EXCLUSIVE", path));
+  }
+  PLACEREC_RETURN_IF_ERROR(SqliteExec(c, "PRAGMA foreign_keys = ON", path));
+  rc = sqlite3_exec(c, options.dry_run ? "BEGIN" : "BEGIN EXCLUSIVE", nullptr, nullptr, nullptr);
+  if ((rc & 0xff) == SQLITE_BUSY || (rc & 0xff) == SQLITE_LOCKED) {
+    return Status::IoError("map " + path + kHeldOpenAdvice);
+  }
+  if (rc != SQLITE_OK) {
+    return Status::IoError("cannot lock map " + path + ": " + SqliteMessage(c, rc));
+  }
+  // Rolls back unless committed below; every exit before the commit leaves the map unchanged.
+  struct Rollback {
+    sqlite3* db;
+    bool armed = true;
+    ~Rollback() {
+      if (armed) sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr);
+    }
+  } rollback{c};
+
+  StatusOr<int> version = ReadSchemaVersion(c, path);
+  if (!version.ok()) return version.status();
+  if (*version > kSqliteSchemaVersion) return NewerSchemaVersionError(path, *version);
+  if (*version < kSqliteSchemaVersion) {
+    return Status::IoError("map " + path + " has schema version " + std::to_string(*version) +
+                           ": open it once with this build's placerec-server (which upgrades it "
+                           "to version " +
+                           std::to_string(kSqliteSchemaVersion) + "), then prune it");
+  }
+
+  const std::string doomed =
+      "SELECT id FROM places WHERE (?1 IS NULL OR utime < ?1) AND (?2 IS NULL OR robot = ?2)";
+  const std::string doomed_landmarks =
+      "SELECT id FROM landmarks WHERE place_id IN (" + doomed + ")";
+  const auto bind = [&options](SqliteStatement& statement) {
+    if (options.before_utime > 0) {
+      statement.BindInt(1, options.before_utime);
+    } else {
+      statement.BindNull(1);
+    }
+    if (!options.robot.empty()) {
+      statement.BindText(2, options.robot);
+    } else {
+      statement.BindNull(2);
+    }
+  };
+  PruneReport report;
+  report.dry_run = options.dry_run;
+  PLACEREC_RETURN_IF_ERROR(ForEachRow(
+      c,
+      "SELECT robot, COUNT(*) FROM places WHERE (?1 IS NULL OR utime < ?1) AND (?2 IS NULL OR "
+      "robot = ?2) GROUP BY robot",
+      path, "select places", bind, [&](const SqliteStatement& row) {
+        report.places_by_robot[row.ColumnText(0)] = row.ColumnInt(1);
+        report.places += row.ColumnInt(1);
+      }));
+  PLACEREC_RETURN_IF_ERROR(ForEachRow(
+      c,
+      "SELECT COUNT(*), COALESCE(SUM(num_descriptors), 0) FROM landmarks WHERE place_id IN (" +
+          doomed + ")",
+      path, "select landmarks", bind, [&](const SqliteStatement& row) {
+        report.landmarks = row.ColumnInt(0);
+        report.descriptors = row.ColumnInt(1);
+      }));
+  const std::string sightings_where = " FROM sightings WHERE place_id IN (" + doomed +
+                                      ") OR landmark_id IN (" + doomed_landmarks + ")";
+  PLACEREC_RETURN_IF_ERROR(
+      ForEachRow(c, "SELECT COUNT(*)" + sightings_where, path, "select sightings", bind,
+                 [&](const SqliteStatement& row) { report.sightings = row.ColumnInt(0); }));
+
+  if (!options.dry_run && report.places > 0) {
+    // Sightings first, then landmarks, then places: the foreign keys hold at every step.
+    const auto noop = [](const SqliteStatement&) {};
+    PLACEREC_RETURN_IF_ERROR(
+        ForEachRow(c, "DELETE" + sightings_where, path, "delete sightings", bind, noop));
+    PLACEREC_RETURN_IF_ERROR(ForEachRow(c,
+                                        "DELETE FROM landmarks WHERE place_id IN (" + doomed + ")",
+                                        path, "delete landmarks", bind, noop));
+    PLACEREC_RETURN_IF_ERROR(ForEachRow(
+        c, "DELETE FROM places WHERE (?1 IS NULL OR utime < ?1) AND (?2 IS NULL OR robot = ?2)",
+        path, "delete places", bind, noop));
+    // What the server's next start relies on: nothing refers to a dropped row.
+    int64_t dangling = 0;
+    PLACEREC_RETURN_IF_ERROR(ForEachRow(c, "PRAGMA foreign_key_check", path, "check foreign keys",
+                                        nullptr, [&](const SqliteStatement&) { ++dangling; }));
+    if (dangling > 0) {
+      return Status::IoError("map " + path + ": pruning would leave " + std::to_string(dangling) +
+                             " rows referring to dropped ones; nothing was changed (run "
+                             "placerec-map check on it)");
+    }
+  }
+  PLACEREC_RETURN_IF_ERROR(ForEachRow(
+      c, "SELECT (SELECT COUNT(*) FROM places), (SELECT COUNT(*) FROM landmarks)", path,
+      "count the map", nullptr, [&](const SqliteStatement& row) {
+        report.places_kept = row.ColumnInt(0) - (options.dry_run ? report.places : 0);
+        report.landmarks_kept = row.ColumnInt(1) - (options.dry_run ? report.landmarks : 0);
+      }));
+  if (options.dry_run) return report;  // rolled back
+  rc = sqlite3_exec(c, "COMMIT", nullptr, nullptr, nullptr);
+  if (rc != SQLITE_OK) {
+    return Status::IoError("map " + path + ": cannot commit the pruning (nothing was changed): " +
+                           SqliteMessage(c, rc));
+  }
+  rollback.armed = false;
+  return report;
+}
+
+// ---- merge ----------------------------------------------------------------------------------
+
+bool MergeOptions::Check(std::string* error) const {
+  const bool valid = !suffix.empty() && std::all_of(suffix.begin(), suffix.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
+           c == '-' || c == '.';
+  });
+  if (!valid) {
+    *error =
+        "--suffix must be 1 or more ASCII letters, digits, '_', '-' or '.' (robot id "
+        "characters)";
+    return false;
+  }
+  return true;
+}
+
+std::string MergedRobotId(const std::string& robot, const std::vector<std::string>& taken_in_a,
+                          const std::vector<std::string>& taken, const std::string& suffix) {
+  if (std::find(taken_in_a.begin(), taken_in_a.end(), robot) == taken_in_a.end()) return robot;
+  for (int n = 1;; ++n) {
+    const std::string name = robot + suffix + (n == 1 ? "" : std::to_string(n));
+    if (std::find(taken.begin(), taken.end(), name) == taken.end()) return name;
+  }
+}
+
+namespace {
+
+// Copies every place of `from` (listed in `places`, id order) with its landmarks into `to`,
+// streaming the landmarks (id order, grouped by place as AddPlace writes them). Robots are
+// renamed by `rename`; sightings follow their landmarks' new ids.
+Status CopyMap(const LandmarkStore& from, const std::vector<Place>& places,
+               const std::unordered_map<std::string, std::string>& rename, LandmarkStore* to,
+               MergeInput* input) {
+  std::unordered_map<int64_t, LandmarkId> new_ids;
+  size_t next = 0;  // the first place not yet written
+  bool have_current = false;
+  size_t current = 0;
+  std::vector<Landmark> pending;
+  Status failed = Status::Ok();
+  const auto write = [&](size_t i, std::vector<Landmark>* landmarks) -> Status {
+    Place place = places[i];
+    if (landmarks->size() != static_cast<size_t>(place.num_landmarks)) {
+      return Status::IoError(from.Describe() + ": place " + std::to_string(place.id.value()) +
+                             " lists " + std::to_string(place.num_landmarks) +
+                             " landmarks but has " + std::to_string(landmarks->size()) +
+                             "; run placerec-map check on it");
+    }
+    place.id = PlaceId();
+    const auto renamed = rename.find(place.robot);
+    if (renamed != rename.end()) place.robot = renamed->second;
+    std::vector<LandmarkId> seen;
+    for (const LandmarkId old : place.seen_landmarks) {
+      const auto found = new_ids.find(old.value());
+      if (found == new_ids.end()) {
+        return Status::IoError(from.Describe() + ": place " + std::to_string(places[i].id.value()) +
+                               " saw landmark " + std::to_string(old.value()) +
+                               ", which is not stored before it; run placerec-map check on it");
+      }
+      seen.push_back(found->second);
+    }
+    std::sort(seen.begin(), seen.end());
+    input->sightings += static_cast<int64_t>(seen.size());
+    place.seen_landmarks = std::move(seen);
+    std::vector<int64_t> old_ids;
+    for (const Landmark& landmark : *landmarks) old_ids.push_back(landmark.id.value());
+    PLACEREC_RETURN_IF_ERROR(to->AddPlace(&place, landmarks));
+    for (size_t k = 0; k < old_ids.size(); ++k) new_ids[old_ids[k]] = (*landmarks)[k].id;
+    ++input->places;
+    input->landmarks += static_cast<int64_t>(landmarks->size());
+    for (const Landmark& landmark : *landmarks) input->descriptors += landmark.num_descriptors();
+    return Status::Ok();
+  };
+  std::vector<Landmark> none;
+  const auto flush_current = [&]() -> Status {
+    if (!have_current) return Status::Ok();
+    have_current = false;
+    return write(current, &pending);
+  };
+  const int64_t last_place = places.empty() ? 0 : places.back().id.value();
+  const Status loaded = from.LoadLandmarks([&](Landmark&& landmark) {
+    if (!failed.ok()) return;
+    const int64_t place = landmark.place.value();
+    if (place > last_place) return;  // its place was added after the listing (a running server)
+    if (have_current && places[current].id.value() == place) {
+      pending.push_back(std::move(landmark));
+      return;
+    }
+    failed = flush_current();
+    while (failed.ok() && next < places.size() && places[next].id.value() < place) {
+      none.clear();
+      failed = write(next++, &none);
+    }
+    if (!failed.ok()) return;
+    if (next < places.size() && places[next].id.value() == place) {
+      current = next++;
+      have_current = true;
+      pending.clear();
+      pending.push_back(std::move(landmark));
+    } else {
+      failed =
+          Status::IoError(from.Describe() + ": landmark " + std::to_string(landmark.id.value()) +
+                          " belongs to place " + std::to_string(place) +
+                          ", which is missing or out of order; run placerec-map check on it");
+    }
+  });
+  PLACEREC_RETURN_IF_ERROR(loaded);
+  PLACEREC_RETURN_IF_ERROR(failed);
+  PLACEREC_RETURN_IF_ERROR(flush_current());
+  while (next < places.size()) {
+    none.clear();
+    PLACEREC_RETURN_IF_ERROR(write(next++, &none));
+  }
+  return Status::Ok();
+}
+
+}  // namespace
+
+StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, const std::string& out,
+                                const MergeOptions& options) {
+  std::string error;
+  if (!options.Check(&error)) return Status::InvalidArgument(error);
+  if (out.empty()) return Status::InvalidArgument("merge needs --out FILE");
+  std::error_code ignored;
+  if (std::filesystem::exists(out, ignored)) {
+    return Status::InvalidArgument(out +
+                                   " exists: merge writes a new map; remove it or choose "
+                                   "another --out");
+  }
+  SqliteStoreOptions read;
+  read.must_exist = true;
+  StatusOr<std::unique_ptr<LandmarkStore>> store_a = OpenSqliteStore(a, read);
+  if (!store_a.ok()) return store_a.status();
+  StatusOr<std::unique_ptr<LandmarkStore>> store_b = OpenSqliteStore(b, read);
+  if (!store_b.ok()) return store_b.status();
+  std::vector<Place> places_a, places_b;
+  PLACEREC_RETURN_IF_ERROR(
+      (*store_a)->LoadPlaces([&](const Place& place) { places_a.push_back(place); }));
+  PLACEREC_RETURN_IF_ERROR(
+      (*store_b)->LoadPlaces([&](const Place& place) { places_b.push_back(place); }));
+
+  // B's robot ids, renamed where A has them too; refused before anything is written when a new
+  // id would not fit a robot id on the wire.
+  std::set<std::string> robots_a, robots_b;
+  for (const Place& place : places_a) robots_a.insert(place.robot);
+  for (const Place& place : places_b) robots_b.insert(place.robot);
+  std::vector<std::string> taken_in_a(robots_a.begin(), robots_a.end());
+  std::vector<std::string> taken = taken_in_a;
+  taken.insert(taken.end(), robots_b.begin(), robots_b.end());
+  MergeReport report;
+  std::unordered_map<std::string, std::string> rename;
+  for (const std::string& robot : robots_b) {
+    const std::string name = MergedRobotId(robot, taken_in_a, taken, options.suffix);
+    if (name == robot) continue;
+    if (name.size() > kMaxWireRobotIdLength) {
+      return Status::InvalidArgument(
+          "robot '" + robot + "' is in both maps, and its new name in the merged map, '" + name +
+          "', would have " + std::to_string(name.size()) + " bytes, over the " +
+          std::to_string(kMaxWireRobotIdLength) +
+          "-byte limit of robot ids; nothing was written. Give a shorter --suffix, or drop that "
+          "robot from one map first (placerec-map prune --robot ID on a copy)");
+    }
+    taken.push_back(name);
+    rename[robot] = name;
+    report.renamed.emplace_back(robot, name);
+  }
+
+  const std::string temporary = out + ".merging";
+  RemoveMapFiles(temporary);
+  {
+    SqliteStoreOptions write;
+    write.synchronous_full = false;  // the file is synced when closed, before the rename
+    write.quick_check = false;
+    StatusOr<std::unique_ptr<LandmarkStore>> merged = OpenSqliteStore(temporary, write);
+    if (!merged.ok()) return merged.status();
+    report.a.path = a;
+    report.b.path = b;
+    Status copied = CopyMap(**store_a, places_a, {}, merged->get(), &report.a);
+    if (copied.ok()) copied = CopyMap(**store_b, places_b, rename, merged->get(), &report.b);
+    if (!copied.ok()) {
+      merged->reset();
+      RemoveMapFiles(temporary);
+      return copied;
+    }
+  }  // closed: the last connection checkpoints the WAL into the file and removes it
+  // A hard link never replaces an existing file (another process may have created `out`).
+  std::error_code link_error;
+  std::filesystem::create_hard_link(temporary, out, link_error);
+  if (link_error) {
+    RemoveMapFiles(temporary);
+    return Status::IoError("cannot create " + out + ": " + link_error.message() +
+                           "; nothing was written");
+  }
+  RemoveMapFiles(temporary);
+  report.places = report.a.places + report.b.places;
+  report.landmarks = report.a.landmarks + report.b.landmarks;
+  return report;
+}
+
+// ---- check ----------------------------------------------------------------------------------
+
+StatusOr<CheckReport> CheckMap(const std::string& path) {
+  CheckReport report;
+  {
+    int version = 0;
+    StatusOr<SqliteConnection> db = OpenReadOnly(path, &version);
+    if (!db.ok()) return db.status();
+    sqlite3* c = db->get();
+    const Status integrity =
+        ForEachRow(c, "PRAGMA integrity_check(100)", path, "run integrity_check", nullptr,
+                   [&](const SqliteStatement& row) {
+                     const std::string line = row.ColumnText(0);
+                     if (line != "ok") report.problems.push_back("integrity_check: " + line);
+                   });
+    if (!integrity.ok()) report.problems.push_back(integrity.message());
+    int dangling = 0;
+    const Status keys = ForEachRow(c, "PRAGMA foreign_key_check", path, "check foreign keys",
+                                   nullptr, [&](const SqliteStatement& row) {
+                                     if (++dangling <= 10) {
+                                       report.problems.push_back(row.ColumnText(0) + " row " +
+                                                                 std::to_string(row.ColumnInt(1)) +
+                                                                 " refers to a missing " +
+                                                                 row.ColumnText(2) + " row");
+                                     }
+                                   });
+    if (!keys.ok()) report.problems.push_back(keys.message());
+    const Status counts = ForEachRow(
+        c,
+        "SELECT id, num_landmarks, n FROM (SELECT p.id, p.num_landmarks, (SELECT COUNT(*) FROM "
+        "landmarks l WHERE l.place_id = p.id) AS n FROM places p) WHERE num_landmarks != n LIMIT "
+        "10",
+        path, "count landmarks per place", nullptr, [&](const SqliteStatement& row) {
+          report.problems.push_back("place " + std::to_string(row.ColumnInt(0)) + " lists " +
+                                    std::to_string(row.ColumnInt(1)) + " landmarks but has " +
+                                    std::to_string(row.ColumnInt(2)));
+        });
+    if (!counts.ok()) report.problems.push_back(counts.message());
+  }
+  // Every place and landmark read back through the store: fields in range, BLOBs decoded.
+  SqliteStoreOptions options;
+  options.must_exist = true;
+  options.quick_check = false;  // integrity_check above is the full version
+  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(path, options);
+  if (!store.ok()) {
+    report.problems.push_back("the store cannot open it: " + store.status().message());
+    return report;
+  }
+  const Status places = (*store)->LoadPlaces([&](const Place& place) {
+    ++report.places;
+    const Status valid = place.Validate();
+    if (!valid.ok()) {
+      report.problems.push_back("place " + std::to_string(place.id.value()) + ": " +
+                                valid.message());
+    }
+  });
+  if (!places.ok()) report.problems.push_back(places.message());
+  const Status landmarks = (*store)->LoadLandmarks([&](Landmark&& landmark) {
+    ++report.landmarks;
+    const Status valid = landmark.Validate();
+    if (!valid.ok()) {
+      report.problems.push_back("landmark " + std::to_string(landmark.id.value()) + ": " +
+                                valid.message());
+    }
+  });
+  if (!landmarks.ok()) report.problems.push_back(landmarks.message());
+  return report;
+}
+
+}  // namespace placerec

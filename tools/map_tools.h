@@ -1,0 +1,180 @@
+// The map tools of `placerec-map` (issue 22 item 5): look at, export, prune, merge and check a
+// SQLite landmark map (common/storage) without a running server. Commands that only read (info,
+// export, check, and the inputs of merge) work while a server has the map open; commands that
+// write (prune) take SQLite's exclusive lock first and refuse a map another process holds open,
+// so a running server never sees its map change under it. Writing is all-or-nothing: prune runs
+// in one transaction, merge writes a temporary file and renames it into place.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "common/util/status.h"
+
+namespace placerec {
+
+// ---- info -----------------------------------------------------------------------------------
+
+struct RobotInfo {
+  std::string robot;
+  int64_t places = 0;
+  int64_t landmarks = 0;
+  int64_t descriptors = 0;
+  int64_t first_sequence = 0, last_sequence = 0;
+  int64_t first_utime = 0, last_utime = 0;  // microseconds since the epoch
+};
+
+struct ClassInfo {
+  std::string object_class;  // empty: unclassified
+  int64_t landmarks = 0;
+  int64_t descriptors = 0;
+};
+
+struct MapInfo {
+  std::string path;
+  int64_t file_bytes = 0;  // the map file
+  int64_t wal_bytes = 0;   // its -wal companion (commits not yet checkpointed), 0 when absent
+  int schema_version = 0;
+  int64_t places = 0;
+  int64_t landmarks = 0;
+  int64_t descriptors = 0;
+  int64_t sightings = 0;
+  std::vector<RobotInfo> robots;   // by robot id
+  std::vector<ClassInfo> classes;  // by class name, unclassified first
+
+  nlohmann::json ToJson() const;
+  std::string ToText() const;
+};
+
+// Reads the counts of the map at `path` through a read-only connection (works while a server
+// runs). NotFound for a missing file, IoError for a file that is not a placerec map or is newer.
+StatusOr<MapInfo> ReadMapInfo(const std::string& path);
+
+// ---- export ---------------------------------------------------------------------------------
+
+// One place of the map with its landmark counts.
+struct PlaceSummary {
+  int64_t id = 0;
+  std::string robot;
+  int64_t sequence = 0;
+  int64_t utime = 0;
+  int64_t landmarks = 0;
+  int64_t descriptors = 0;
+  std::map<std::string, int64_t> classes;  // object class -> landmarks; "" for unclassified
+};
+
+// Every place of the map, in id order (read-only, like ReadMapInfo).
+StatusOr<std::vector<PlaceSummary>> ReadPlaceSummaries(const std::string& path);
+
+// "building:3;sign:1": the classified landmarks by class name, unclassified ones last as
+// "unclassified:N"; empty for a place without landmarks.
+std::string FormatClassCounts(const std::map<std::string, int64_t>& classes);
+
+struct ExportReport {
+  int64_t places = 0;
+  int64_t robots = 0;
+  std::string csv_path;
+  std::string picture_path;
+};
+
+// Writes out_dir/places.csv (id,robot,sequence,utime,landmarks,descriptors,classes) and
+// out_dir/route.png (per robot a timeline strip of its places coloured by landmark count, a strip
+// of their class shares, and the robot's class counts). Creates out_dir.
+StatusOr<ExportReport> ExportMap(const std::string& path, const std::string& out_dir);
+
+// ---- prune ----------------------------------------------------------------------------------
+
+struct PruneOptions {
+  // Drop places captured before this time (microseconds since the epoch); 0: no time limit.
+  int64_t before_utime = 0;
+  // Drop the places of this robot; empty: every robot. With before_utime too, only that robot's
+  // places before the time.
+  std::string robot;
+  // Count what would be dropped, change nothing; reads only, so it may run beside a server.
+  bool dry_run = false;
+  // How long to wait for another connection's lock before refusing the map (milliseconds).
+  int busy_timeout_ms = 200;
+
+  bool Check(std::string* error) const;
+};
+
+struct PruneReport {
+  bool dry_run = false;
+  int64_t places = 0;       // places dropped (or that would be)
+  int64_t landmarks = 0;    // their landmarks
+  int64_t descriptors = 0;  // those landmarks' descriptors
+  int64_t sightings = 0;    // sightings by the dropped places or of their landmarks
+  std::map<std::string, int64_t> places_by_robot;
+  int64_t places_kept = 0;
+  int64_t landmarks_kept = 0;
+};
+
+// Drops the places options select, their landmarks, and the sightings by them or of their
+// landmarks, in one exclusive transaction: on any error the map is unchanged. Refuses (IoError)
+// a map another process holds open, e.g. a running server.
+StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& options);
+
+// A time for --before: microseconds since the epoch (digits only), or an ISO 8601 date or UTC
+// time: 2026-12-01, 2026-12-01T08:30, 2026-12-01T08:30:15 or 2026-12-01T08:30:15Z.
+StatusOr<int64_t> ParseTimeArgument(const std::string& text);
+
+// ---- merge ----------------------------------------------------------------------------------
+
+struct MergeOptions {
+  // A robot id of the second map that the first map also has gets this suffix (then suffix + 2,
+  // suffix + 3, ... while the name is taken in either map). Letters, digits, '_', '-', '.': the
+  // characters a robot id may have on the wire (proto/README.md).
+  std::string suffix = ".b";
+
+  bool Check(std::string* error) const;
+};
+
+struct MergeInput {
+  std::string path;
+  int64_t places = 0;
+  int64_t landmarks = 0;
+  int64_t descriptors = 0;
+  int64_t sightings = 0;
+};
+
+struct MergeReport {
+  MergeInput a, b;
+  std::vector<std::pair<std::string, std::string>> renamed;  // B's robot id -> its id in C
+  int64_t places = 0;
+  int64_t landmarks = 0;
+};
+
+// Writes a new map `out` holding first every place of `a`, then every place of `b` (in id order,
+// with new ids; sightings follow their landmarks' new ids), B's colliding robot ids renamed by
+// MergeOptions::suffix. Refuses, before writing anything, an existing `out` and a renamed id
+// longer than the 47-byte wire limit of robot ids. The map is written to `out`.merging and
+// renamed to `out` when complete; on error nothing is left behind.
+StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, const std::string& out,
+                                const MergeOptions& options);
+
+// The id B's robot `robot` gets in the merged map: itself when `taken_in_a` lacks it, otherwise
+// robot + suffix, robot + suffix + "2", ... whichever is first free in both maps' ids `taken`.
+std::string MergedRobotId(const std::string& robot, const std::vector<std::string>& taken_in_a,
+                          const std::vector<std::string>& taken, const std::string& suffix);
+
+// ---- check ----------------------------------------------------------------------------------
+
+struct CheckReport {
+  std::vector<std::string> problems;  // empty: the map is whole
+  int64_t places = 0;                 // places read back
+  int64_t landmarks = 0;              // landmarks read back whole
+  bool ok() const { return problems.empty(); }
+};
+
+// The full check: SQLite's integrity_check, foreign keys (every landmark's place and every
+// sighting's place and landmark exist), each place's landmark count, then every place and
+// landmark read back through the store (the BLOB encodings decoded and validated). An error
+// status only when the check itself cannot run; damage goes into the report.
+StatusOr<CheckReport> CheckMap(const std::string& path);
+
+}  // namespace placerec

@@ -1,0 +1,380 @@
+#include "tools/map_tools.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "common/pipeline/place_map.h"
+#include "common/storage/sqlite_store.h"
+#include "common/storage/storage_testing.h"
+
+namespace placerec {
+namespace {
+
+using testing_storage::ExpectSameLandmark;
+using testing_storage::ExplicitLandmark;
+using testing_storage::QuerySql;
+using testing_storage::TempMap;
+
+constexpr int64_t kDay = 86400LL * 1000000;         // microseconds
+constexpr int64_t kStart = 1764547200LL * 1000000;  // 2025-12-01T00:00:00Z
+
+std::unique_ptr<LandmarkStore> Open(const std::string& path) {
+  SqliteStoreOptions options;
+  options.synchronous_full = false;
+  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(path, options);
+  EXPECT_TRUE(store.ok()) << store.status().ToString();
+  return store.ok() ? std::move(*store) : nullptr;
+}
+
+// Adds a place of `robot` with `count` landmarks (classes from `classes`, cycled; "" leaves one
+// unclassified) seeing `seen`; returns its landmarks with their ids.
+std::vector<Landmark> AddPlace(LandmarkStore* store, const std::string& robot, int64_t sequence,
+                               int64_t utime, int count, const std::vector<std::string>& classes,
+                               std::vector<LandmarkId> seen = {}) {
+  Place place;
+  place.robot = robot;
+  place.sequence = sequence;
+  place.utime = utime;
+  place.image_width = 640;
+  place.seen_landmarks = std::move(seen);
+  std::vector<Landmark> landmarks;
+  for (int i = 0; i < count; ++i) {
+    Landmark landmark = ExplicitLandmark(i + static_cast<int>(sequence % 3));
+    const std::string& name = classes[static_cast<size_t>(i) % classes.size()];
+    if (!name.empty()) {
+      landmark.object_class = name;
+      landmark.class_confidence = 0.75f;
+    }
+    landmarks.push_back(std::move(landmark));
+  }
+  const Status added = store->AddPlace(&place, &landmarks);
+  EXPECT_TRUE(added.ok()) << added.ToString();
+  return landmarks;
+}
+
+// Map "site": robot "left" with 3 places on day 0, 1, 2 (2 landmarks each: building, sign),
+// robot "right" with 2 places on day 1 (1 landmark, unclassified); right's second place sees the
+// first landmark of left's first place.
+void BuildSite(const std::string& path) {
+  std::unique_ptr<LandmarkStore> store = Open(path);
+  ASSERT_NE(store, nullptr);
+  const std::vector<Landmark> first =
+      AddPlace(store.get(), "left", 0, kStart, 2, {"building", "sign"});
+  AddPlace(store.get(), "left", 1, kStart + kDay, 2, {"building", "sign"});
+  AddPlace(store.get(), "right", 0, kStart + kDay + 5, 1, {""});
+  AddPlace(store.get(), "right", 1, kStart + kDay + 10, 1, {""}, {first[0].id});
+  AddPlace(store.get(), "left", 2, kStart + 2 * kDay, 2, {"building", "sign"});
+}
+
+std::vector<Place> Places(const std::string& path) {
+  std::vector<Place> places;
+  std::unique_ptr<LandmarkStore> store = Open(path);
+  EXPECT_TRUE(store->LoadPlaces([&](const Place& place) { places.push_back(place); }).ok());
+  return places;
+}
+
+std::vector<Landmark> Landmarks(const std::string& path) {
+  std::vector<Landmark> landmarks;
+  std::unique_ptr<LandmarkStore> store = Open(path);
+  EXPECT_TRUE(
+      store->LoadLandmarks([&](Landmark&& landmark) { landmarks.push_back(landmark); }).ok());
+  return landmarks;
+}
+
+TEST(MapToolsTest, InfoCountsByRobotAndClass) {
+  TempMap map("info");
+  BuildSite(map.path());
+  StatusOr<MapInfo> info = ReadMapInfo(map.path());
+  ASSERT_TRUE(info.ok()) << info.status().ToString();
+  EXPECT_EQ(info->schema_version, 2);
+  EXPECT_EQ(info->places, 5);
+  EXPECT_EQ(info->landmarks, 8);
+  EXPECT_EQ(info->sightings, 1);
+  EXPECT_GT(info->file_bytes, 0);
+  ASSERT_EQ(info->robots.size(), 2u);
+  EXPECT_EQ(info->robots[0].robot, "left");
+  EXPECT_EQ(info->robots[0].places, 3);
+  EXPECT_EQ(info->robots[0].landmarks, 6);
+  EXPECT_EQ(info->robots[0].last_utime - info->robots[0].first_utime, 2 * kDay);
+  EXPECT_EQ(info->robots[1].robot, "right");
+  EXPECT_EQ(info->robots[1].landmarks, 2);
+  ASSERT_EQ(info->classes.size(), 3u);
+  EXPECT_EQ(info->classes[0].object_class, "");  // unclassified first
+  EXPECT_EQ(info->classes[0].landmarks, 2);
+  EXPECT_EQ(info->classes[1].object_class, "building");
+  EXPECT_EQ(info->classes[1].landmarks, 3);
+  int64_t descriptors = 0;
+  for (const ClassInfo& item : info->classes) descriptors += item.descriptors;
+  EXPECT_EQ(descriptors, info->descriptors);
+  const nlohmann::json json = info->ToJson();
+  EXPECT_EQ(json["robots"][0]["places"], 3);
+  EXPECT_TRUE(json["classes"][0]["class"].is_null());
+  EXPECT_NE(info->ToText().find("left"), std::string::npos);
+
+  EXPECT_EQ(ReadMapInfo(map.path() + ".missing").status().code(), StatusCode::kNotFound);
+}
+
+TEST(MapToolsTest, ExportWritesPlacesCsvAndRoutePicture) {
+  TempMap map("export");
+  BuildSite(map.path());
+  const std::string out = ::testing::TempDir() + "/placerec_map_export_" + std::to_string(getpid());
+  std::filesystem::remove_all(out);
+  StatusOr<ExportReport> report = ExportMap(map.path(), out);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_EQ(report->places, 5);
+  EXPECT_EQ(report->robots, 2);
+  std::ifstream csv(out + "/places.csv");
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(csv, line);) lines.push_back(line);
+  ASSERT_EQ(lines.size(), 6u);
+  EXPECT_EQ(lines[0], "id,robot,sequence,utime,landmarks,descriptors,classes");
+  EXPECT_EQ(lines[1].substr(0, 7), "1,left,");
+  EXPECT_NE(lines[1].find(",2,"), std::string::npos);
+  EXPECT_EQ(lines[1].substr(lines[1].rfind(',') + 1), "building:1;sign:1");
+  EXPECT_EQ(lines[3].substr(lines[3].rfind(',') + 1), "unclassified:1");
+  const cv::Mat picture = cv::imread(out + "/route.png");
+  EXPECT_FALSE(picture.empty());
+  EXPECT_GT(picture.cols, 1000);
+  std::filesystem::remove_all(out);
+}
+
+TEST(MapToolsTest, PruneByRobotDropsItsPlacesLandmarksAndSightings) {
+  TempMap map("prune_robot");
+  BuildSite(map.path());
+  PruneOptions options;
+  options.robot = "left";
+  StatusOr<PruneReport> report = PruneMap(map.path(), options);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_EQ(report->places, 3);
+  EXPECT_EQ(report->landmarks, 6);
+  EXPECT_EQ(report->sightings, 1);  // right's sighting of left's landmark
+  EXPECT_EQ(report->places_kept, 2);
+  EXPECT_EQ(report->landmarks_kept, 2);
+  const std::vector<Place> places = Places(map.path());
+  ASSERT_EQ(places.size(), 2u);
+  for (const Place& place : places) {
+    EXPECT_EQ(place.robot, "right");
+    EXPECT_TRUE(place.seen_landmarks.empty());
+  }
+  EXPECT_EQ(QuerySql(map.path(), "SELECT COUNT(*) FROM sightings"), "0");
+  StatusOr<CheckReport> check = CheckMap(map.path());
+  ASSERT_TRUE(check.ok());
+  EXPECT_TRUE(check->ok()) << check->problems.front();
+
+  // The server's next start: the pruned map opens and answers from what is left.
+  SqliteStoreOptions store_options;
+  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(map.path(), store_options);
+  ASSERT_TRUE(store.ok());
+  StatusOr<std::unique_ptr<PlaceMap>> place_map =
+      PlaceMap::Open(std::move(*store), LandmarkIndexOptions());
+  ASSERT_TRUE(place_map.ok()) << place_map.status().ToString();
+  EXPECT_EQ((*place_map)->Counts().places, 2);
+  EXPECT_EQ((*place_map)->Counts().landmarks, 2);
+  const std::vector<Landmark> kept = Landmarks(map.path());
+  ASSERT_EQ(kept.size(), 2u);
+  MapLookup lookup;
+  lookup.recent.robot = "someone-else";
+  lookup.recent.utime = kStart + 3 * kDay;
+  IndexQuery query;
+  query.sift_count = kept[0].sift_count;
+  query.colour = kept[0].colour;
+  query.descriptors = kept[0].descriptors.clone();
+  lookup.objects.push_back(query);
+  lookup.object_keypoints.push_back(kept[0].keypoints);
+  lookup.image_width = 640;
+  const MapLookupResult result = (*place_map)->Lookup(lookup, LoopDecisionOptions());
+  ASSERT_FALSE(result.places.empty());
+  EXPECT_EQ(result.places[0].place.robot, "right");
+}
+
+TEST(MapToolsTest, PruneBeforeADateAndDryRun) {
+  TempMap map("prune_before");
+  BuildSite(map.path());
+  const std::string before = QuerySql(map.path(), "SELECT COUNT(*) FROM landmarks");
+  PruneOptions options;
+  StatusOr<int64_t> cut = ParseTimeArgument("2025-12-02");  // day 1, midnight
+  ASSERT_TRUE(cut.ok());
+  options.before_utime = *cut + 1;  // left's day-1 place too, not right's (5 us later)
+  options.dry_run = true;
+  StatusOr<PruneReport> dry = PruneMap(map.path(), options);
+  ASSERT_TRUE(dry.ok()) << dry.status().ToString();
+  EXPECT_EQ(dry->places, 2);
+  EXPECT_EQ(dry->sightings, 1);
+  EXPECT_EQ(QuerySql(map.path(), "SELECT COUNT(*) FROM landmarks"), before);  // unchanged
+  EXPECT_EQ(Places(map.path()).size(), 5u);
+  options.dry_run = false;
+  StatusOr<PruneReport> report = PruneMap(map.path(), options);
+  ASSERT_TRUE(report.ok());
+  EXPECT_EQ(report->places, 2);
+  EXPECT_EQ(report->landmarks, 4);
+  EXPECT_EQ(report->places_by_robot.at("left"), 2);
+  EXPECT_EQ(Places(map.path()).size(), 3u);
+  EXPECT_EQ(Landmarks(map.path()).size(), 4u);
+
+  PruneOptions nothing;
+  EXPECT_EQ(PruneMap(map.path(), nothing).status().code(), StatusCode::kInvalidArgument);
+}
+
+TEST(MapToolsTest, PruneRefusesAMapHeldOpenAndLeavesItUnchanged) {
+  TempMap map("prune_held");
+  BuildSite(map.path());
+  std::unique_ptr<LandmarkStore> server = Open(map.path());  // as a running server holds it
+  ASSERT_NE(server, nullptr);
+  const StatusOr<uint64_t> checksum = server->Checksum();
+  PruneOptions options;
+  options.robot = "left";
+  const StatusOr<PruneReport> report = PruneMap(map.path(), options);
+  ASSERT_FALSE(report.ok());
+  EXPECT_NE(report.status().message().find("open in another process"), std::string::npos)
+      << report.status().ToString();
+  // Reading commands (and a dry run) still work, and the holder can go on writing.
+  EXPECT_TRUE(ReadMapInfo(map.path()).ok());
+  PruneOptions dry = options;
+  dry.dry_run = true;
+  const StatusOr<PruneReport> counted = PruneMap(map.path(), dry);
+  ASSERT_TRUE(counted.ok()) << counted.status().ToString();
+  EXPECT_EQ(counted->places, 3);
+  EXPECT_EQ(*server->Checksum(), *checksum);
+  AddPlace(server.get(), "left", 3, kStart + 3 * kDay, 1, {"sign"});
+  server.reset();
+  EXPECT_TRUE(PruneMap(map.path(), options).ok());  // closed: allowed
+}
+
+TEST(MapToolsTest, ParseTimeArgument) {
+  EXPECT_EQ(*ParseTimeArgument("1764547200000000"), 1764547200LL * 1000000);
+  EXPECT_EQ(*ParseTimeArgument("2025-12-01"), 1764547200LL * 1000000);
+  EXPECT_EQ(*ParseTimeArgument("2025-12-01T01:02"), (1764547200LL + 3720) * 1000000);
+  EXPECT_EQ(*ParseTimeArgument("2025-12-01T01:02:03Z"), (1764547200LL + 3723) * 1000000);
+  EXPECT_FALSE(ParseTimeArgument("yesterday").ok());
+  EXPECT_FALSE(ParseTimeArgument("2025-13-01").ok());
+  EXPECT_FALSE(ParseTimeArgument("2025-12-01T01").ok());
+}
+
+TEST(MapToolsTest, MergedRobotIdRule) {
+  EXPECT_EQ(MergedRobotId("r", {"a"}, {"a", "r"}, ".b"), "r");
+  EXPECT_EQ(MergedRobotId("r", {"r"}, {"r"}, ".b"), "r.b");
+  EXPECT_EQ(MergedRobotId("r", {"r", "r.b"}, {"r", "r.b"}, ".b"), "r.b2");
+}
+
+TEST(MapToolsTest, MergeKeepsBothMapsContentsAndRobotsApart) {
+  TempMap a("merge_a");
+  TempMap b("merge_b");
+  TempMap c("merge_c");
+  BuildSite(a.path());
+  {
+    std::unique_ptr<LandmarkStore> store = Open(b.path());
+    const std::vector<Landmark> first = AddPlace(store.get(), "right", 0, kStart, 3, {"car"});
+    AddPlace(store.get(), "night", 0, kStart + 1, 0, {""});
+    AddPlace(store.get(), "night", 1, kStart + 2, 2, {"sign"}, {first[1].id, first[2].id});
+  }
+  StatusOr<MergeReport> report = MergeMaps(a.path(), b.path(), c.path(), MergeOptions());
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_EQ(report->places, 8);
+  EXPECT_EQ(report->landmarks, 13);
+  ASSERT_EQ(report->renamed.size(), 1u);
+  EXPECT_EQ(report->renamed[0], std::make_pair(std::string("right"), std::string("right.b")));
+  EXPECT_FALSE(std::filesystem::exists(c.path() + ".merging"));
+
+  // Content preserved: C's places and landmarks are A's then B's, ids shifted, B's robot renamed,
+  // sightings following their landmarks.
+  const std::vector<Place> pa = Places(a.path()), pb = Places(b.path()), pc = Places(c.path());
+  const std::vector<Landmark> la = Landmarks(a.path()), lb = Landmarks(b.path()),
+                              lc = Landmarks(c.path());
+  ASSERT_EQ(pc.size(), pa.size() + pb.size());
+  ASSERT_EQ(lc.size(), la.size() + lb.size());
+  const int64_t place_shift = static_cast<int64_t>(pa.size());
+  const int64_t landmark_shift = static_cast<int64_t>(la.size());
+  for (size_t i = 0; i < pc.size(); ++i) {
+    Place expected = i < pa.size() ? pa[i] : pb[i - pa.size()];
+    if (i >= pa.size()) {
+      expected.id = PlaceId(expected.id.value() + place_shift);
+      if (expected.robot == "right") expected.robot = "right.b";
+      for (LandmarkId& seen : expected.seen_landmarks) {
+        seen = LandmarkId(seen.value() + landmark_shift);
+      }
+    }
+    EXPECT_EQ(pc[i], expected) << i;
+  }
+  for (size_t i = 0; i < lc.size(); ++i) {
+    Landmark expected = i < la.size() ? la[i] : lb[i - la.size()];
+    if (i >= la.size()) {
+      expected.id = LandmarkId(expected.id.value() + landmark_shift);
+      expected.place = PlaceId(expected.place.value() + place_shift);
+    }
+    ExpectSameLandmark(expected, lc[i]);
+  }
+  // Which is what the checksums of the parts say: C less B's places is A.
+  StatusOr<CheckReport> check = CheckMap(c.path());
+  ASSERT_TRUE(check.ok());
+  EXPECT_TRUE(check->ok());
+  PruneOptions drop_b;
+  drop_b.robot = "right.b";
+  ASSERT_TRUE(PruneMap(c.path(), drop_b).ok());
+  drop_b.robot = "night";
+  ASSERT_TRUE(PruneMap(c.path(), drop_b).ok());
+  EXPECT_EQ(*Open(c.path())->Checksum(), *Open(a.path())->Checksum());
+
+  // An existing --out is refused and kept.
+  const std::string c_before = QuerySql(c.path(), "SELECT COUNT(*) FROM places");
+  EXPECT_EQ(MergeMaps(a.path(), b.path(), c.path(), MergeOptions()).status().code(),
+            StatusCode::kInvalidArgument);
+  EXPECT_EQ(QuerySql(c.path(), "SELECT COUNT(*) FROM places"), c_before);
+}
+
+TEST(MapToolsTest, MergeRefusesARenamedRobotIdOverTheLimit) {
+  TempMap a("merge_long_a");
+  TempMap b("merge_long_b");
+  TempMap c("merge_long_c");
+  const std::string robot(46, 'r');
+  {
+    std::unique_ptr<LandmarkStore> store = Open(a.path());
+    AddPlace(store.get(), robot, 0, kStart, 1, {"sign"});
+  }
+  {
+    std::unique_ptr<LandmarkStore> store = Open(b.path());
+    AddPlace(store.get(), robot, 0, kStart, 1, {"sign"});
+  }
+  const StatusOr<MergeReport> report = MergeMaps(a.path(), b.path(), c.path(), MergeOptions());
+  ASSERT_FALSE(report.ok());
+  EXPECT_NE(report.status().message().find("47-byte"), std::string::npos)
+      << report.status().ToString();
+  EXPECT_FALSE(std::filesystem::exists(c.path()));
+  EXPECT_FALSE(std::filesystem::exists(c.path() + ".merging"));
+  MergeOptions short_suffix;
+  short_suffix.suffix = "b";
+  EXPECT_TRUE(MergeMaps(a.path(), b.path(), c.path(), short_suffix).ok());
+  short_suffix.suffix = "@b";
+  std::string error;
+  EXPECT_FALSE(short_suffix.Check(&error));
+}
+
+TEST(MapToolsTest, CheckFindsADamagedLandmark) {
+  TempMap map("check");
+  BuildSite(map.path());
+  StatusOr<CheckReport> whole = CheckMap(map.path());
+  ASSERT_TRUE(whole.ok()) << whole.status().ToString();
+  EXPECT_TRUE(whole->ok());
+  EXPECT_EQ(whole->places, 5);
+  EXPECT_EQ(whole->landmarks, 8);
+  testing_storage::ExecSql(map.path(), "UPDATE landmarks SET descriptors = x'0102' WHERE id = 3");
+  testing_storage::ExecSql(map.path(), "UPDATE places SET num_landmarks = 7 WHERE id = 2");
+  StatusOr<CheckReport> damaged = CheckMap(map.path());
+  ASSERT_TRUE(damaged.ok());
+  ASSERT_FALSE(damaged->ok());
+  std::string all;
+  for (const std::string& problem : damaged->problems) all += problem + "\n";
+  EXPECT_NE(all.find("landmark 3"), std::string::npos) << all;
+  EXPECT_NE(all.find("place 2 lists 7 landmarks but has 2"), std::string::npos) << all;
+  EXPECT_EQ(CheckMap(map.path() + ".missing").status().code(), StatusCode::kNotFound);
+}
+
+}  // namespace
+}  // namespace placerec

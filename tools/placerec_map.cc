@@ -1,0 +1,225 @@
+// placerec-map: the map tools (issue 22 item 5), on a map file without a running server.
+//   placerec-map info --db FILE [--json]
+//   placerec-map export --db FILE --out DIR
+//   placerec-map prune --db FILE (--before UTIME_OR_ISO_DATE | --robot ID) [--dry-run]
+//   placerec-map merge A B --out C [--suffix .b]
+//   placerec-map check --db FILE
+// The work is in map_tools.h; this file parses flags and prints the reports.
+#include <cstdio>
+#include <cstring>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "common/util/logging.h"
+#include "common/util/options.h"
+#include "tools/map_tools.h"
+
+namespace placerec {
+namespace {
+
+constexpr char kUsage[] =
+    "placerec-map COMMAND [options]\n\n"
+    "Works on a placerec map file (the SQLite file of placerec-server --db) without a server.\n"
+    "info, export and check only read, and may run while a server has the map open; prune\n"
+    "refuses a map another process holds open, and merge writes a new file.\n\n"
+    "Commands:\n"
+    "  info     places, landmarks and descriptors by robot and by object class, size, version\n"
+    "  export   DIR/places.csv and DIR/route.png, a picture of the map per robot\n"
+    "  prune    drop places before a time or of a robot, with their landmarks and sightings\n"
+    "  merge    two maps into a new one, robot ids kept apart\n"
+    "  check    the full integrity check (exit code 0: whole, 1: damaged)\n\n"
+    "'placerec-map COMMAND --help' lists the options of a command.";
+
+int Fail(const char* command, const Status& status) {
+  std::fprintf(stderr, "%s: %s\n", command, status.ToString().c_str());
+  return 1;
+}
+
+int InfoCommand(int argc, char** argv) {
+  std::string db;
+  bool json = false;
+  FlagParser parser(
+      "placerec-map info --db FILE [--json]\n\n"
+      "Prints the map's places, landmarks, descriptors and sightings, by robot (with its\n"
+      "sequence numbers and time span) and by object class, its file size and schema version.\n"
+      "Reads only: the map may be open in a running server.");
+  parser.AddRequired("db", &db, "map file");
+  parser.AddSwitch("json", &json, "print one JSON object instead of text");
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-map info")) {
+    return *exit;
+  }
+  StatusOr<MapInfo> info = ReadMapInfo(db);
+  if (!info.ok()) return Fail("placerec-map info", info.status());
+  if (json) {
+    std::printf("%s\n", info->ToJson().dump(2).c_str());
+  } else {
+    std::printf("%s", info->ToText().c_str());
+  }
+  return 0;
+}
+
+int ExportCommand(int argc, char** argv) {
+  std::string db;
+  std::string out;
+  FlagParser parser(
+      "placerec-map export --db FILE --out DIR\n\n"
+      "Writes DIR/places.csv (id,robot,sequence,utime,landmarks,descriptors,classes; classes as\n"
+      "building:3;sign:1, unclassified landmarks last) and DIR/route.png: per robot a timeline\n"
+      "strip of its places coloured by landmark count, the class shares of their landmarks and\n"
+      "the robot's class counts. Reads only.");
+  parser.AddRequired("db", &db, "map file");
+  parser.AddRequired("out", &out, "output directory (created if missing)");
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-map export")) {
+    return *exit;
+  }
+  StatusOr<ExportReport> report = ExportMap(db, out);
+  if (!report.ok()) return Fail("placerec-map export", report.status());
+  std::printf("%lld places of %lld robots: wrote %s and %s\n",
+              static_cast<long long>(report->places), static_cast<long long>(report->robots),
+              report->csv_path.c_str(), report->picture_path.c_str());
+  return 0;
+}
+
+int PruneCommand(int argc, char** argv) {
+  std::string db;
+  std::string before;
+  PruneOptions options;
+  FlagParser parser(
+      "placerec-map prune --db FILE (--before UTIME_OR_ISO_DATE | --robot ID) [--dry-run]\n\n"
+      "Drops the places captured before a time, or of a robot (both: that robot's places before\n"
+      "the time), with their landmarks, the sightings of those landmarks and the sightings by\n"
+      "those places, in one transaction: the server's next start sees a consistent map, and on\n"
+      "any error nothing changes. Refuses a map another process (a running server) holds open\n"
+      "(--dry-run only counts, and may run beside it).\n"
+      "The file keeps its size; SQLite reuses the freed pages.");
+  parser.AddRequired("db", &db, "map file");
+  parser.Add("before", &before,
+             "drop places captured before this time: microseconds since the epoch, or an ISO "
+             "date or UTC time (2026-12-01, 2026-12-01T08:30:15Z)");
+  parser.Add("robot", &options.robot, "drop the places of this robot id");
+  parser.AddSwitch("dry-run", &options.dry_run, "report what would be dropped, change nothing");
+  parser.Add("busy-timeout-ms", &options.busy_timeout_ms,
+             "wait this long for another process's lock before refusing the map (milliseconds)");
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-map prune")) {
+    return *exit;
+  }
+  if (!before.empty()) {
+    StatusOr<int64_t> utime = ParseTimeArgument(before);
+    if (!utime.ok()) {
+      std::fprintf(stderr, "placerec-map prune: %s\n", utime.status().message().c_str());
+      return 2;
+    }
+    options.before_utime = *utime;
+  }
+  std::string error;
+  if (!options.Check(&error)) {
+    std::fprintf(stderr, "placerec-map prune: %s (see --help)\n", error.c_str());
+    return 2;
+  }
+  StatusOr<PruneReport> report = PruneMap(db, options);
+  if (!report.ok()) return Fail("placerec-map prune", report.status());
+  std::printf("%s %lld places, %lld landmarks (%lld descriptors), %lld sightings\n",
+              report->dry_run ? "would drop" : "dropped", static_cast<long long>(report->places),
+              static_cast<long long>(report->landmarks),
+              static_cast<long long>(report->descriptors),
+              static_cast<long long>(report->sightings));
+  for (const auto& [robot, places] : report->places_by_robot) {
+    std::printf("  %s: %lld places\n", robot.c_str(), static_cast<long long>(places));
+  }
+  std::printf("%s %lld places, %lld landmarks\n", report->dry_run ? "would keep" : "kept",
+              static_cast<long long>(report->places_kept),
+              static_cast<long long>(report->landmarks_kept));
+  return 0;
+}
+
+int MergeCommand(int argc, char** argv) {
+  std::vector<std::string> maps;
+  std::string out;
+  MergeOptions options;
+  FlagParser parser(
+      "placerec-map merge A B --out C [--suffix .b]\n\n"
+      "Writes a new map C holding every place of A, then every place of B, with their landmarks\n"
+      "(new ids; sightings follow their landmarks). Robot ids stay apart: a robot id of B that\n"
+      "A also has becomes ID + suffix (ID.b; ID.b2, ID.b3, ... when that is taken in A or B).\n"
+      "A new id over the 47-byte robot id limit is refused before anything is written. C must\n"
+      "not exist; it is written to C.merging and renamed when complete. Reads A and B only.");
+  parser.AddPositional("maps", &maps, "the two maps A and B");
+  parser.AddRequired("out", &out, "the merged map to write (must not exist)");
+  parser.Add("suffix", &options.suffix,
+             "appended to B's robot ids that A has too (letters, digits, '_', '-', '.')");
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-map merge")) {
+    return *exit;
+  }
+  if (maps.size() != 2) {
+    std::fprintf(stderr, "placerec-map merge: give exactly two maps, A and B (see --help)\n");
+    return 2;
+  }
+  std::string error;
+  if (!options.Check(&error)) {
+    std::fprintf(stderr, "placerec-map merge: %s\n", error.c_str());
+    return 2;
+  }
+  StatusOr<MergeReport> report = MergeMaps(maps[0], maps[1], out, options);
+  if (!report.ok()) return Fail("placerec-map merge", report.status());
+  for (const MergeInput* input : {&report->a, &report->b}) {
+    std::printf(
+        "%s: %lld places, %lld landmarks (%lld descriptors), %lld sightings\n", input->path.c_str(),
+        static_cast<long long>(input->places), static_cast<long long>(input->landmarks),
+        static_cast<long long>(input->descriptors), static_cast<long long>(input->sightings));
+  }
+  for (const auto& [from, to] : report->renamed) {
+    std::printf("  robot %s of %s is %s in the merged map\n", from.c_str(), maps[1].c_str(),
+                to.c_str());
+  }
+  std::printf("wrote %s: %lld places, %lld landmarks\n", out.c_str(),
+              static_cast<long long>(report->places), static_cast<long long>(report->landmarks));
+  return 0;
+}
+
+int CheckCommand(int argc, char** argv) {
+  std::string db;
+  FlagParser parser(
+      "placerec-map check --db FILE\n\n"
+      "The full integrity check: SQLite's integrity_check, the foreign keys (every landmark's\n"
+      "place, every sighting's place and landmark), each place's landmark count, then every\n"
+      "place and landmark read back and validated (reading stops at the first damaged\n"
+      "landmark). Exit code 0 when the map is whole, 1 when it is damaged or cannot be read.\n"
+      "Reads only (a schema version 1 map is upgraded to version 2 as the server would).");
+  parser.AddRequired("db", &db, "map file");
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-map check")) {
+    return *exit;
+  }
+  StatusOr<CheckReport> report = CheckMap(db);
+  if (!report.ok()) return Fail("placerec-map check", report.status());
+  if (report->ok()) {
+    std::printf("%s is whole: %lld places and %lld landmarks read back\n", db.c_str(),
+                static_cast<long long>(report->places), static_cast<long long>(report->landmarks));
+    return 0;
+  }
+  std::printf("%s is damaged (%lld places and %lld landmarks read back):\n", db.c_str(),
+              static_cast<long long>(report->places), static_cast<long long>(report->landmarks));
+  for (const std::string& problem : report->problems) std::printf("  %s\n", problem.c_str());
+  std::printf(
+      "restore the map from a backup, or repair it: placerec-server --repair drops the damaged "
+      "places and keeps the damaged file beside the map\n");
+  return 1;
+}
+
+}  // namespace
+}  // namespace placerec
+
+int main(int argc, char** argv) {
+  placerec::InitLogging(argv[0]);
+  if (argc < 2 || std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0) {
+    std::printf("%s\n", placerec::kUsage);
+    return argc < 2 ? 2 : 0;
+  }
+  if (std::strcmp(argv[1], "info") == 0) return placerec::InfoCommand(argc, argv);
+  if (std::strcmp(argv[1], "export") == 0) return placerec::ExportCommand(argc, argv);
+  if (std::strcmp(argv[1], "prune") == 0) return placerec::PruneCommand(argc, argv);
+  if (std::strcmp(argv[1], "merge") == 0) return placerec::MergeCommand(argc, argv);
+  if (std::strcmp(argv[1], "check") == 0) return placerec::CheckCommand(argc, argv);
+  std::fprintf(stderr, "placerec-map: unknown command '%s'\n%s\n", argv[1], placerec::kUsage);
+  return 2;
+}
