@@ -1,5 +1,6 @@
 // The mapping of dataset class names to the background classes of seed §3.4
-// (BackgroundClassOfName, the one place it is written), on made-up tables and, when the shared
+// (BackgroundClassOfName, the one place it is written) and of the shared datasets' classes to
+// the structured classifiers (StructuredClassIndex), on made-up tables and, when the shared
 // data is there, on the three labelled outdoor datasets' own classes.txt.
 #include <map>
 #include <string>
@@ -7,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/training/background_training.h"
 #include "common/training/labelled_dataset.h"
 #include "common/util/paths.h"
 
@@ -70,6 +72,22 @@ TEST(ClassTableTest, SharedOutdoorDatasetsMapToTheBackgroundClasses) {
                                                          {"water", "water"}}));
   EXPECT_EQ(BackgroundClassesOf(data + "/camvid"),
             (Map{{"sky", "sky"}, {"tree", "tree"}, {"road", "road"}, {"pavement", "road"}}));
+}
+
+TEST(StructuredClassIndexTest, NamedClassesAndTheCatchAllOfDatasetsWithoutIt) {
+  const std::vector<std::string> names = {"building", "mountain", "foreground"};
+  ClassTable stanford;
+  stanford.names = {{0, "sky"},      {1, "tree"},       {4, "water"},    {5, "building"},
+                    {6, "mountain"}, {7, "foreground"}, {255, "unknown"}};
+  EXPECT_EQ(StructuredClassIndex(names, stanford), (std::map<int, int>{{5, 0}, {6, 1}, {7, 2}}));
+  ClassTable camvid;
+  camvid.names = {{0, "sky"},      {1, "building"}, {2, "pole"},        {3, "road"},
+                  {4, "pavement"}, {8, "car"},      {255, "unlabelled"}};
+  // No mountain; pole and car are foreground; pavement is road, not structured.
+  EXPECT_EQ(StructuredClassIndex(names, camvid), (std::map<int, int>{{1, 0}, {2, 2}, {8, 2}}));
+  // Without the catch-all in the list, classes not named stay without a structured classifier.
+  EXPECT_EQ(StructuredClassIndex({"building"}, camvid), (std::map<int, int>{{1, 0}}));
+  EXPECT_TRUE(StructuredClassIndex({}, camvid).empty());
 }
 
 }  // namespace
