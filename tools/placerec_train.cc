@@ -48,6 +48,7 @@ constexpr char kUsage[] =
 // The flags of a training command that are text (or a switch) on the command line and reach
 // the config only once parsed, by FinishConfig. Their defaults are the config's (MakeTextFlags).
 struct TextFlags {
+  std::string datasets;            // --dataset DIR,...,DIR (background)
   std::string leave_out_fold;      // --leave-out-fold I/K (background, boundary)
   std::string structured_classes;  // --structured-classes a,b,... / all / none (background)
   std::string cross_fit;           // --cross-fit DIR,...,DIR (grouping)
@@ -81,6 +82,7 @@ TextFlags MakeTextFlags(const Config& config) {
     flags.leave_out_fold = config.leave_out_fold.ToString();
   }
   if constexpr (std::is_same_v<Config, BackgroundTrainingConfig>) {
+    flags.datasets = JoinList(config.datasets, "");
     flags.structured_classes = JoinList(config.structured_classes, "none");
   }
   flags.quiet = !config.progress;
@@ -103,6 +105,7 @@ std::optional<int> FinishConfig(const char* command, const TextFlags& flags, int
     config->leave_out_fold = *fold;
   }
   if constexpr (std::is_same_v<Config, BackgroundTrainingConfig>) {
+    config->datasets = SplitList(flags.datasets);
     config->structured_classes.clear();
     if (flags.structured_classes != "none") {
       config->structured_classes = SplitList(flags.structured_classes);
@@ -139,15 +142,19 @@ int BackgroundCommand(int argc, char** argv) {
       "images, then five binary Gentle AdaBoost classifiers (sky, tree, road, grass, water) on\n"
       "the texton histograms of their superpixels and ground-truth regions (and one per\n"
       "structured class, for the one-per-class decision), and writes\n"
-      "textons.yml, background*.yml*, check_sample.yml.gz and manifest.json into --out.");
-  parser.AddRequired("dataset", &config.dataset,
+      "textons.yml, background*.yml*, check_sample.yml.gz and manifest.json into --out.\n"
+      "--dataset A,B,C trains on the union of their training images and scores each test\n"
+      "split on its own.");
+  parser.AddRequired("dataset", &flags.datasets,
                      "labelled dataset (layout of shared/data/README.md), e.g. "
-                     "../shared/data/stanford_background");
+                     "../shared/data/stanford_background, or several, comma-separated");
   parser.AddRequired("out", &config.out, "models directory to write (created if missing)");
   parser.Add("split", &config.split, "split to train on");
   parser.Add("eval-split", &config.eval_split, "split whose accuracy goes into the manifest");
   parser.Add("pixels-per-image", &config.pixels_per_image, "pixels sampled per image for k-means");
   parser.Add("textons", &config.textons.k, "number of textons (seed §4.1.1: 150)");
+  parser.Add("textons-file", &config.textons_file,
+             "read the textons from this file (e.g. models/textons.yml) instead of learning them");
   parser.Add("standardise", &config.textons.standardise,
              "standardise filter responses before k-means");
   parser.Add("kmeans-iterations", &config.textons.max_iterations, "k-means iterations");

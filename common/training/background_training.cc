@@ -146,6 +146,20 @@ std::vector<int> RegionAreas(const cv::Mat& regions, int n) {
 
 namespace {
 
+// A dataset's name: its directory's (../shared/data/camvid -> camvid).
+std::string DatasetName(const std::string& dir) {
+  std::filesystem::path path(dir);
+  if (!path.has_filename()) path = path.parent_path();  // a trailing slash
+  return path.filename().string();
+}
+
+// The items joined by commas, each followed by `suffix`.
+std::string JoinDatasets(const std::vector<std::string>& items, const std::string& suffix) {
+  std::string text;
+  for (const std::string& item : items) text += (text.empty() ? "" : ",") + item + suffix;
+  return text;
+}
+
 // Sets *error to "<field> must not be empty" when `value` is.
 bool CheckNotEmpty(const char* field, const std::string& value, std::string* error) {
   if (!value.empty()) return true;
@@ -192,13 +206,16 @@ Status CheckTrainingOptions(const BackgroundTrainingConfig& config) {
   return Status::Ok();
 }
 
-// The training images: the split without its first `holdout` images and the left-out fold.
-StatusOr<std::vector<std::string>> TrainingIds(const BackgroundTrainingConfig& config) {
-  StatusOr<std::vector<std::string>> ids = ReadSplit(config.dataset, config.split);
+// The training images of `dataset`: the split without its first `holdout` images and the
+// left-out fold.
+StatusOr<std::vector<std::string>> TrainingIds(const BackgroundTrainingConfig& config,
+                                               const std::string& dataset) {
+  StatusOr<std::vector<std::string>> ids = ReadSplit(dataset, config.split);
   if (!ids.ok()) return ids.status();
   if (config.holdout < 0 || config.holdout >= static_cast<int>(ids->size())) {
-    return Status::InvalidArgument("holdout must be in [0, " + std::to_string(ids->size()) +
-                                   "), got " + std::to_string(config.holdout));
+    return Status::InvalidArgument(dataset + ": holdout must be in [0, " +
+                                   std::to_string(ids->size()) + "), got " +
+                                   std::to_string(config.holdout));
   }
   ids->erase(ids->begin(), ids->begin() + config.holdout);
   if (!config.leave_out_fold.empty()) {
@@ -208,71 +225,137 @@ StatusOr<std::vector<std::string>> TrainingIds(const BackgroundTrainingConfig& c
         kept.push_back((*ids)[i]);
       }
     }
-    if (kept.empty()) return Status::InvalidArgument("the left-out fold leaves no image");
+    if (kept.empty()) {
+      return Status::InvalidArgument(dataset + ": the left-out fold leaves no image");
+    }
     *ids = std::move(kept);
   }
   return ids;
 }
 
-// Structured classes by name -> dataset class ids.
-struct StructuredClasses {
-  std::vector<std::string> names;
-  std::map<int, int> index;  // dataset class id -> structured class index
+// One training dataset: its directory, class table, training images and which of its classes
+// each structured classifier learns.
+struct TrainingDataset {
+  std::string dir;
+  std::string name;  // the directory's name (stanford_background)
+  ClassTable table;
+  std::vector<std::string> ids;
+  std::map<int, int> structured_index;  // dataset class id -> structured class index
 };
 
-StatusOr<StructuredClasses> FindStructuredClasses(const BackgroundTrainingConfig& config,
-                                                  const ClassTable& table) {
-  StructuredClasses structured;
+// The structured classes' names: config.structured_classes in order, "all" standing for every
+// labelled non-background class of the first dataset.
+std::vector<std::string> StructuredNames(const BackgroundTrainingConfig& config,
+                                         const ClassTable& first) {
+  std::vector<std::string> names;
+  auto add = [&names](const std::string& name) {
+    if (std::find(names.begin(), names.end(), name) == names.end()) names.push_back(name);
+  };
   for (const std::string& wanted : config.structured_classes) {
-    bool found = false;
-    for (const auto& [id, name] : table.names) {
-      if (table.IsUnlabelled(id) || IsBackground(table.BackgroundClass(id))) continue;
-      if (wanted != "all" && wanted != name) continue;
-      found = true;
-      if (structured.index.count(id) > 0) continue;
-      structured.index[id] = static_cast<int>(structured.names.size());
-      structured.names.push_back(name);
+    if (wanted != "all") {
+      add(wanted);
+      continue;
     }
-    if (!found) {
-      return Status::InvalidArgument("structured class '" + wanted + "' is not a labelled, " +
-                                     "non-background class of " + config.dataset + "/classes.txt");
+    for (const auto& [id, name] : first.names) {
+      if (!first.IsUnlabelled(id) && !IsBackground(first.BackgroundClass(id))) add(name);
     }
   }
-  return structured;
+  return names;
 }
 
-// Whether the evaluation split is given and present.
-bool HasEvalSplit(const BackgroundTrainingConfig& config) {
-  return !config.eval_split.empty() &&
-         PathExists(config.dataset + "/" + config.eval_split + ".txt");
+}  // namespace
+
+std::map<int, int> StructuredClassIndex(const std::vector<std::string>& names,
+                                        const ClassTable& table) {
+  std::map<int, int> index;
+  const auto catch_all = std::find(names.begin(), names.end(), kCatchAllStructuredClass);
+  bool has_catch_all_class = false;
+  for (const auto& [id, name] : table.names)
+    has_catch_all_class |= name == kCatchAllStructuredClass;
+  for (const auto& [id, name] : table.names) {
+    if (table.IsUnlabelled(id) || IsBackground(table.BackgroundClass(id))) continue;
+    const auto it = std::find(names.begin(), names.end(), name);
+    if (it != names.end()) {
+      index[id] = static_cast<int>(it - names.begin());
+    } else if (catch_all != names.end() && !has_catch_all_class) {
+      index[id] = static_cast<int>(catch_all - names.begin());
+    }
+  }
+  return index;
+}
+
+namespace {
+
+// Reads every dataset's class table and training images and maps its classes to the structured
+// classes; a structured class that no dataset has is an error.
+StatusOr<std::vector<TrainingDataset>> ReadTrainingDatasets(const BackgroundTrainingConfig& config,
+                                                            std::vector<std::string>* structured) {
+  std::vector<TrainingDataset> datasets;
+  for (const std::string& dir : config.datasets) {
+    TrainingDataset dataset;
+    dataset.dir = dir;
+    dataset.name = DatasetName(dir);
+    StatusOr<ClassTable> table = ReadClassTable(dir);
+    if (!table.ok()) return table.status();
+    if (table->empty()) {
+      return Status::InvalidArgument(dir + " has no classes.txt: cannot label regions");
+    }
+    dataset.table = *table;
+    StatusOr<std::vector<std::string>> ids = TrainingIds(config, dir);
+    if (!ids.ok()) return ids.status();
+    dataset.ids = *ids;
+    datasets.push_back(std::move(dataset));
+  }
+  *structured = StructuredNames(config, datasets.front().table);
+  std::vector<bool> found(structured->size(), false);
+  for (TrainingDataset& dataset : datasets) {
+    dataset.structured_index = StructuredClassIndex(*structured, dataset.table);
+    for (const auto& [id, index] : dataset.structured_index) found[index] = true;
+  }
+  for (size_t j = 0; j < structured->size(); ++j) {
+    if (!found[j]) {
+      return Status::InvalidArgument("structured class '" + (*structured)[j] +
+                                     "' is not a labelled, non-background class of " +
+                                     JoinDatasets(config.datasets, "/classes.txt"));
+    }
+  }
+  return datasets;
+}
+
+// Whether the evaluation split is given and present in `dataset`.
+bool HasEvalSplit(const BackgroundTrainingConfig& config, const std::string& dataset) {
+  return !config.eval_split.empty() && PathExists(dataset + "/" + config.eval_split + ".txt");
 }
 
 // The evaluation split is otherwise read only after the whole training: checks that every image
 // it lists can be read.
-Status CheckEvalSplit(const BackgroundTrainingConfig& config) {
-  if (!HasEvalSplit(config)) return Status::Ok();
-  StatusOr<std::vector<std::string>> eval_ids = ReadSplit(config.dataset, config.eval_split);
+Status CheckEvalSplit(const BackgroundTrainingConfig& config, const std::string& dataset) {
+  if (!HasEvalSplit(config, dataset)) return Status::Ok();
+  StatusOr<std::vector<std::string>> eval_ids = ReadSplit(dataset, config.eval_split);
   if (!eval_ids.ok()) return eval_ids.status();
   for (const std::string& id : *eval_ids) {
-    const StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, id);
+    const StatusOr<LabelledImage> image = ReadLabelledImage(dataset, id);
     if (!image.ok()) {
-      return Status(image.status().code(), image.status().message() + " (listed in " +
-                                               config.dataset + "/" + config.eval_split +
-                                               ".txt, the --eval-split)");
+      return Status(image.status().code(), image.status().message() + " (listed in " + dataset +
+                                               "/" + config.eval_split + ".txt, the --eval-split)");
     }
   }
   return Status::Ok();
 }
 
-// Filter-bank responses of `pixels_per_image` random pixels of every training image (image i's
-// seeded with seed + i), for the texton k-means.
+// Filter-bank responses of `pixels_per_image` random pixels of every training image (the i-th
+// image over all datasets, in order, seeded with seed + i), for the texton k-means.
 StatusOr<cv::Mat> SamplePixels(const BackgroundTrainingConfig& config,
-                               const std::vector<std::string>& ids) {
+                               const std::vector<TrainingDataset>& datasets) {
   const int working_width = config.organizer.superpixels.working_width;
+  std::vector<std::pair<const TrainingDataset*, const std::string*>> ids;
+  for (const TrainingDataset& dataset : datasets) {
+    for (const std::string& id : dataset.ids) ids.emplace_back(&dataset, &id);
+  }
   cv::Mat pixel_samples;
   ProgressLine sampling_progress(ids.size(), kLogProgressEvery);
   for (size_t i = 0; i < ids.size(); ++i) {
-    StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, ids[i]);
+    StatusOr<LabelledImage> image = ReadLabelledImage(ids[i].first->dir, *ids[i].second);
     if (!image.ok()) return image.status();
     const WorkingImage working = MakeWorkingImage(image->bgr, working_width);
     const cv::Mat features = ComputeFilterBank(working.lab);
@@ -319,15 +402,18 @@ void AppendRegions(const BackgroundTrainingConfig& config, const ClassTable& tab
   }
 }
 
-// 2. Training regions: superpixels (and ground-truth objects) with their majority class.
-Status CollectRegions(const BackgroundTrainingConfig& config, const std::vector<std::string>& ids,
-                      const ClassTable& table, const std::map<int, int>& structured_index,
+// 2. Training regions of one dataset: superpixels (and ground-truth objects) with their
+// majority class.
+Status CollectRegions(const BackgroundTrainingConfig& config, const TrainingDataset& dataset,
                       const TextonAssigner& assigner, RegionSample* sample) {
   const int working_width = config.organizer.superpixels.working_width;
   const int stride = config.organizer.texton_stride;
+  const std::vector<std::string>& ids = dataset.ids;
+  const ClassTable& table = dataset.table;
+  const std::map<int, int>& structured_index = dataset.structured_index;
   ProgressLine region_progress(ids.size(), kLogProgressEvery);
   for (size_t i = 0; i < ids.size(); ++i) {
-    StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, ids[i]);
+    StatusOr<LabelledImage> image = ReadLabelledImage(dataset.dir, ids[i]);
     if (!image.ok()) return image.status();
     if (image->classes.empty()) continue;
     const WorkingImage working = MakeWorkingImage(image->bgr, working_width);
@@ -350,7 +436,9 @@ Status CollectRegions(const BackgroundTrainingConfig& config, const std::vector<
                     RegionAppearance(objects, n, map, features, assigner), objects, n, gt, 0.5,
                     sample);
     }
-    if (config.progress) region_progress.Report(i + 1, "regions %zu/%zu", i + 1, ids.size());
+    if (config.progress) {
+      region_progress.Report(i + 1, "%s regions %zu/%zu", dataset.name.c_str(), i + 1, ids.size());
+    }
   }
   return Status::Ok();
 }
@@ -365,8 +453,8 @@ StatusOr<BackgroundClassifier> TrainClassifier(const BackgroundTrainingConfig& c
                                   boost_summary, structured_names, regions.structured);
   if (!trained.ok()) {
     return Status::InvalidArgument(
-        "the training images (" + config.dataset + "/" + config.split +
-        ".txt): " + trained.status().message() +
+        "the training images (" + JoinDatasets(config.datasets, "/" + config.split + ".txt") +
+        "): " + trained.status().message() +
         "; train on more images, or leave a structured class out (--structured-classes)");
   }
   return trained;
@@ -380,17 +468,18 @@ struct CheckSample {
   std::vector<std::string> ids;
 };
 
-// 4. Accuracy on the evaluation split's ground-truth objects (seed Table 6.4 protocol) and
-// its superpixels, and the fixed check sample from its first images; null without an
-// evaluation split.
-StatusOr<nlohmann::json> Evaluate(const BackgroundTrainingConfig& config, const ClassTable& table,
-                                  const TextonAssigner& assigner,
+// 4. Accuracy on one dataset's evaluation split's ground-truth objects (seed Table 6.4
+// protocol) and its superpixels, and the fixed check sample from its first images (when
+// `check` is not null); null without an evaluation split.
+StatusOr<nlohmann::json> Evaluate(const BackgroundTrainingConfig& config,
+                                  const TrainingDataset& dataset, const TextonAssigner& assigner,
                                   const BackgroundClassifier& classifier, CheckSample* check) {
   nlohmann::json evaluation;
-  if (!HasEvalSplit(config)) return evaluation;
+  if (!HasEvalSplit(config, dataset.dir)) return evaluation;
+  const ClassTable& table = dataset.table;
   const int working_width = config.organizer.superpixels.working_width;
   const int stride = config.organizer.texton_stride;
-  StatusOr<std::vector<std::string>> eval_ids = ReadSplit(config.dataset, config.eval_split);
+  StatusOr<std::vector<std::string>> eval_ids = ReadSplit(dataset.dir, config.eval_split);
   if (!eval_ids.ok()) return eval_ids.status();
   BackgroundAccuracy objects_accuracy;
   BackgroundAccuracy superpixel_accuracy;
@@ -400,7 +489,7 @@ StatusOr<nlohmann::json> Evaluate(const BackgroundTrainingConfig& config, const 
   };
   ProgressLine evaluation_progress(eval_ids->size(), kLogProgressEvery);
   for (size_t i = 0; i < eval_ids->size(); ++i) {
-    StatusOr<LabelledImage> image = ReadLabelledImage(config.dataset, (*eval_ids)[i]);
+    StatusOr<LabelledImage> image = ReadLabelledImage(dataset.dir, (*eval_ids)[i]);
     if (!image.ok()) return image.status();
     if (image->classes.empty() || image->objects.empty()) continue;
     const WorkingImage working = MakeWorkingImage(image->bgr, working_width);
@@ -425,7 +514,7 @@ StatusOr<nlohmann::json> Evaluate(const BackgroundTrainingConfig& config, const 
         classifier.Scores(superpixel_appearance), rivals_of(superpixel_appearance),
         superpixel_labels, superpixel_majority, RegionAreas(superpixels.labels, superpixels.size()),
         table, config.organizer.background_threshold);
-    if (static_cast<int>(i) < config.check_images) {
+    if (check != nullptr && static_cast<int>(i) < config.check_images) {
       check->ids.push_back((*eval_ids)[i]);
       for (int r = 0; r < n; ++r) {
         if (labels[r] < 0) continue;
@@ -434,7 +523,8 @@ StatusOr<nlohmann::json> Evaluate(const BackgroundTrainingConfig& config, const 
       }
     }
     if (config.progress) {
-      evaluation_progress.Report(i + 1, "evaluation %zu/%zu", i + 1, eval_ids->size());
+      evaluation_progress.Report(i + 1, "%s evaluation %zu/%zu", dataset.name.c_str(), i + 1,
+                                 eval_ids->size());
     }
   }
   evaluation["split"] = config.eval_split;
@@ -476,6 +566,7 @@ StatusOr<nlohmann::json> WriteCheckSample(const BackgroundTrainingConfig& config
     return Status::IoError("cannot write " + path + ": " + e.what());
   }
   check["file"] = "check_sample.yml.gz";
+  check["dataset"] = DatasetName(config.datasets.front());
   check["split"] = config.eval_split;
   check["images"] = sample.ids;
   check["regions"] = static_cast<int>(decided.size());
@@ -529,7 +620,8 @@ struct StageSeconds {
 
 // 5. The manifest; "total" seconds are `total_timer`'s now, and "file_bytes" lists config.out
 // as it is now.
-nlohmann::json BackgroundManifest(const BackgroundTrainingConfig& config, int images, int pixels,
+nlohmann::json BackgroundManifest(const BackgroundTrainingConfig& config,
+                                  const std::vector<TrainingDataset>& datasets, int pixels,
                                   const RegionSample& regions,
                                   const std::vector<std::string>& structured_names,
                                   const BackgroundTrainingSummary& boost_summary,
@@ -539,12 +631,22 @@ nlohmann::json BackgroundManifest(const BackgroundTrainingConfig& config, int im
   manifest["format_version"] = 1;
   manifest["created"] = TodayUtc();
   if (!config.command_line.empty()) manifest["command"] = config.command_line;
-  manifest["data"] = {{"dataset", std::filesystem::path(config.dataset).filename().string()},
+  std::vector<std::string> names;
+  int images = 0;
+  nlohmann::json per_dataset;
+  for (const TrainingDataset& dataset : datasets) {
+    names.push_back(dataset.name);
+    images += static_cast<int>(dataset.ids.size());
+    per_dataset[dataset.name] = static_cast<int>(dataset.ids.size());
+  }
+  manifest["data"] = {{"dataset", JoinDatasets(names, "")},
                       {"split", config.split},
                       {"holdout_first_images", config.holdout},
                       {"left_out_fold", config.leave_out_fold.ToString()},
                       {"images", images}};
+  if (datasets.size() > 1) manifest["data"]["images_per_dataset"] = per_dataset;
   manifest["textons"] = {{"file", "textons.yml"},
+                         {"from_file", config.textons_file},
                          {"k", config.textons.k},
                          {"features", kTextonFeatureSize},
                          {"pixels_per_image", config.pixels_per_image},
@@ -562,7 +664,10 @@ nlohmann::json BackgroundManifest(const BackgroundTrainingConfig& config, int im
                          {"min_region_fraction", sp.min_region_fraction},
                          {"colour_merge_distance", sp.colour_merge_distance},
                          {"texton_stride", config.organizer.texton_stride}};
-  manifest["accuracy"] = evaluation;
+  // One dataset: its evaluation; several: the first's, and every dataset's by name.
+  manifest["accuracy"] =
+      datasets.size() > 1 ? evaluation.value(datasets.front().name, nlohmann::json()) : evaluation;
+  if (datasets.size() > 1) manifest["accuracy_by_dataset"] = evaluation;
   manifest["check_sample"] = check;
   manifest["seconds"] = {{"filter_bank_sampling", seconds.sampling},
                          {"kmeans", seconds.kmeans},
@@ -583,38 +688,49 @@ nlohmann::json BackgroundManifest(const BackgroundTrainingConfig& config, int im
 // The whole training, writing into config.out (a fresh staging directory).
 StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
   PLACEREC_RETURN_IF_ERROR(CheckTrainingOptions(config));
-  StatusOr<ClassTable> table = ReadClassTable(config.dataset);
-  if (!table.ok()) return table.status();
-  if (table->empty()) {
-    return Status::InvalidArgument(config.dataset + " has no classes.txt: cannot label regions");
+  std::vector<std::string> structured_names;
+  StatusOr<std::vector<TrainingDataset>> datasets = ReadTrainingDatasets(config, &structured_names);
+  if (!datasets.ok()) return datasets.status();
+  for (const TrainingDataset& dataset : *datasets) {
+    PLACEREC_RETURN_IF_ERROR(CheckEvalSplit(config, dataset.dir));
   }
-  StatusOr<std::vector<std::string>> ids = TrainingIds(config);
-  if (!ids.ok()) return ids.status();
-  StatusOr<StructuredClasses> structured = FindStructuredClasses(config, *table);
-  if (!structured.ok()) return structured.status();
-  PLACEREC_RETURN_IF_ERROR(CheckEvalSplit(config));
   Timer total_timer;
   StageSeconds seconds;
 
-  // 1. Textons: k-means on pixels sampled from every training image.
+  // 1. Textons: k-means on pixels sampled from every training image, or the given dictionary.
   Timer timer;
-  StatusOr<cv::Mat> pixel_samples = SamplePixels(config, *ids);
-  if (!pixel_samples.ok()) return pixel_samples.status();
-  seconds.sampling = timer.ElapsedMs() / 1000.0;
-  timer.Restart();
-  if (config.progress) {
-    std::fprintf(stderr, "k-means: %d pixels, k = %d\n", pixel_samples->rows, config.textons.k);
+  TextonModel textons;
+  int pixels = 0;
+  if (config.textons_file.empty()) {
+    StatusOr<cv::Mat> pixel_samples = SamplePixels(config, *datasets);
+    if (!pixel_samples.ok()) return pixel_samples.status();
+    pixels = pixel_samples->rows;
+    seconds.sampling = timer.ElapsedMs() / 1000.0;
+    timer.Restart();
+    if (config.progress) {
+      std::fprintf(stderr, "k-means: %d pixels, k = %d\n", pixels, config.textons.k);
+    }
+    textons = TrainTextons(*pixel_samples, config.textons);
+    seconds.kmeans = timer.ElapsedMs() / 1000.0;
+  } else {
+    StatusOr<TextonModel> loaded = LoadTextons(config.textons_file);
+    if (!loaded.ok()) return loaded.status();
+    if (loaded->size() != config.textons.k) {
+      return Status::InvalidArgument(config.textons_file + " holds " +
+                                     std::to_string(loaded->size()) + " textons, not --textons " +
+                                     std::to_string(config.textons.k));
+    }
+    textons = *loaded;
   }
-  const TextonModel textons = TrainTextons(*pixel_samples, config.textons);
-  seconds.kmeans = timer.ElapsedMs() / 1000.0;
   PLACEREC_RETURN_IF_ERROR(SaveTextons(textons, config.out + "/textons.yml"));
 
   // 2. Training regions: superpixels (and ground-truth objects) with their majority class.
   timer.Restart();
   const TextonAssigner assigner(textons);
   RegionSample regions;
-  PLACEREC_RETURN_IF_ERROR(
-      CollectRegions(config, *ids, *table, structured->index, assigner, &regions));
+  for (const TrainingDataset& dataset : *datasets) {
+    PLACEREC_RETURN_IF_ERROR(CollectRegions(config, dataset, assigner, &regions));
+  }
   seconds.regions = timer.ElapsedMs() / 1000.0;
   if (config.progress) {
     std::fprintf(stderr, "boosting on %d regions (%d superpixels)\n", regions.samples.rows,
@@ -627,25 +743,34 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
   }
   BackgroundTrainingSummary boost_summary;
   StatusOr<BackgroundClassifier> trained =
-      TrainClassifier(config, regions, structured->names, &boost_summary);
+      TrainClassifier(config, regions, structured_names, &boost_summary);
   if (!trained.ok()) return trained.status();
   const BackgroundClassifier& classifier = *trained;
   PLACEREC_RETURN_IF_ERROR(classifier.Save(config.out));
 
-  // 4. Accuracy on the evaluation split and the check sample.
+  // 4. Accuracy on each dataset's evaluation split; the check sample from the first's.
   CheckSample check_sample;
   timer.Restart();
-  StatusOr<nlohmann::json> evaluation =
-      Evaluate(config, *table, assigner, classifier, &check_sample);
-  if (!evaluation.ok()) return evaluation.status();
+  nlohmann::json evaluation;
+  for (const TrainingDataset& dataset : *datasets) {
+    StatusOr<nlohmann::json> one =
+        Evaluate(config, dataset, assigner, classifier,
+                 &dataset == &datasets->front() ? &check_sample : nullptr);
+    if (!one.ok()) return one.status();
+    if (datasets->size() == 1) {
+      evaluation = *one;
+    } else {
+      evaluation[dataset.name] = *one;
+    }
+  }
   seconds.evaluation = timer.ElapsedMs() / 1000.0;
   StatusOr<nlohmann::json> check = WriteCheckSample(config, classifier, check_sample);
   if (!check.ok()) return check.status();
 
   // 5. The manifest.
-  nlohmann::json manifest = BackgroundManifest(
-      config, static_cast<int>(ids->size()), pixel_samples->rows, regions, structured->names,
-      boost_summary, *evaluation, *check, seconds, total_timer);
+  nlohmann::json manifest =
+      BackgroundManifest(config, *datasets, pixels, regions, structured_names, boost_summary,
+                         evaluation, *check, seconds, total_timer);
   PLACEREC_RETURN_IF_ERROR(WriteManifest(config.out + "/manifest.json", manifest));
   return manifest;
 }
@@ -653,10 +778,14 @@ StatusOr<nlohmann::json> TrainInto(const BackgroundTrainingConfig& config) {
 }  // namespace
 
 bool BackgroundTrainingConfig::Check(std::string* error) const {
-  if (!CheckNotEmpty("dataset", dataset, error) || !CheckNotEmpty("split", split, error) ||
-      !CheckNotEmpty("out", out, error)) {
+  if (datasets.empty()) {
+    *error = "datasets must not be empty";
     return false;
   }
+  for (const std::string& dataset : datasets) {
+    if (!CheckNotEmpty("datasets", dataset, error)) return false;
+  }
+  if (!CheckNotEmpty("split", split, error) || !CheckNotEmpty("out", out, error)) return false;
   if (pixels_per_image < 1) {
     *error = "pixels_per_image must be at least 1, got " + std::to_string(pixels_per_image);
     return false;

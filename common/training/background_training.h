@@ -65,7 +65,10 @@ struct BackgroundAccuracy {
 };
 
 struct BackgroundTrainingConfig {
-  std::string dataset;  // labelled dataset directory
+  // Labelled dataset directories (at least one). Training pools the `split` images of all of
+  // them (each labelled through its own classes.txt: BackgroundClassOfName, StructuredClassIndex);
+  // each one's `eval_split` is scored on its own, and the check sample comes from the first.
+  std::vector<std::string> datasets;
   std::string split = "train";
   std::string eval_split = "test";  // accuracy reported in the manifest ("" or missing: none)
   std::string out;                  // models directory (created)
@@ -73,6 +76,9 @@ struct BackgroundTrainingConfig {
   // a sample keeps training short).
   int pixels_per_image = 300;
   TextonTrainingOptions textons;
+  // When not empty, the textons are read from this file (of textons.k centres) instead of
+  // learned, and copied into `out` (keeps the dictionary models/objects was described with).
+  std::string textons_file;
   BackgroundTrainingOptions boost;
   // Working resolution, initial partition and texton stride: the ones segmentation uses.
   SceneOrganizerOptions organizer = SceneOrganizerOptions::ForSegmentation();
@@ -91,7 +97,7 @@ struct BackgroundTrainingConfig {
   // dataset class names; {"all"}: every labelled class that is not a background class; empty:
   // none (the five background classifiers only).
   std::vector<std::string> structured_classes = {"all"};
-  // The first `holdout` images of `split` are left out of training (validation).
+  // The first `holdout` images of each dataset's `split` are left out of training (validation).
   int holdout = 0;
   // When not empty, this fold of the images after the holdout is left out too (for the
   // cross-fitted grouping training of grouping_training.h).
@@ -108,13 +114,25 @@ struct BackgroundTrainingConfig {
   // can be retrained with exactly these options; empty when not run from the command line.
   std::string command_line;
 
-  // Non-empty dataset, split and out; pixels_per_image, min_region_pixels >= 1; holdout,
-  // check_images >= 0; min_labelled_fraction in [0, 1]; a finite area_weight_power; no empty
-  // structured class name; a valid fold; and the textons', boosting's and organizer's Check.
-  // What needs the dataset (the holdout leaving images, the classes existing) is checked by
+  // At least one dataset, none empty; non-empty split and out; pixels_per_image, min_region_pixels
+  // >= 1; holdout, check_images >= 0; min_labelled_fraction in [0, 1]; a finite area_weight_power;
+  // no empty structured class name; a valid fold; and the textons', boosting's and organizer's
+  // Check. What needs the dataset (the holdout leaving images, the classes existing) is checked by
   // TrainBackgroundModels.
   bool Check(std::string* error) const;
 };
+
+// stanford_background's class for every object that is neither background nor building nor
+// mountain (cars, people, signs, ...): a structured class of that name also learns the
+// non-background classes of another dataset that are not structured classes of their own.
+constexpr char kCatchAllStructuredClass[] = "foreground";
+
+// Which structured classifier learns each class of `table` (dataset class id -> index into
+// `names`): a class named in `names`; otherwise, when `names` has kCatchAllStructuredClass and
+// `table` has no class of that name, that one (camvid's car, msrc_v2's cow); otherwise none.
+// Unlabelled and background classes (BackgroundClassOfName) are never in it.
+std::map<int, int> StructuredClassIndex(const std::vector<std::string>& names,
+                                        const ClassTable& table);
 
 // Runs the whole training and writes OUT/textons.yml, OUT/background*.yml*,
 // OUT/check_sample.yml.gz and OUT/manifest.json; returns the manifest. The files are written

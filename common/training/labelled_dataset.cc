@@ -23,14 +23,22 @@ bool ClassTable::IsUnlabelled(int id) const {
   return it->second == "unknown" || it->second == "void" || it->second == "unlabelled";
 }
 
-SegmentClass ClassTable::BackgroundClass(int id) const {
-  const auto it = names.find(id);
-  if (it == names.end()) return SegmentClass::kStructured;
+SegmentClass BackgroundClassOfName(const std::string& name) {
   for (const SegmentClass c : {SegmentClass::kSky, SegmentClass::kTree, SegmentClass::kRoad,
                                SegmentClass::kGrass, SegmentClass::kWater}) {
-    if (it->second == SegmentClassName(c)) return c;
+    if (name == SegmentClassName(c)) return c;
   }
-  return SegmentClass::kStructured;
+  // Names that mean a background class under another word.
+  static const std::map<std::string, SegmentClass> kAliases = {
+      {"pavement", SegmentClass::kRoad},  // camvid: sidewalks, ground like road
+  };
+  const auto alias = kAliases.find(name);
+  return alias != kAliases.end() ? alias->second : SegmentClass::kStructured;
+}
+
+SegmentClass ClassTable::BackgroundClass(int id) const {
+  const auto it = names.find(id);
+  return it == names.end() ? SegmentClass::kStructured : BackgroundClassOfName(it->second);
 }
 
 StatusOr<ClassTable> ReadClassTable(const std::string& dir) {

@@ -14,6 +14,13 @@
 
 namespace placerec {
 
+// The one place where dataset class names meet the background classes of seed §3.4 (sky, tree,
+// road, grass, water), for training, `placerec-eval segment` and `placerec-eval classify` alike:
+// a class named like a background class is that class (stanford_background, msrc_v2, camvid's
+// sky, road, tree); the aliases below name the rest (shared/data/README.md: camvid's pavement is
+// ground, like road); every other name is structured (building, mountain, car, ...).
+SegmentClass BackgroundClassOfName(const std::string& name);
+
 // classes.txt: "id name" per line.
 struct ClassTable {
   std::map<int, std::string> names;
@@ -22,8 +29,8 @@ struct ClassTable {
   std::string Name(int id) const;  // "class<id>" when unlisted
   // Ids that mean "no label": those named unknown, void or unlabelled.
   bool IsUnlabelled(int id) const;
-  // The background class a dataset class stands for, by name (sky, tree, road, grass, water);
-  // kStructured for every other class.
+  // The background class a dataset class stands for, by name (BackgroundClassOfName);
+  // kStructured for every other class and for unlisted ids.
   SegmentClass BackgroundClass(int id) const;
 };
 

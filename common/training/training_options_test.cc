@@ -3,6 +3,7 @@
 // with a message that names the field.
 #include <limits>
 #include <string>
+#include <type_traits>
 
 #include <gtest/gtest.h>
 
@@ -17,7 +18,11 @@ namespace {
 template <typename Config>
 Config WithPaths() {
   Config config;
-  config.dataset = "data/stanford_background";
+  if constexpr (std::is_same_v<Config, BackgroundTrainingConfig>) {
+    config.datasets = {"data/stanford_background"};
+  } else {
+    config.dataset = "data/stanford_background";
+  }
   config.out = "models";
   return config;
 }
@@ -47,8 +52,11 @@ TEST(BackgroundTrainingConfigTest, DefaultsPass) {
 
 TEST(BackgroundTrainingConfigTest, OneBadValueFailsNamingTheField) {
   BackgroundTrainingConfig config = WithPaths<BackgroundTrainingConfig>();
-  config.dataset.clear();
-  ExpectFails(config, "dataset");
+  config.datasets.clear();
+  ExpectFails(config, "datasets");
+  config = WithPaths<BackgroundTrainingConfig>();
+  config.datasets.push_back("");
+  ExpectFails(config, "datasets");
   config = WithPaths<BackgroundTrainingConfig>();
   config.out.clear();
   ExpectFails(config, "out");
