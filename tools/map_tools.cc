@@ -41,14 +41,10 @@ StatusOr<SqliteConnection> OpenReadOnly(const std::string& path, int* version) {
     return Status::NotFound("no placerec map at " + path +
                             ": give the map file a server or placerec-eval wrote (--db)");
   }
-  sqlite3* raw = nullptr;
-  const int rc = sqlite3_open_v2(path.c_str(), &raw, SQLITE_OPEN_READONLY, nullptr);
-  SqliteConnection db(raw);
-  if (rc != SQLITE_OK) {
-    return Status::IoError("cannot open map " + path + ": " + SqliteMessage(raw, rc));
-  }
-  sqlite3_extended_result_codes(db.get(), 1);
-  sqlite3_busy_timeout(db.get(), 2000);
+  StatusOr<SqliteConnection> opened =
+      OpenSqliteDatabase(path, SQLITE_OPEN_READONLY, /*busy_timeout_ms=*/2000);
+  if (!opened.ok()) return opened.status();
+  SqliteConnection db = std::move(opened).value();
   StatusOr<int> read = ReadSchemaVersion(db.get(), path);
   if (!read.ok()) return read.status();
   if (*read > kSqliteSchemaVersion) return NewerSchemaVersionError(path, *read);
@@ -356,20 +352,16 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
   if (!std::filesystem::exists(path, ignored)) {
     return Status::NotFound("no placerec map at " + path);
   }
-  sqlite3* raw = nullptr;
-  int rc = sqlite3_open_v2(path.c_str(), &raw, SQLITE_OPEN_READWRITE, nullptr);
-  SqliteConnection db(raw);
-  if (rc != SQLITE_OK) {
-    return Status::IoError("cannot open map " + path + ": " + SqliteMessage(raw, rc));
-  }
+  StatusOr<SqliteConnection> opened =
+      OpenSqliteDatabase(path, SQLITE_OPEN_READWRITE, options.busy_timeout_ms);
+  if (!opened.ok()) return opened.status();
+  const SqliteConnection db = std::move(opened).value();
   sqlite3* c = db.get();
   if (sqlite3_db_readonly(c, "main") == 1) {
     return Status::IoError("map " + path +
                            " cannot be written (a read-only file or folder): make it writable, or "
                            "prune a writable copy");
   }
-  sqlite3_extended_result_codes(c, 1);
-  sqlite3_busy_timeout(c, options.busy_timeout_ms);
   // Exclusive locking mode before the first access: the connection takes the file's exclusive
   // lock and keeps it until it closes. A server holds a shared lock on its map for as long as it
   // has it open (WAL mode), so a map in use is refused here instead of changing under the server.
@@ -378,7 +370,8 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
     PLACEREC_RETURN_IF_ERROR(SqliteExec(c, "PRAGMA locking_mode = EXCLUSIVE", path));
   }
   PLACEREC_RETURN_IF_ERROR(SqliteExec(c, "PRAGMA foreign_keys = ON", path));
-  rc = sqlite3_exec(c, options.dry_run ? "BEGIN" : "BEGIN EXCLUSIVE", nullptr, nullptr, nullptr);
+  int rc =
+      sqlite3_exec(c, options.dry_run ? "BEGIN" : "BEGIN EXCLUSIVE", nullptr, nullptr, nullptr);
   if ((rc & 0xff) == SQLITE_BUSY || (rc & 0xff) == SQLITE_LOCKED) {
     return Status::IoError("map " + path + kHeldOpenAdvice);
   }

@@ -11,6 +11,19 @@ std::string SqliteMessage(sqlite3* db, int rc) {
   return message + " (sqlite code " + std::to_string(rc) + ")";
 }
 
+StatusOr<SqliteConnection> OpenSqliteDatabase(const std::string& path, int flags,
+                                              int busy_timeout_ms) {
+  sqlite3* raw = nullptr;
+  const int rc = sqlite3_open_v2(path.c_str(), &raw, flags, nullptr);
+  SqliteConnection db(raw);
+  if (rc != SQLITE_OK) {
+    return Status::IoError("cannot open map " + path + ": " + SqliteMessage(raw, rc));
+  }
+  sqlite3_extended_result_codes(db.get(), 1);
+  sqlite3_busy_timeout(db.get(), busy_timeout_ms);
+  return StatusOr<SqliteConnection>(std::move(db));
+}
+
 Status SqliteExec(sqlite3* db, const char* sql, const std::string& path) {
   const int rc = sqlite3_exec(db, sql, nullptr, nullptr, nullptr);
   if (rc != SQLITE_OK) {

@@ -26,6 +26,11 @@ using SqliteConnection = std::unique_ptr<sqlite3, SqliteConnectionCloser>;
 // " (sqlite code <rc>)".
 std::string SqliteMessage(sqlite3* db, int rc);
 
+// Opens the database at `path` with `flags` (SQLITE_OPEN_*), extended result codes on and a busy
+// timeout of `busy_timeout_ms`; IoError "cannot open map <path>: ..." when SQLite cannot.
+StatusOr<SqliteConnection> OpenSqliteDatabase(const std::string& path, int flags,
+                                              int busy_timeout_ms);
+
 // Runs constant SQL without results; the error names the SQL and `path` (for messages only).
 Status SqliteExec(sqlite3* db, const char* sql, const std::string& path);
 

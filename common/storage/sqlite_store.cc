@@ -377,15 +377,7 @@ StatusOr<SqliteConnection> OpenConnection(const std::string& path,
   // The object's mutex serialises use of the connection, so SQLite's own mutex is not needed.
   int flags = SQLITE_OPEN_READWRITE | SQLITE_OPEN_NOMUTEX;
   if (!options.must_exist) flags |= SQLITE_OPEN_CREATE;
-  sqlite3* raw = nullptr;
-  const int rc = sqlite3_open_v2(path.c_str(), &raw, flags, nullptr);
-  SqliteConnection db(raw);
-  if (rc != SQLITE_OK) {
-    return Status::IoError("cannot open map " + path + ": " + SqliteMessage(raw, rc));
-  }
-  sqlite3_extended_result_codes(db.get(), 1);
-  sqlite3_busy_timeout(db.get(), options.busy_timeout_ms);
-  return StatusOr<SqliteConnection>(std::move(db));
+  return OpenSqliteDatabase(path, flags, options.busy_timeout_ms);
 }
 
 // Foreign keys on, WAL journal, the synchronous level of the options.
@@ -701,22 +693,18 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
       std::filesystem::file_size(path + "-wal", ignored) > 0) {
     // Commits still in the WAL (a killed server) move into the file first, so that the pages
     // read from the file below are the current ones.
-    sqlite3* raw = nullptr;
-    const int rc = sqlite3_open_v2(path.c_str(), &raw, SQLITE_OPEN_READWRITE, nullptr);
-    SqliteConnection db(raw);
-    if (rc == SQLITE_OK) {
-      sqlite3_exec(db.get(), "PRAGMA wal_checkpoint(TRUNCATE)", nullptr, nullptr, nullptr);
+    StatusOr<SqliteConnection> db =
+        OpenSqliteDatabase(path, SQLITE_OPEN_READWRITE, options.busy_timeout_ms);
+    if (db.ok()) {
+      sqlite3_exec(db->get(), "PRAGMA wal_checkpoint(TRUNCATE)", nullptr, nullptr, nullptr);
     }
   }
   {
     // Read-only: the damaged file is not changed by the reading.
-    sqlite3* raw = nullptr;
-    const int rc = sqlite3_open_v2(path.c_str(), &raw, SQLITE_OPEN_READONLY, nullptr);
-    SqliteConnection db(raw);
-    if (rc != SQLITE_OK) {
-      return Status::IoError("cannot open map " + path + ": " + SqliteMessage(raw, rc));
-    }
-    sqlite3_extended_result_codes(db.get(), 1);
+    StatusOr<SqliteConnection> opened =
+        OpenSqliteDatabase(path, SQLITE_OPEN_READONLY, options.busy_timeout_ms);
+    if (!opened.ok()) return opened.status();
+    const SqliteConnection db = std::move(opened).value();
     StatusOr<int> version = ReadSchemaVersion(db.get(), path);
     if (!version.ok()) {
       return Status::IoError(version.status().message() +
