@@ -33,11 +33,12 @@ class SharedSegmenter : public Segmenter {
 
 FrameProcessor::FrameProcessor(const RecognizerOptions& options, const DecodeOptions& decode,
                                PlaceMap* map, std::unique_ptr<Segmenter> segmenter,
-                               const SequenceRuleOptions& sequence_rule)
+                               const SequenceRuleOptions& sequence_rule,
+                               std::shared_ptr<const ObjectClassLabeler> labeler)
     : options_(options),
       decode_(decode),
       map_(map),
-      analyzer_(options, map, std::move(segmenter)),
+      analyzer_(options, map, std::move(segmenter), std::move(labeler)),
       gate_(sequence_rule) {
   map_->ForEachPlace([this](const Place& place) { gate_.AddStored(place.robot, place.sequence); });
 }

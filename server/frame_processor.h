@@ -20,11 +20,12 @@ namespace placerec {
 
 class FrameProcessor {
  public:
-  // `map` must outlive the processor; a null `segmenter` is made from the options. The sequence
-  // rule learns the robots' stored places from `map`.
+  // `map` must outlive the processor; a null `segmenter` or `labeler` is made from the options.
+  // The sequence rule learns the robots' stored places from `map`.
   FrameProcessor(const RecognizerOptions& options, const DecodeOptions& decode, PlaceMap* map,
                  std::unique_ptr<Segmenter> segmenter = nullptr,
-                 const SequenceRuleOptions& sequence_rule = SequenceRuleOptions());
+                 const SequenceRuleOptions& sequence_rule = SequenceRuleOptions(),
+                 std::shared_ptr<const ObjectClassLabeler> labeler = nullptr);
 
   // Frames of one robot must come one at a time and in order; frames of different robots may be
   // processed from different threads at once (Recognizer's contract).

@@ -63,12 +63,13 @@ StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
   if (!options.Check(&error)) return Status::InvalidArgument(error);
   StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.recognizer.analyzer);
   if (!segmenter.ok()) return segmenter.status();
+  // Without the object classifiers the server refuses to start, with the loader's advice.
+  std::shared_ptr<const ObjectClassLabeler> labeler;
   if (options.recognizer.classes.enabled) {
-    // Refuse to start without the object classifiers, with the loader's advice; the recognizer
-    // loads its own copy.
-    StatusOr<std::unique_ptr<ObjectClassLabeler>> labeler =
+    StatusOr<std::unique_ptr<ObjectClassLabeler>> loaded =
         ObjectClassLabeler::Load(options.recognizer.classes);
-    if (!labeler.ok()) return labeler.status();
+    if (!loaded.ok()) return loaded.status();
+    labeler = std::move(*loaded);
   }
   if (options.repair) {
     StatusOr<MapRepairReport> repaired = RepairSqliteMap(options.db_path, options.store);
@@ -89,7 +90,8 @@ StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
   StatusOr<std::unique_ptr<PlaceMap>> map =
       PlaceMap::Open(std::move(*store), options.recognizer.index);
   if (!map.ok()) return map.status();
-  std::unique_ptr<Server> server(new Server(options, std::move(*map), std::move(*segmenter)));
+  std::unique_ptr<Server> server(
+      new Server(options, std::move(*map), std::move(*segmenter), std::move(labeler)));
   if (!server->lcm_.good()) {
     return Status::IoError("cannot open LCM (" + DescribeUrl(options.lcm_url) +
                            "); check the URL and that the network has multicast");
@@ -98,11 +100,12 @@ StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
 }
 
 Server::Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map,
-               std::unique_ptr<Segmenter> segmenter)
+               std::unique_ptr<Segmenter> segmenter,
+               std::shared_ptr<const ObjectClassLabeler> labeler)
     : options_(options),
       map_(std::move(map)),
       processor_(options.recognizer, options.decode, map_.get(), std::move(segmenter),
-                 options.sequence_rule),
+                 options.sequence_rule, std::move(labeler)),
       lcm_(options.lcm_url) {
   queue_ = std::make_unique<LaneWorkQueue<Job>>(options_.workers, options_.queue_capacity,
                                                 [this](Job& job) { Work(job); });

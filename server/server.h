@@ -78,7 +78,7 @@ class Server {
   };
 
   Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map,
-         std::unique_ptr<Segmenter> segmenter);
+         std::unique_ptr<Segmenter> segmenter, std::shared_ptr<const ObjectClassLabeler> labeler);
   void OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string& channel);
   void Work(Job& job);
   // Publishes `answer` on its robot's channel; `processed` says whether a worker ran the frame.
