@@ -36,8 +36,9 @@ struct ObjectClassOptions {
     d.shape_max_side = 64;
     return d;
   }();
-  // Classes of things that move or are moved (seed §7.2.3: "a car or a person is a poor
-  // landmark"), by class name of MSRC-21 (the shipped models) and of CamVid.
+  // Classes of things that move or are moved (seed §7.2.3: "the vehicles may move out of a scene
+  // in any moment"; "assign low weight to mobile objects like vehicles"), by class name of
+  // MSRC-21 (the shipped models) and of CamVid.
   std::vector<std::string> movable_classes = {
       "car", "body",  "face",      "bicycle", "cow",   "sheep", "bird",       "cat",
       "dog", "horse", "aeroplane", "boat",    "chair", "book",  "pedestrian", "bicyclist"};
