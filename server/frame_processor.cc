@@ -43,6 +43,18 @@ FrameProcessor::FrameProcessor(const RecognizerOptions& options, const DecodeOpt
   map_->ForEachPlace([this](const Place& place) { gate_.AddStored(place.robot, place.sequence); });
 }
 
+std::optional<Place> FrameProcessor::StoredCopyOf(const FrameRequest& request) const {
+  std::optional<Place> found;
+  // Only refused inserts get here, so a pass over the places costs nothing in normal running.
+  map_->ForEachPlace([&](const Place& place) {
+    if (place.sequence == request.sequence && place.utime == request.utime &&
+        place.robot == request.robot) {
+      found = place;
+    }
+  });
+  return found;
+}
+
 std::unique_ptr<Recognizer> FrameProcessor::NewRun() const {
   return std::make_unique<Recognizer>(options_, map_,
                                       std::make_unique<SharedSegmenter>(&analyzer_.segmenter()),
@@ -81,7 +93,21 @@ result_t FrameProcessor::ProcessOrThrow(const frame_t& frame) {
   if (request.insert) {
     const StatusOr<SequenceGate::Admission> admission =
         gate_.Admit(request.robot, request.sequence, SequenceGate::Clock::now());
-    if (!admission.ok()) return fail(result_t::STATUS_BAD_REQUEST, admission.status().message());
+    if (!admission.ok()) {
+      const std::optional<Place> stored = StoredCopyOf(request);
+      if (!stored) return fail(result_t::STATUS_BAD_REQUEST, admission.status().message());
+      // Answered ok with the place it stored; the loop-closure answer is not kept (the server's
+      // answer record, which holds it, does not survive a restart).
+      LOG(INFO) << "frame " << request.sequence << " of robot '" << request.robot
+                << "' was sent again; it is stored as place " << stored->id.value();
+      const MapCounts counts = map_->Counts();
+      answer.map_places = counts.places;
+      answer.map_landmarks = counts.landmarks;
+      answer.map_descriptors = counts.descriptors;
+      answer.place_id = stored->id.value();
+      answer.landmarks = stored->num_landmarks;
+      return answer;
+    }
     new_run = *admission == SequenceGate::Admission::kNewRun;
   }
   Recognizer* recognizer = nullptr;

@@ -139,7 +139,8 @@ TEST(FrameProcessorTest, LastSequencesSurviveARestartAndStoredOnesAreNeverReused
     std::unique_ptr<PlaceMap> map = OpenMap(file.path());
     const int64_t places = map->Counts().places;
     std::unique_ptr<FrameProcessor> processor = NewProcessor(map.get(), 3600);
-    const result_t back = processor->Process(Frame("r", first_stored, 0));
+    // (Another capture time than the stored frame's: the same frame again would be a resend.)
+    const result_t back = processor->Process(Frame("r", first_stored, 7));
     EXPECT_EQ(int{back.status}, int{result_t::STATUS_BAD_REQUEST});
     EXPECT_NE(back.message.find("is not after " + std::to_string(stored.back())), std::string::npos)
         << back.message;
@@ -151,7 +152,7 @@ TEST(FrameProcessorTest, LastSequencesSurviveARestartAndStoredOnesAreNeverReused
     std::unique_ptr<PlaceMap> map = OpenMap(file.path());
     const int64_t places = map->Counts().places;
     std::unique_ptr<FrameProcessor> processor = NewProcessor(map.get(), 0);
-    const result_t reused = processor->Process(Frame("r", first_stored, 0));
+    const result_t reused = processor->Process(Frame("r", first_stored, 7));
     EXPECT_EQ(int{reused.status}, int{result_t::STATUS_BAD_REQUEST});
     EXPECT_NE(reused.message.find("already in the map"), std::string::npos) << reused.message;
     EXPECT_NE(
@@ -162,6 +163,51 @@ TEST(FrameProcessorTest, LastSequencesSurviveARestartAndStoredOnesAreNeverReused
     const result_t resumed = processor->Process(Frame("r", next_free, 6));
     EXPECT_EQ(int{resumed.status}, int{result_t::STATUS_OK}) << resumed.message;
   }
+}
+
+// A server killed after it committed an insert but before the answer went out: the robot sends
+// the frame again (same robot, sequence and capture time) to the restarted server, which answers
+// it ok with the stored place instead of "already in the map", and stores nothing twice. A
+// different frame with a stored sequence is still refused.
+TEST(FrameProcessorTest, AnInsertSentAgainAfterARestartIsAnsweredWithItsStoredPlace) {
+  TempMap file;
+  frame_t frame;
+  int64_t place_id = -1;
+  int landmarks = 0;
+  int step = 0;
+  {
+    std::unique_ptr<PlaceMap> map = OpenMap(file.path());
+    std::unique_ptr<FrameProcessor> processor = NewProcessor(map.get(), 5.0);
+    for (; step < 4 && place_id < 0; ++step) {  // the first frame that stores a place
+      frame = Frame("r", step, step);
+      const result_t answer = processor->Process(frame);
+      ASSERT_EQ(int{answer.status}, int{result_t::STATUS_OK}) << answer.message;
+      place_id = answer.place_id;
+      landmarks = answer.landmarks;
+    }
+    ASSERT_GE(place_id, 0);
+  }
+  std::unique_ptr<PlaceMap> map = OpenMap(file.path());
+  std::unique_ptr<FrameProcessor> restarted = NewProcessor(map.get(), 1.0);
+  const MapCounts before = map->Counts();
+  for (const double wait_s : {0.0, 1.1}) {  // within the restart gap, and after it
+    std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<int>(wait_s * 1000)));
+    frame.request_id = 7;
+    const result_t again = restarted->Process(frame);
+    EXPECT_EQ(int{again.status}, int{result_t::STATUS_OK}) << again.message;
+    EXPECT_EQ(again.place_id, place_id);
+    EXPECT_EQ(again.landmarks, landmarks);
+    EXPECT_EQ(again.request_id, 7);
+    EXPECT_EQ(again.map_places, before.places);
+    EXPECT_EQ(map->Counts().landmarks, before.landmarks);
+  }
+  const frame_t other = Frame("r", frame.sequence, step + 1);  // another capture time
+  const result_t refused = restarted->Process(other);
+  EXPECT_EQ(int{refused.status}, int{result_t::STATUS_BAD_REQUEST});
+  EXPECT_NE(refused.message.find("already in the map"), std::string::npos) << refused.message;
+  // The robot goes on after it.
+  EXPECT_EQ(int{restarted->Process(Frame("r", frame.sequence + 1, step)).status},
+            int{result_t::STATUS_OK});
 }
 
 }  // namespace
