@@ -13,6 +13,7 @@ packages=(
   libgoogle-glog-dev libboost-program-options-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev clang-format
   clang-15 libfuzzer-15-dev
+  libcpp-httplib-dev libssl-dev openssl chromium chromium-driver
   iproute2 util-linux procps
 )
 

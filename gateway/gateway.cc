@@ -1,0 +1,319 @@
+#include "gateway/gateway.h"
+
+#include <httplib.h>
+
+#include <chrono>
+#include <string>
+#include <utility>
+
+#include <nlohmann/json.hpp>
+
+#include "common/util/logging.h"
+
+namespace placerec {
+namespace {
+
+int64_t NowUnix() {
+  return std::chrono::duration_cast<std::chrono::seconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+int64_t NowMicros() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// The image's encoding from its first bytes; false when it is neither JPEG nor PNG.
+bool SniffEncoding(const std::string& bytes, FrameEncoding* encoding) {
+  if (bytes.size() >= 3 && static_cast<unsigned char>(bytes[0]) == 0xFF &&
+      static_cast<unsigned char>(bytes[1]) == 0xD8 &&
+      static_cast<unsigned char>(bytes[2]) == 0xFF) {
+    *encoding = FrameEncoding::kJpeg;
+    return true;
+  }
+  if (bytes.size() >= 8 && bytes.compare(0, 8, "\x89PNG\r\n\x1a\n") == 0) {
+    *encoding = FrameEncoding::kPng;
+    return true;
+  }
+  return false;
+}
+
+// The HTTP status for a server answer that is not ok.
+int HttpStatusOf(AnswerCode code) {
+  switch (code) {
+    case AnswerCode::kBadImage:
+      return 422;
+    case AnswerCode::kUnauthorised:
+      return 403;
+    case AnswerCode::kOverloaded:
+    case AnswerCode::kShuttingDown:
+      return 503;
+    case AnswerCode::kTimeout:
+      return 504;
+    default:
+      return 502;
+  }
+}
+
+nlohmann::json AnswerJson(const FrameResult& r) {
+  nlohmann::json matches = nlohmann::json::array();
+  for (const MatchedPlace& m : r.matches) {
+    nlohmann::json classes = nlohmann::json::array();
+    for (const auto& [name, count] : m.classes)
+      classes.push_back({{"class", name}, {"count", count}});
+    matches.push_back({{"robot", m.robot},
+                       {"sequence", m.sequence},
+                       {"utime", m.utime},
+                       {"place_id", m.place_id},
+                       {"score", m.score},
+                       {"inliers", m.inliers},
+                       {"matched_landmarks", m.matched_landmarks},
+                       {"classes", classes},
+                       {"thumbnail", "/v1/places/" + std::to_string(m.place_id) + "/thumbnail"}});
+  }
+  return {{"status", "ok"},           {"loop_closure", r.loop_closure},
+          {"matches", matches},       {"keypoints", r.keypoints},
+          {"objects", r.objects},     {"map_places", r.map_places},
+          {"server_ms", r.server_ms}, {"latency_ms", r.latency_ms}};
+}
+
+// "Bearer TOKEN" -> TOKEN; empty when the header is missing or of another scheme.
+std::string BearerToken(const std::string& authorization) {
+  static const std::string kScheme = "Bearer ";
+  if (authorization.size() <= kScheme.size() || authorization.compare(0, kScheme.size(), kScheme)) {
+    return "";
+  }
+  return authorization.substr(kScheme.size());
+}
+
+}  // namespace
+
+bool GatewayOptions::Check(std::string* error) const {
+  if (cert_file.empty() || key_file.empty()) {
+    *error =
+        "--cert and --key are required (PEM files; scripts/make-cert.sh DIR makes a "
+        "self-signed pair for tests and demos)";
+    return false;
+  }
+  if (tokens_file.empty()) {
+    *error = "--tokens is required: a file of `TOKEN DEVICE [expires=...]` lines";
+    return false;
+  }
+  if (port < 0 || port > 65535) {
+    *error = "--port must be in [0, 65535]";
+    return false;
+  }
+  if (max_upload_bytes < 1024) {
+    *error = "--max-upload-bytes must be at least 1024";
+    return false;
+  }
+  if (!(requests_per_minute > 0) || !(burst >= 1)) {
+    *error = "--requests-per-minute must be > 0 and --burst >= 1";
+    return false;
+  }
+  if (!(query_timeout_s > 0)) {
+    *error = "--query-timeout must be > 0 seconds";
+    return false;
+  }
+  return client.Check(error);
+}
+
+HttpReply ErrorReply(int status, const std::string& message) {
+  HttpReply reply;
+  reply.status = status;
+  reply.body = nlohmann::json{{"error", message}}.dump();
+  return reply;
+}
+
+StatusOr<std::unique_ptr<Gateway>> Gateway::Create(const GatewayOptions& options) {
+  std::string error;
+  if (!options.Check(&error)) return Status::InvalidArgument(error);
+  StatusOr<TokenTable> tokens = TokenTable::Load(options.tokens_file);
+  if (!tokens.ok()) return tokens.status();
+  if (tokens->size() == 0) {
+    return Status::InvalidArgument(options.tokens_file +
+                                   " lists no device: nobody could use the gateway");
+  }
+  std::unique_ptr<Gateway> gateway(new Gateway(options, std::move(*tokens)));
+  StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(options.client);
+  if (!client.ok()) return client.status();
+  gateway->client_ = std::move(*client);
+  StatusOr<std::unique_ptr<SiteWatcher>> watcher =
+      SiteWatcher::Start(options.client.lcm_url, options.recent_loop_closures);
+  if (!watcher.ok()) return watcher.status();
+  gateway->watcher_ = std::move(*watcher);
+  gateway->http_ =
+      std::make_unique<httplib::SSLServer>(options.cert_file.c_str(), options.key_file.c_str());
+  if (!gateway->http_->is_valid()) {
+    return Status::InvalidArgument("cannot use the certificate " + options.cert_file +
+                                   " with the key " + options.key_file +
+                                   " (PEM files that belong together; scripts/make-cert.sh DIR "
+                                   "makes a pair)");
+  }
+  return gateway;
+}
+
+Gateway::Gateway(const GatewayOptions& options, TokenTable tokens)
+    : options_(options),
+      tokens_(std::move(tokens)),
+      limiter_(options.requests_per_minute, options.burst) {}
+
+Gateway::~Gateway() { Stop(); }
+
+bool Gateway::Admit(const std::string& authorization, std::string* device, HttpReply* refusal) {
+  const std::string token = BearerToken(authorization);
+  if (token.empty()) {
+    *refusal = ErrorReply(401, "send the device's token as 'Authorization: Bearer TOKEN'");
+    return false;
+  }
+  StatusOr<std::string> who = tokens_.Authenticate(token, NowUnix());
+  if (!who.ok()) {
+    *refusal = ErrorReply(401, who.status().message());
+    return false;
+  }
+  double retry_after_s = 0;
+  if (!limiter_.Allow(token, RateLimiter::Clock::now(), &retry_after_s)) {
+    *refusal = ErrorReply(429, "more than " +
+                                   std::to_string(static_cast<int>(options_.requests_per_minute)) +
+                                   " requests a minute from this device; try again in " +
+                                   std::to_string(static_cast<int>(retry_after_s + 0.999)) + " s");
+    refusal->retry_after_s = retry_after_s;
+    return false;
+  }
+  *device = *who;
+  return true;
+}
+
+HttpReply Gateway::Query(const std::string& authorization, const std::string& image) {
+  std::string device;
+  HttpReply refusal;
+  if (!Admit(authorization, &device, &refusal)) return refusal;
+  if (static_cast<int64_t>(image.size()) > options_.max_upload_bytes) {
+    return ErrorReply(413, "the photo has " + std::to_string(image.size()) +
+                               " bytes; the limit is " + std::to_string(options_.max_upload_bytes) +
+                               " (send a smaller JPEG)");
+  }
+  OutgoingFrame frame;
+  if (!SniffEncoding(image, &frame.image.encoding)) {
+    return ErrorReply(415,
+                      "send a JPEG or PNG photo (as the request body, or the form field "
+                      "'image')");
+  }
+  frame.image.bytes.assign(image.begin(), image.end());
+  frame.robot = device;
+  frame.sequence = next_sequence_++;
+  frame.utime = NowMicros();
+  frame.insert = false;  // the gateway never changes the map
+  StatusOr<PendingFrame> pending = client_->Publish(frame);
+  if (!pending.ok())
+    return ErrorReply(502, "cannot reach the server: " + pending.status().message());
+  const FrameResult result = client_->Wait(*pending, options_.query_timeout_s);
+  if (!result.ok()) {
+    const std::string why = result.code == AnswerCode::kTimeout
+                                ? "no answer from the placerec server within " +
+                                      std::to_string(static_cast<int>(options_.query_timeout_s)) +
+                                      " s; is it running on the gateway's LCM network?"
+                                : std::string(AnswerCodeName(result.code)) + ": " + result.message;
+    return ErrorReply(HttpStatusOf(result.code), why);
+  }
+  nlohmann::json body = AnswerJson(result);
+  body["device"] = device;
+  HttpReply reply;
+  reply.body = body.dump();
+  return reply;
+}
+
+HttpReply Gateway::ServerStatus(const std::string& authorization) {
+  std::string device;
+  HttpReply refusal;
+  if (!Admit(authorization, &device, &refusal)) return refusal;
+  const nlohmann::json status = watcher_->LastStatus();
+  if (status.is_null()) {
+    return ErrorReply(503,
+                      "no heartbeat from a placerec server yet; is it running on the "
+                      "gateway's LCM network?");
+  }
+  HttpReply reply;
+  reply.body = status.dump();
+  return reply;
+}
+
+HttpReply Gateway::Site(const std::string& authorization) {
+  std::string device;
+  HttpReply refusal;
+  if (!Admit(authorization, &device, &refusal)) return refusal;
+  HttpReply reply;
+  reply.body = watcher_->Overview().dump();
+  return reply;
+}
+
+HttpReply Gateway::Thumbnail(const std::string& authorization, const std::string& place_id) {
+  std::string device;
+  HttpReply refusal;
+  if (!Admit(authorization, &device, &refusal)) return refusal;
+  return ErrorReply(404,
+                    "no picture of place " + place_id + ": this map keeps no place thumbnails yet");
+}
+
+Status Gateway::Serve() {
+  httplib::SSLServer& http = *http_;
+  http.set_payload_max_length(static_cast<size_t>(options_.max_upload_bytes));
+  auto send = [](const HttpReply& reply, httplib::Response& res) {
+    res.status = reply.status;
+    res.set_header("Cache-Control", "no-store");
+    if (reply.retry_after_s > 0) {
+      res.set_header("Retry-After", std::to_string(static_cast<int>(reply.retry_after_s + 0.999)));
+    }
+    res.set_content(reply.body, reply.content_type.c_str());
+  };
+  http.Post("/v1/query", [&](const httplib::Request& req, httplib::Response& res) {
+    const std::string& image = req.is_multipart_form_data() && req.has_file("image")
+                                   ? req.get_file_value("image").content
+                                   : req.body;
+    send(Query(req.get_header_value("Authorization"), image), res);
+  });
+  http.Get("/v1/status", [&](const httplib::Request& req, httplib::Response& res) {
+    send(ServerStatus(req.get_header_value("Authorization")), res);
+  });
+  http.Get("/v1/site", [&](const httplib::Request& req, httplib::Response& res) {
+    send(Site(req.get_header_value("Authorization")), res);
+  });
+  http.Get(R"(/v1/places/(\d+)/thumbnail)",
+           [&](const httplib::Request& req, httplib::Response& res) {
+             send(Thumbnail(req.get_header_value("Authorization"), req.matches[1]), res);
+           });
+  const std::string web_dir = options_.web_dir.empty() ? PLACEREC_WEB_DIR : options_.web_dir;
+  if (!http.set_mount_point("/", web_dir)) {
+    return Status::NotFound("the web page's folder " + web_dir + " does not exist (--web-dir)");
+  }
+  // Every error, including the library's own (404, 405, 413 ...), is a JSON body.
+  http.set_error_handler([](const httplib::Request& req, httplib::Response& res) {
+    if (!res.body.empty()) return;
+    std::string message = "HTTP " + std::to_string(res.status);
+    if (res.status == 404) message = "no such page or endpoint: " + req.path;
+    if (res.status == 413) message = "the request is larger than the gateway accepts";
+    if (res.status == 405) message = "method not allowed on " + req.path;
+    res.set_content(nlohmann::json{{"error", message}}.dump(), "application/json");
+  });
+  http.set_default_headers({{"X-Content-Type-Options", "nosniff"}});
+  const int port =
+      options_.port == 0
+          ? http.bind_to_any_port(options_.host.c_str())
+          : (http.bind_to_port(options_.host.c_str(), options_.port) ? options_.port : -1);
+  if (port < 0) {
+    return Status::IoError("cannot listen on " + options_.host + ":" +
+                           std::to_string(options_.port) + " (in use, or not allowed)");
+  }
+  bound_port_ = port;
+  LOG(INFO) << "placerec-gateway: https://" << options_.host << ":" << port << "/";
+  if (!http.listen_after_bind()) return Status::IoError("the HTTPS server stopped with an error");
+  return Status::Ok();
+}
+
+void Gateway::Stop() {
+  if (http_) http_->stop();
+}
+
+}  // namespace placerec

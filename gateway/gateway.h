@@ -1,0 +1,88 @@
+// placerec-gateway (issue 26 item 3): "where am I?" over HTTPS for field devices that have no
+// LCM: a photo in, the server's answer as JSON out. It talks LCM to placerec-server through the
+// client library, as a query-only robot named after the device (it never inserts), and serves
+// the web page of gateway/web. Every request but the page carries a device's bearer token;
+// every error is a JSON body {"error": "..."} that says what to do.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "client/client.h"
+#include "common/util/status.h"
+#include "gateway/access.h"
+#include "gateway/site_watcher.h"
+
+namespace httplib {
+class SSLServer;
+}  // namespace httplib
+
+namespace placerec {
+
+struct GatewayOptions {
+  std::string host = "127.0.0.1";      // address to listen on
+  int port = 8443;                     // 0: any free port (bound_port() tells which)
+  std::string cert_file;               // PEM certificate (scripts/make-cert.sh makes a test one)
+  std::string key_file;                // its PEM private key
+  std::string tokens_file;             // device tokens (gateway/access.h TokenTable)
+  std::string web_dir;                 // the page's files; empty: the shipped gateway/web
+  int64_t max_upload_bytes = 8 << 20;  // larger photos are refused (413)
+  double requests_per_minute = 30;     // per token, on average ...
+  double burst = 10;                   // ... with bursts of this many
+  double query_timeout_s = 30;         // waiting for the server's answer
+  size_t recent_loop_closures = 20;    // kept for the site overview
+  ClientOptions client;                // LCM URL, retries
+
+  bool Check(std::string* error) const;
+};
+
+// One HTTP answer, independent of the HTTP library (tests call the handlers directly).
+struct HttpReply {
+  int status = 200;
+  std::string content_type = "application/json";
+  std::string body;
+  double retry_after_s = 0;  // > 0: sent as Retry-After
+};
+
+class Gateway {
+ public:
+  static StatusOr<std::unique_ptr<Gateway>> Create(const GatewayOptions& options);
+  ~Gateway();
+
+  // POST /v1/query: `image` (JPEG or PNG bytes) asked as a query-only frame of the token's
+  // device. 200 with the answer; 401 bad or expired token, 413 too large, 415 not JPEG/PNG,
+  // 422 the server could not use the image, 429 over the rate, 502/503/504 server trouble.
+  HttpReply Query(const std::string& authorization, const std::string& image);
+  // GET /v1/status: the server's last heartbeat.
+  HttpReply ServerStatus(const std::string& authorization);
+  // GET /v1/site: heartbeat, robots heard, recent loop closures.
+  HttpReply Site(const std::string& authorization);
+  // GET /v1/places/{id}/thumbnail.
+  HttpReply Thumbnail(const std::string& authorization, const std::string& place_id);
+
+  // Listens and serves until Stop(); an error when it cannot listen.
+  Status Serve();
+  void Stop();
+  int bound_port() const { return bound_port_; }
+
+ private:
+  Gateway(const GatewayOptions& options, TokenTable tokens);
+  // The device of a valid token within its rate; otherwise *refusal is the answer to send.
+  bool Admit(const std::string& authorization, std::string* device, HttpReply* refusal);
+
+  GatewayOptions options_;
+  TokenTable tokens_;
+  RateLimiter limiter_;
+  std::unique_ptr<PlacerecClient> client_;
+  std::unique_ptr<SiteWatcher> watcher_;
+  std::unique_ptr<httplib::SSLServer> http_;
+  std::atomic<int64_t> next_sequence_{0};
+  std::atomic<int> bound_port_{0};
+};
+
+// {"error": message} with `status`.
+HttpReply ErrorReply(int status, const std::string& message);
+
+}  // namespace placerec

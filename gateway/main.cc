@@ -1,0 +1,89 @@
+// placerec-gateway: HTTPS in front of placerec-server for field devices (gateway/gateway.h).
+// Exit codes: 0 after a clean stop (SIGINT, SIGTERM), 1 when it cannot start, 2 for bad flags.
+#include <csignal>
+#include <cstdio>
+#include <optional>
+#include <string>
+
+#include "common/util/logging.h"
+#include "common/util/options.h"
+#include "gateway/gateway.h"
+
+namespace placerec {
+namespace {
+
+Gateway* g_gateway = nullptr;
+
+void OnStopSignal(int) {
+  if (g_gateway != nullptr) g_gateway->Stop();
+}
+
+constexpr char kUsage[] =
+    "placerec-gateway --cert CERT.pem --key KEY.pem --tokens FILE [--lcm-url URL] [options]\n\n"
+    "\"Where am I?\" over HTTPS for devices without LCM, and a web page for people in the field\n"
+    "(https://HOST:PORT/). Endpoints, each with 'Authorization: Bearer TOKEN':\n"
+    "  POST /v1/query                   a JPEG or PNG photo (the body, or the form field 'image')\n"
+    "                                   -> the server's answer as JSON; queries only, the map\n"
+    "                                   never changes\n"
+    "  GET  /v1/status                  the server's last heartbeat\n"
+    "  GET  /v1/site                    robots heard and recent loop closures\n"
+    "  GET  /v1/places/ID/thumbnail     the stored picture of a place\n"
+    "Errors are JSON {\"error\": \"...\"} with the HTTP status. The tokens file has one device "
+    "per\n"
+    "line: TOKEN DEVICE [expires=YYYY-MM-DDTHH:MM:SSZ] (DEVICE names the device's frames like a\n"
+    "robot id). scripts/make-cert.sh DIR makes a self-signed certificate for tests and demos.";
+
+int Main(int argc, char** argv) {
+  GatewayOptions options;
+  FlagParser parser(kUsage);
+  parser.Add("cert", &options.cert_file, "PEM certificate of the HTTPS server");
+  parser.Add("key", &options.key_file, "PEM private key of the certificate");
+  parser.Add("tokens", &options.tokens_file, "device tokens file (see above)");
+  parser.Add("host", &options.host, "address to listen on");
+  parser.Add("port", &options.port, "port to listen on (0: any free port, printed at start)");
+  parser.Add("web-dir", &options.web_dir,
+             "folder of the web page (empty: the page shipped in gateway/web)");
+  parser.Add("max-upload-bytes", &options.max_upload_bytes, "larger requests are refused with 413");
+  parser.Add("requests-per-minute", &options.requests_per_minute,
+             "requests a minute per token on average; more get 429 with Retry-After");
+  parser.Add("burst", &options.burst, "requests a token may send at once before the rate applies");
+  parser.Add("query-timeout", &options.query_timeout_s,
+             "seconds to wait for the server's answer (then 504)");
+  parser.Add("lcm-url", &options.client.lcm_url,
+             "LCM URL of the placerec server's network (empty: LCM's default)");
+  parser.Add("retry-after", &options.client.retry_after_s,
+             "seconds after which an unanswered query is sent again (same request id)");
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 1, "placerec-gateway")) {
+    return *exit;
+  }
+  std::string error;
+  if (!options.Check(&error)) {
+    std::fprintf(stderr, "placerec-gateway: %s\n", error.c_str());
+    return 2;
+  }
+  StatusOr<std::unique_ptr<Gateway>> gateway = Gateway::Create(options);
+  if (!gateway.ok()) {
+    std::fprintf(stderr, "placerec-gateway: %s\n", gateway.status().ToString().c_str());
+    return 1;
+  }
+  g_gateway = gateway->get();
+  struct sigaction action = {};
+  action.sa_handler = OnStopSignal;
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+  const Status served = (*gateway)->Serve();
+  g_gateway = nullptr;
+  if (!served.ok()) {
+    std::fprintf(stderr, "placerec-gateway: %s\n", served.ToString().c_str());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace placerec
+
+int main(int argc, char** argv) {
+  placerec::InitLogging(argv[0]);
+  return placerec::Main(argc, argv);
+}

@@ -1,0 +1,93 @@
+#include "gateway/site_watcher.h"
+
+#include <lcm/lcm-cpp.hpp>
+
+#include "placerec/result_t.hpp"
+#include "placerec/status_t.hpp"
+#include "proto/channels.h"
+
+namespace placerec {
+
+StatusOr<std::unique_ptr<SiteWatcher>> SiteWatcher::Start(const std::string& lcm_url, size_t keep) {
+  auto lcm = std::make_unique<lcm::LCM>(lcm_url);
+  if (!lcm->good()) {
+    return Status::IoError("cannot open LCM" + (lcm_url.empty() ? "" : " at " + lcm_url));
+  }
+  std::unique_ptr<SiteWatcher> watcher(new SiteWatcher(std::move(lcm), keep));
+  lcm::Subscription* results = watcher->lcm_->subscribe(std::string(kResultChannelPrefix) + ".*",
+                                                        &SiteWatcher::OnResult, watcher.get());
+  lcm::Subscription* status =
+      watcher->lcm_->subscribe(kStatusChannel, &SiteWatcher::OnStatus, watcher.get());
+  if (results == nullptr || status == nullptr) return Status::IoError("cannot subscribe on LCM");
+  SiteWatcher* self = watcher.get();
+  watcher->thread_ = std::thread([self] {
+    while (!self->stop_) self->lcm_->handleTimeout(100);
+  });
+  return watcher;
+}
+
+SiteWatcher::SiteWatcher(std::unique_ptr<lcm::LCM> lcm, size_t keep)
+    : lcm_(std::move(lcm)), keep_(keep) {}
+
+SiteWatcher::~SiteWatcher() {
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+}
+
+void SiteWatcher::OnResult(const lcm::ReceiveBuffer* buffer, const std::string&) {
+  result_t answer;
+  if (answer.decode(buffer->data, 0, buffer->data_size) < 0) return;
+  std::lock_guard lock(mutex_);
+  robots_[answer.robot] = robots_.value(answer.robot, 0) + 1;
+  if (answer.status != result_t::STATUS_OK || !answer.loop_closure || answer.matches.empty()) {
+    return;
+  }
+  const match_t& best = answer.matches.front();
+  loop_closures_.push_front({{"robot", answer.robot},
+                             {"sequence", answer.sequence},
+                             {"utime", answer.frame_utime},
+                             {"insert", answer.insert},
+                             {"place",
+                              {{"robot", best.robot},
+                               {"sequence", best.sequence},
+                               {"utime", best.utime},
+                               {"place_id", best.place_id},
+                               {"score", best.score}}}});
+  while (loop_closures_.size() > keep_) loop_closures_.pop_back();
+}
+
+void SiteWatcher::OnStatus(const lcm::ReceiveBuffer* buffer, const std::string&) {
+  status_t s;
+  if (s.decode(buffer->data, 0, buffer->data_size) < 0) return;
+  std::lock_guard lock(mutex_);
+  status_ = {{"version", s.version},
+             {"uptime_s", s.uptime_s},
+             {"map_places", s.map_places},
+             {"map_landmarks", s.map_landmarks},
+             {"map_descriptors", s.map_descriptors},
+             {"queue_depth", s.queue_depth},
+             {"queue_capacity", s.queue_capacity},
+             {"workers", s.workers},
+             {"robots", s.robots},
+             {"frames_answered", s.frames_answered},
+             {"frames_per_second", s.frames_per_second}};
+}
+
+nlohmann::json SiteWatcher::LastStatus() const {
+  std::lock_guard lock(mutex_);
+  return status_;
+}
+
+nlohmann::json SiteWatcher::Overview() const {
+  std::lock_guard lock(mutex_);
+  nlohmann::json robots = nlohmann::json::array();
+  for (const auto& [robot, frames] : robots_.items()) {
+    robots.push_back({{"robot", robot}, {"frames", frames}});
+  }
+  return {{"server", status_},
+          {"loop_closures", nlohmann::json(std::vector<nlohmann::json>(loop_closures_.begin(),
+                                                                       loop_closures_.end()))},
+          {"robots", robots}};
+}
+
+}  // namespace placerec

@@ -1,0 +1,149 @@
+// The gateway's page: a photo goes to POST /v1/query with the device's token; the answer shows
+// the matched place (its stored picture beside the photo, which robot saw it when, how sure);
+// the site overview polls GET /v1/site. Plain JavaScript, no build step.
+'use strict';
+
+const $ = (id) => document.getElementById(id);
+let token = '';
+
+function setToken(value) {
+  token = value.trim();
+  if (token) localStorage.setItem('placerec-token', token);
+  $('token-state').textContent = token ? 'Token set.' : 'No token: ask your operator for one.';
+}
+
+function authHeaders() {
+  return { Authorization: 'Bearer ' + token };
+}
+
+function when(utime) {
+  return new Date(utime / 1000).toLocaleString();
+}
+
+function text(tag, content, className) {
+  const element = document.createElement(tag);
+  element.textContent = content;
+  if (className) element.className = className;
+  return element;
+}
+
+async function errorOf(response) {
+  try {
+    const body = await response.json();
+    return body.error || ('HTTP ' + response.status);
+  } catch (e) {
+    return 'HTTP ' + response.status;
+  }
+}
+
+async function showThumbnail(match) {
+  const img = $('theirs');
+  img.removeAttribute('src');
+  $('theirs-caption').textContent = 'The matched place';
+  const response = await fetch(match.thumbnail, { headers: authHeaders() });
+  if (!response.ok) {
+    $('theirs-caption').textContent = 'No stored picture of this place (' + await errorOf(response) + ')';
+    return;
+  }
+  img.src = URL.createObjectURL(await response.blob());
+  $('theirs-caption').textContent = 'Place #' + match.place_id + ' as ' + match.robot + ' saw it';
+}
+
+function showAnswer(answer) {
+  const box = $('answer');
+  box.replaceChildren();
+  if (!answer.matches.length) {
+    box.append(text('p', 'Not recognised: no stored place looks like this photo.', 'verdict none'));
+    return;
+  }
+  const best = answer.matches[0];
+  const sure = answer.loop_closure;
+  box.append(text('p', (sure ? 'Recognised: ' : 'Perhaps: ') + 'place #' + best.place_id +
+                  ', seen by robot ' + best.robot + ' on ' + when(best.utime),
+                  'verdict ' + (sure ? 'sure' : 'unsure')));
+  const details = 'score ' + best.score.toFixed(0) + ' (geometric inliers), ' +
+      best.matched_landmarks + ' landmarks matched' +
+      (best.classes.length ? ': ' + best.classes.map((c) => c.class + ' x' + c.count).join(', ') : '') +
+      (sure ? '' : '; below the server\'s loop-closure threshold');
+  box.append(text('p', details, 'hint'));
+  if (answer.matches.length > 1) {
+    const others = answer.matches.slice(1, 4).map((m) => '#' + m.place_id + ' (' + m.robot +
+                                                   ', score ' + m.score.toFixed(0) + ')');
+    box.append(text('p', 'Other candidates: ' + others.join(', '), 'hint'));
+  }
+  showThumbnail(best);
+}
+
+async function ask(file) {
+  const status = $('answer-status');
+  $('mine').src = URL.createObjectURL(file);
+  $('answer').replaceChildren();
+  status.dataset.state = 'asking';
+  status.textContent = 'Asking the map...';
+  try {
+    const response = await fetch('/v1/query', {
+      method: 'POST',
+      headers: Object.assign({ 'Content-Type': file.type || 'application/octet-stream' }, authHeaders()),
+      body: file,
+    });
+    if (!response.ok) {
+      status.dataset.state = 'error';
+      status.textContent = 'Error: ' + await errorOf(response);
+      return;
+    }
+    const answer = await response.json();
+    status.dataset.state = 'done';
+    status.textContent = 'Answered in ' + answer.latency_ms.toFixed(0) + ' ms (' +
+        answer.objects + ' objects in your photo).';
+    showAnswer(answer);
+  } catch (e) {
+    status.dataset.state = 'error';
+    status.textContent = 'Error: the gateway cannot be reached (' + e + ')';
+  }
+}
+
+async function refreshSite() {
+  if (!token) return;
+  const response = await fetch('/v1/site', { headers: authHeaders() }).catch(() => null);
+  if (!response || !response.ok) {
+    $('site-status').textContent = response ? 'Site overview: ' + await errorOf(response)
+                                            : 'The gateway cannot be reached.';
+    return;
+  }
+  const site = await response.json();
+  const s = site.server;
+  $('site-status').textContent = s
+      ? s.map_places + ' places, ' + s.map_landmarks + ' landmarks; ' + s.robots +
+        ' robots since start-up; ' + s.frames_per_second.toFixed(1) + ' frames/s; server ' +
+        s.version + ', up ' + Math.round(s.uptime_s) + ' s'
+      : 'No heartbeat from the server yet.';
+  $('robots').replaceChildren(...(site.robots.length
+      ? site.robots.map((r) => text('li', r.robot + ': ' + r.frames + ' answers heard'))
+      : [text('li', 'None heard since the gateway started.', 'hint')]));
+  const rows = site.loop_closures.map((c) => {
+    const row = document.createElement('tr');
+    row.append(text('td', c.robot), text('td', '#' + c.sequence + ' ' + when(c.utime)),
+               text('td', c.place.robot + ' #' + c.place.sequence + ' ' + when(c.place.utime)),
+               text('td', c.place.score.toFixed(0)));
+    return row;
+  });
+  if (!rows.length) {
+    const row = document.createElement('tr');
+    const cell = text('td', 'None heard since the gateway started.', 'hint');
+    cell.colSpan = 4;
+    row.append(cell);
+    rows.push(row);
+  }
+  $('loop-closures').tBodies[0].replaceChildren(...rows);
+}
+
+$('save-token').addEventListener('click', () => { setToken($('token').value); refreshSite(); });
+$('photo').addEventListener('change', (event) => {
+  if (event.target.files.length) ask(event.target.files[0]);
+});
+
+const fromUrl = new URLSearchParams(location.hash.slice(1)).get('token');
+setToken(fromUrl || localStorage.getItem('placerec-token') || '');
+if (fromUrl) history.replaceState(null, '', location.pathname);  // keep it out of the history
+refreshSite();
+setInterval(refreshSite, 5000);
