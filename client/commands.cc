@@ -2,11 +2,13 @@
 
 #include <chrono>
 #include <cstdio>
+#include <fstream>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "client/client.h"
+#include "client/fleet.h"
 #include "client/run_feeder.h"
 #include "common/eval/run.h"
 #include "common/util/options.h"
@@ -106,7 +108,8 @@ const char kClientUsage[] =
     "  send IMAGE...   insert frames of one robot, one after the other, and print each answer\n"
     "  query IMAGE...  ask where each image was taken (query only: the map does not change)\n"
     "  status          print the server's next heartbeat\n"
-    "  run             feed a run (../shared/data layout) and write OUT/answers.csv\n\n"
+    "  run             feed a run (../shared/data layout) and write OUT/answers.csv\n"
+    "  fleet           N simulated robots replaying a run at a fixed rate: throughput, latency\n\n"
     "'placerec-client COMMAND --help' lists the options of a command. Exit codes: 0 when every\n"
     "request got an answer with status ok, 1 when one timed out or carried an error, 2 for bad\n"
     "arguments.";
@@ -272,6 +275,71 @@ int RunCommand(int argc, const char* const* argv, const std::string& data_defaul
     return kExitFailed;
   }
   return kExitOk;
+}
+
+int FleetCommand(int argc, const char* const* argv, const std::string& data_default) {
+  std::string dataset;
+  std::string run_name;
+  std::string out;
+  bool quiet = false;
+  FleetOptions fleet;
+  ClientOptions options;
+  FlagParser parser(
+      "placerec-client fleet --robots N --rate HZ --duration S --dataset DIR --run NAME --out "
+      "OUT\n\n"
+      "Simulates a fleet: N robots (ids fleet000, ...) replay the run's frames at HZ frames per\n"
+      "second each, open loop, robot i starting i/N of the way along the route, for S seconds;\n"
+      "then waits for the last answers. Prints and writes OUT/fleet.json: answers by status,\n"
+      "answered frames per second, latency percentiles, overloaded answers, timeouts.");
+  parser.AddRequired("dataset", &dataset,
+                     "dataset directory, or its name under PLACEREC_DATA / ../shared/data");
+  parser.AddRequired("run", &run_name, "run name (DIR/runs/NAME.frames.csv)");
+  parser.AddRequired("out", &out, "output directory (created if missing)");
+  parser.Add("robots", &fleet.robots, "simulated robots");
+  parser.Add("rate", &fleet.rate_hz, "frames per second per robot");
+  parser.Add("duration", &fleet.duration_s, "seconds of sending");
+  parser.Add("query-share", &fleet.query_share,
+             "share of each robot's frames sent query-only (the rest are inserted)");
+  parser.Add("robot-prefix", &fleet.robot_prefix, "robot ids are PREFIX000, PREFIX001, ...");
+  parser.AddSwitch("quiet", &quiet, "no progress line");
+  AddConnectionFlags(&parser, &options);
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-client fleet")) {
+    return *exit;
+  }
+  fleet.timeout_s = options.timeout_s;
+  fleet.progress = !quiet;
+  std::string error;
+  if (!fleet.Check(&error)) {
+    std::fprintf(stderr, "placerec-client fleet: %s\n", error.c_str());
+    return kExitUsage;
+  }
+  StatusOr<Run> run = LoadRun(ResolveDataset(dataset, data_default), run_name);
+  if (!run.ok()) {
+    std::fprintf(stderr, "placerec-client fleet: %s\n", run.status().ToString().c_str());
+    return kExitFailed;
+  }
+  StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "fleet");
+  if (!client.ok()) return kExitFailed;
+  StatusOr<FleetReport> report = RunFleet(client->get(), *run, fleet);
+  if (!report.ok()) {
+    std::fprintf(stderr, "placerec-client fleet: %s\n", report.status().ToString().c_str());
+    return kExitFailed;
+  }
+  if (!MakeDirectories(out)) {
+    std::fprintf(stderr, "placerec-client fleet: cannot create %s\n", out.c_str());
+    return kExitFailed;
+  }
+  std::ofstream(out + "/fleet.json") << report->summary.dump(2) << "\n";
+  const nlohmann::json& s = report->summary;
+  std::printf(
+      "fleet of %d robots at %.2f Hz (%.1f frames/s offered) for %.0f s: %d frames, %d ok, %d "
+      "overloaded, %d timed out; %.2f answered ok per second; latency p50 %.0f ms, p90 %.0f ms, "
+      "p99 %.0f ms\n",
+      fleet.robots, fleet.rate_hz, s["offered_frames_per_second"].get<double>(), fleet.duration_s,
+      report->frames, s["ok"].get<int>(), s["overloaded"].get<int>(), s["timed_out"].get<int>(),
+      s["answered_ok_per_second"].get<double>(), s["latency_ms"]["p50"].get<double>(),
+      s["latency_ms"]["p90"].get<double>(), s["latency_ms"]["p99"].get<double>());
+  return s["ok"].get<int>() == report->frames ? kExitOk : kExitFailed;
 }
 
 }  // namespace placerec

@@ -18,6 +18,9 @@ int main(int argc, char** argv) {
   if (std::strcmp(command, "run") == 0) {
     return placerec::RunCommand(argc, argv, PLACEREC_DEFAULT_DATA_DIR);
   }
+  if (std::strcmp(command, "fleet") == 0) {
+    return placerec::FleetCommand(argc, argv, PLACEREC_DEFAULT_DATA_DIR);
+  }
   std::fprintf(stderr, "placerec-client: unknown command '%s'\n%s\n", command,
                placerec::kClientUsage);
   return placerec::kExitUsage;

@@ -1,0 +1,171 @@
+#include "client/fleet.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <deque>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+#include "common/eval/stats.h"
+
+namespace placerec {
+
+bool FleetOptions::Check(std::string* error) const {
+  if (robots < 1 || robots > 1000) {
+    *error = "--robots must be in [1, 1000]";
+    return false;
+  }
+  if (!(rate_hz > 0 && rate_hz <= 100)) {
+    *error = "--rate must be in (0, 100] frames per second per robot";
+    return false;
+  }
+  if (!(duration_s > 0)) {
+    *error = "--duration must be > 0 seconds";
+    return false;
+  }
+  if (!(query_share >= 0 && query_share <= 1)) {
+    *error = "--query-share must be in [0, 1]";
+    return false;
+  }
+  if (!(timeout_s > 0)) {
+    *error = "the timeout must be > 0 seconds";
+    return false;
+  }
+  return true;
+}
+
+StatusOr<FleetReport> RunFleet(PlacerecClient* client, const Run& run,
+                               const FleetOptions& options) {
+  std::string error;
+  if (!options.Check(&error)) return Status::InvalidArgument(error);
+  if (run.frames.empty()) return Status::InvalidArgument("the run has no frames");
+  // Every image once, up front, so that reading files does not pace the robots.
+  std::vector<EncodedImage> images;
+  images.reserve(run.frames.size());
+  for (const RunFrame& frame : run.frames) {
+    StatusOr<EncodedImage> image = EncodeImageFile(frame.image);
+    if (!image.ok()) return image.status();
+    images.push_back(std::move(*image));
+  }
+  using Clock = std::chrono::steady_clock;
+  const Clock::time_point start = Clock::now();
+  const auto period = std::chrono::duration_cast<Clock::duration>(
+      std::chrono::duration<double>(1.0 / options.rate_hz));
+  const int per_robot = std::max(1, static_cast<int>(options.duration_s * options.rate_hz));
+
+  std::mutex mutex;
+  FleetReport report;
+  std::atomic<int> published{0}, answered{0};
+  std::vector<std::thread> threads;
+  for (int r = 0; r < options.robots; ++r) {
+    // One thread publishes on the robot's clock; another collects its answers in order.
+    auto queue = std::make_shared<std::deque<PendingFrame>>();
+    auto queue_mutex = std::make_shared<std::mutex>();
+    auto queued = std::make_shared<std::condition_variable>();
+    auto done = std::make_shared<bool>(false);
+    char id[32];
+    std::snprintf(id, sizeof(id), "%s%03d", options.robot_prefix.c_str(), r);
+    const std::string robot = id;
+    threads.emplace_back([&, r, robot, queue, queue_mutex, queued, done] {
+      const size_t offset = run.frames.size() * static_cast<size_t>(r) / options.robots;
+      // Spread the robots' clocks over one period, as independent cameras are.
+      const Clock::time_point first = start + period * r / options.robots;
+      int64_t sequence = 0;
+      for (int k = 0; k < per_robot; ++k) {
+        std::this_thread::sleep_until(first + period * k);
+        const size_t f = (offset + static_cast<size_t>(k)) % run.frames.size();
+        OutgoingFrame frame;
+        frame.robot = robot;
+        // Query-only frames spread evenly: frame k is a query when the share's count rises.
+        frame.insert = static_cast<int>((k + 1) * options.query_share) ==
+                       static_cast<int>(k * options.query_share);
+        frame.sequence = frame.insert ? sequence++ : k;
+        frame.utime = run.frames[0].utime + static_cast<int64_t>(k * 1e6 / options.rate_hz);
+        frame.image = images[f];
+        StatusOr<PendingFrame> pending = client->Publish(frame);
+        if (!pending.ok()) continue;
+        ++published;
+        std::lock_guard lock(*queue_mutex);
+        queue->push_back(*pending);
+        queued->notify_one();
+      }
+      std::lock_guard lock(*queue_mutex);
+      *done = true;
+      queued->notify_one();
+    });
+    threads.emplace_back([&, queue, queue_mutex, queued, done] {
+      while (true) {
+        PendingFrame pending;
+        {
+          std::unique_lock lock(*queue_mutex);
+          queued->wait(lock, [&] { return !queue->empty() || *done; });
+          if (queue->empty()) return;
+          pending = queue->front();
+          queue->pop_front();
+        }
+        FrameResult result = client->Wait(pending, options.timeout_s);
+        ++answered;
+        std::lock_guard lock(mutex);
+        report.results.push_back(std::move(result));
+      }
+    });
+  }
+  std::atomic<bool> finished{false};
+  std::thread progress([&] {
+    while (options.progress && !finished) {
+      std::fprintf(stderr, "\rfleet: %.0f s, %d frames sent, %d answered   ",
+                   std::chrono::duration<double>(Clock::now() - start).count(), published.load(),
+                   answered.load());
+      std::this_thread::sleep_for(std::chrono::seconds(1));
+    }
+  });
+  for (std::thread& t : threads) t.join();
+  finished = true;
+  progress.join();
+  if (options.progress) std::fprintf(stderr, "\n");
+  const double elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
+
+  report.frames = published;
+  std::map<std::string, int> by_code;
+  std::vector<double> latency_ms;
+  int ok = 0, overloaded = 0, timed_out = 0, loop_closures = 0;
+  for (const FrameResult& r : report.results) {
+    ++by_code[AnswerCodeName(r.code)];
+    if (r.ok()) {
+      ++ok;
+      latency_ms.push_back(r.latency_ms);
+      if (r.loop_closure) ++loop_closures;
+    }
+    if (r.code == AnswerCode::kOverloaded) ++overloaded;
+    if (r.code == AnswerCode::kTimeout) ++timed_out;
+  }
+  report.summary = {
+      {"robots", options.robots},
+      {"rate_hz_per_robot", options.rate_hz},
+      {"offered_frames_per_second", options.robots * options.rate_hz},
+      {"duration_s", options.duration_s},
+      {"elapsed_s", elapsed_s},
+      {"query_share", options.query_share},
+      {"frames", report.frames},
+      {"answers_by_status", by_code},
+      {"ok", ok},
+      {"overloaded", overloaded},
+      {"timed_out", timed_out},
+      {"loop_closures", loop_closures},
+      {"answered_ok_per_second", elapsed_s > 0 ? ok / elapsed_s : 0.0},
+      {"latency_ms",
+       {{"p50", Percentile(latency_ms, 50)},
+        {"p90", Percentile(latency_ms, 90)},
+        {"p99", Percentile(latency_ms, 99)},
+        {"max",
+         latency_ms.empty() ? 0.0 : *std::max_element(latency_ms.begin(), latency_ms.end())}}},
+  };
+  return report;
+}
+
+}  // namespace placerec
