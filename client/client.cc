@@ -220,11 +220,15 @@ StatusOr<std::unique_ptr<PlacerecClient>> PlacerecClient::Connect(const ClientOp
   std::string error;
   if (!options.Check(&error)) return Status::InvalidArgument(error);
   std::unique_ptr<PlacerecClient> client(new PlacerecClient(options));
-  if (!client->lcm_->good()) {
+  // A tcpq URL whose hub does not answer leaves a "good" LCM without a connection.
+  if (!client->lcm_->good() || client->lcm_->getFileno() < 0) {
+    const bool tcpq = options.lcm_url.rfind("tcpq://", 0) == 0;
     return Status::IoError("cannot open LCM" +
                            (options.lcm_url.empty() ? std::string(" with its default URL")
                                                     : " with URL " + options.lcm_url) +
-                           "; check the URL and that the network has multicast");
+                           (tcpq ? "; is the LCM TCP hub running at that address? "
+                                   "(scripts/lcm-hub.sh start PORT on the hub's machine)"
+                                 : "; check the URL and that the network has multicast"));
   }
   if (client->lcm_->subscribe(kStatusChannel, &PlacerecClient::OnStatus, client.get()) == nullptr) {
     return Status::IoError("cannot subscribe to the placerec channels");
@@ -251,8 +255,11 @@ void PlacerecClient::ReceiveLoop() {
       std::lock_guard lock(mutex_);
       if (stop_) return;
     }
-    if (lcm_->handleTimeout(50) < 0) {
-      LOG(ERROR) << "LCM stopped delivering messages";
+    // A tcpq connection that broke leaves no descriptor to wait on.
+    if (lcm_->getFileno() < 0 || lcm_->handleTimeout(50) < 0) {
+      LOG(ERROR) << "LCM stopped delivering messages"
+                 << (options_.lcm_url.rfind("tcpq://", 0) == 0 ? " (the LCM TCP hub went away?)"
+                                                               : "");
       return;
     }
   }

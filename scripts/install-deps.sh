@@ -14,6 +14,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev clang-format
   clang-15 libfuzzer-15-dev
   iproute2 util-linux procps
+  liblcm-java default-jre-headless
 )
 
 missing=()

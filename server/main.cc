@@ -21,7 +21,7 @@ void OnStopSignal(int) {
 }
 
 constexpr char kUsage[] =
-    "placerec-server [--db FILE] [--lcm-url URL] [options]\n\n"
+    "placerec-server [--db FILE] [--lcm-url URL]... [options]\n\n"
     "Serves place recognition over LCM: frames (placerec.frame_t) on PLACEREC_FRAME, one answer\n"
     "(placerec.result_t) per frame on PLACEREC_RESULT_<robot>, a heartbeat (placerec.status_t) on\n"
     "PLACEREC_STATUS every second. The landmark map lives in the SQLite file --db; it is reloaded\n"
@@ -33,9 +33,13 @@ int Main(int argc, char** argv) {
   bool sqlite_normal = false;
   FlagParser parser(kUsage);
   parser.Add("db", &options.db_path, "SQLite map file (created when missing)");
-  parser.Add("lcm-url", &options.lcm_url,
-             "LCM URL, e.g. udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304 (empty: LCM's "
-             "default, i.e. $LCM_DEFAULT_URL or udpm://239.255.76.67:7667?ttl=0)");
+  parser.AddRepeated(
+      "lcm-url", &options.lcm_urls,
+      "LCM URL of a network to serve; give it once per network, e.g. --lcm-url "
+      "'udpm://239.255.76.67:7667?ttl=1' for the robot LAN and --lcm-url tcpq://127.0.0.1:7700 "
+      "for remote devices through an LCM TCP hub (scripts/lcm-hub.sh); each answer goes back on "
+      "the network its frame came from, heartbeats go to all (none: LCM's default, i.e. "
+      "$LCM_DEFAULT_URL or udpm://239.255.76.67:7667?ttl=0)");
   parser.Add("workers", &options.workers,
              "worker threads running the pipeline (one robot's frames never run at once)");
   parser.Add("queue", &options.queue_capacity,

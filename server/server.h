@@ -9,6 +9,7 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <vector>
 
 #include <lcm/lcm-cpp.hpp>
 
@@ -32,9 +33,12 @@ namespace placerec {
 struct ServerOptions {
   // The SQLite map file; created when missing, reloaded when present.
   std::string db_path = "placerec.db";
-  // LCM URL, e.g. "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304". Empty uses LCM's
+  // LCM URLs, one per network the server serves at once, e.g.
+  // "udpm://239.255.76.67:7667?ttl=1" for the robot LAN and "tcpq://127.0.0.1:7700" for remote
+  // devices through an LCM TCP hub (scripts/lcm-hub.sh). Each frame's answer goes back on the
+  // network the frame came from; heartbeats go to all. Empty (or an empty URL) uses LCM's
   // default: the LCM_DEFAULT_URL environment variable, else udpm://239.255.76.67:7667?ttl=0.
-  std::string lcm_url;
+  std::vector<std::string> lcm_urls;
   // Worker threads running the pipeline; frames of one robot never run at once.
   int workers = 2;
   // Frames waiting for a worker before new ones are answered "overloaded".
@@ -74,24 +78,46 @@ class Server {
  private:
   struct Job {
     frame_t frame;
-    Timer received;  // since the message arrived
+    Timer received;      // since the message arrived
+    size_t network = 0;  // index in networks_ of the network the frame came on
+  };
+
+  // One LCM network the server serves (ServerOptions::lcm_urls).
+  struct Network {
+    Network(Server* server, size_t index, const std::string& url)
+        : server(server), index(index), url(url), lcm(url) {}
+    void OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
+      server->OnFrameMessage(index, buffer, channel);
+    }
+    Server* server;
+    size_t index;
+    std::string url;  // as given; empty for LCM's default
+    lcm::LCM lcm;
+    std::mutex publish_mutex;
+    lcm::Subscription* subscription = nullptr;
+    // Set by the receive loop when LCM stopped delivering (e.g. the TCP hub went away); a failed
+    // network is neither read nor written again.
+    std::atomic<bool> failed{false};
   };
 
   Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map,
          std::unique_ptr<Segmenter> segmenter, std::shared_ptr<const ObjectClassLabeler> labeler);
-  void OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string& channel);
+  void OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer, const std::string& channel);
   void Work(Job& job);
-  // Publishes `answer` on its robot's channel; `processed` says whether a worker ran the frame.
-  void Publish(result_t* answer, bool processed);
+  // Publishes `answer` on its robot's channel of network `network`; `processed` says whether a
+  // worker ran the frame.
+  void Publish(result_t* answer, bool processed, size_t network);
   // Answers `frame` at once, unprocessed, with STATUS_BAD_REQUEST, `message` and the map's size.
-  void RejectFrame(const frame_t& frame, const std::string& message);
+  void RejectFrame(const frame_t& frame, const std::string& message, size_t network);
   void PublishStatus();
+  // Waits up to `timeout_ms` for messages on every network and dispatches them; false when
+  // every network's LCM failed.
+  bool HandleMessages(int timeout_ms);
 
   ServerOptions options_;
   std::unique_ptr<PlaceMap> map_;
   FrameProcessor processor_;
-  lcm::LCM lcm_;
-  std::mutex publish_mutex_;
+  std::vector<std::unique_ptr<Network>> networks_;
   ServerStats stats_;
   // Frames in flight and recent answers per robot, so that a re-sent frame is not processed twice.
   AnswerRecord answers_;

@@ -52,7 +52,7 @@ class TempDir {
 ServerOptions TestOptions(const std::string& db) {
   ServerOptions options;
   options.db_path = db;
-  options.lcm_url = "memq://";
+  options.lcm_urls = {"memq://"};
   options.recognizer.analyzer.segmentation = SegmentationMethod::kSuperpixels;
   return options;
 }
@@ -152,7 +152,7 @@ TEST(ServerTest, CreateSaysWhyItCannotServe) {
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), text);
 
   ServerOptions bad_url = TestOptions(dir.File("map.db"));
-  bad_url.lcm_url = "nosuchprovider://x";
+  bad_url.lcm_urls = {"nosuchprovider://x"};
   server = Server::Create(bad_url);
   ASSERT_FALSE(server.ok());
   EXPECT_EQ(server.status().code(), StatusCode::kIoError);
@@ -167,7 +167,7 @@ TEST(ServerTest, CreateNamesTheUrlTakenFromTheEnvironment) {
   const std::string saved = previous != nullptr ? previous : "";
   ASSERT_EQ(setenv("LCM_DEFAULT_URL", "nosuchprovider://y", 1), 0);
   ServerOptions options = TestOptions(dir.File("map.db"));
-  options.lcm_url.clear();
+  options.lcm_urls.clear();
   const StatusOr<std::unique_ptr<Server>> server = Server::Create(options);
   if (previous != nullptr) {
     setenv("LCM_DEFAULT_URL", saved.c_str(), 1);
@@ -184,7 +184,7 @@ TEST(ServerTest, DefaultOptionsServeWithTheShippedModels) {
   const TempDir dir("models");
   ServerOptions options;
   options.db_path = dir.File("map.db");
-  options.lcm_url = "memq://";
+  options.lcm_urls = {"memq://"};
   const StatusOr<std::unique_ptr<Server>> server = Server::Create(options);
   ASSERT_TRUE(server.ok()) << server.status().ToString();
 }

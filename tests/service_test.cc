@@ -942,6 +942,80 @@ TEST_F(ServiceTest, AFrameWithoutAnAnswerIsSentAgainAndNotProcessedTwice) {
   EXPECT_EQ(ReadMap(db_).places.size(), static_cast<size_t>(next.map_places));
 }
 
+// Two LCM networks at once (issue 26 item 1): robots insert over UDP multicast while a field
+// client queries through the LCM TCP hub (tcpq); each answer goes back on the network its frame
+// came on, and the same query frames get the same places over tcpq as over udpm. The median
+// query latency over each network is printed (docs/results.md).
+TEST_F(ServiceTest, AFieldClientOverTcpqGetsTheRobotsPlaces) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
+  constexpr int kPort = 7700;
+  StatusOr<std::unique_ptr<ChildProcess>> hub =
+      testing_service::StartLcmHub(kPort, dir_ + "/hub.log");
+  ASSERT_TRUE(hub.ok()) << hub.status().ToString();
+  StartTheServer({"--lcm-url", testing_service::HubLcmUrl(kPort)});
+  ClientOptions field_options;
+  field_options.lcm_url = testing_service::HubLcmUrl(kPort);
+  field_options.timeout_s = 120;
+  StatusOr<std::unique_ptr<PlacerecClient>> field = PlacerecClient::Connect(field_options);
+  ASSERT_TRUE(field.ok()) << field.status().ToString();
+  // The heartbeat reaches the hub too.
+  ASSERT_TRUE((*field)->WaitForStatus(10).ok()) << ServerLog();
+
+  // The robots insert over udpm while the field device asks over tcpq.
+  constexpr int kInserted = 40;
+  int64_t map_places = 0;  // after the robots' last insert (frames without landmarks store none)
+  std::thread robots([&] {
+    for (int f = 0; f < kInserted; ++f) {
+      const FrameResult r = client_->Send(FrameOfRun(run, f));
+      EXPECT_TRUE(r.ok()) << f << ": " << DescribeResult(r);
+      map_places = r.map_places;
+    }
+  });
+  for (int f = 60; f < 70; ++f) {
+    const FrameResult r = (*field)->Send(FrameOf(run, f, "field", f, /*insert=*/false));
+    EXPECT_TRUE(r.ok()) << f << ": " << DescribeResult(r) << ServerLog();
+  }
+  robots.join();
+
+  // The same query frames over both networks, one after the other: the same places.
+  std::vector<double> udpm_ms;
+  std::vector<double> tcpq_ms;
+  int with_robot_places = 0;
+  for (int f = 40; f < 84; f += 2) {
+    const FrameResult over_udpm = client_->Send(FrameOf(run, f, "field", f, false));
+    const FrameResult over_tcpq = (*field)->Send(FrameOf(run, f, "field", f, false));
+    ASSERT_TRUE(over_udpm.ok()) << f << ": " << DescribeResult(over_udpm);
+    ASSERT_TRUE(over_tcpq.ok()) << f << ": " << DescribeResult(over_tcpq);
+    EXPECT_EQ(over_tcpq.map_places, map_places);
+    ASSERT_EQ(over_tcpq.matches.size(), over_udpm.matches.size()) << f;
+    for (size_t i = 0; i < over_tcpq.matches.size(); ++i) {
+      EXPECT_EQ(over_tcpq.matches[i].robot, over_udpm.matches[i].robot) << f;
+      EXPECT_EQ(over_tcpq.matches[i].sequence, over_udpm.matches[i].sequence) << f;
+      EXPECT_EQ(over_tcpq.matches[i].score, over_udpm.matches[i].score) << f;
+    }
+    EXPECT_EQ(over_tcpq.loop_closure, over_udpm.loop_closure) << f;
+    if (!over_tcpq.matches.empty() && over_tcpq.matches[0].robot == run.frames[0].robot) {
+      ++with_robot_places;
+    }
+    udpm_ms.push_back(over_udpm.latency_ms);
+    tcpq_ms.push_back(over_tcpq.latency_ms);
+  }
+  EXPECT_GT(with_robot_places, 0) << "the field client got none of the robots' places";
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  std::printf(
+      "query latency over udpm median %.1f ms, over tcpq median %.1f ms (%zu frames each, "
+      "%d with a place of robot %s)\n",
+      median(udpm_ms), median(tcpq_ms), udpm_ms.size(), with_robot_places,
+      run.frames[0].robot.c_str());
+  StopTheServer();
+  EXPECT_EQ(ReadMap(db_).places.size(), static_cast<size_t>(map_places));
+}
+
 // --help documents every flag; bad flags and an unusable LCM URL (also from LCM_DEFAULT_URL) are
 // reported with a message and a non-zero exit code. No network needed.
 TEST(ServiceCommandLineTest, HelpAndErrors) {
