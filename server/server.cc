@@ -71,13 +71,15 @@ bool ServerOptions::Check(std::string* error) const {
     *error = "--status-period must be positive and at most 3600 seconds";
     return false;
   }
-  return store.Check(error) && decode.Check(error) && sequence_rule.Check(error) &&
-         recognizer.Check(error);
+  return auth.Check(error) && store.Check(error) && decode.Check(error) &&
+         sequence_rule.Check(error) && recognizer.Check(error);
 }
 
 StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
   std::string error;
   if (!options.Check(&error)) return Status::InvalidArgument(error);
+  StatusOr<Authenticator> auth = Authenticator::Create(options.auth, NowUtime());
+  if (!auth.ok()) return auth.status();
   StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.recognizer.analyzer);
   if (!segmenter.ok()) return segmenter.status();
   // Without the object classifiers the server refuses to start, with the loader's advice.
@@ -107,8 +109,8 @@ StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
   StatusOr<std::unique_ptr<PlaceMap>> map =
       PlaceMap::Open(std::move(*store), options.recognizer.index);
   if (!map.ok()) return map.status();
-  std::unique_ptr<Server> server(
-      new Server(options, std::move(*map), std::move(*segmenter), std::move(labeler)));
+  std::unique_ptr<Server> server(new Server(options, std::move(*map), std::move(*segmenter),
+                                            std::move(labeler), std::move(*auth)));
   for (const std::unique_ptr<Network>& network : server->networks_) {
     // A tcpq URL whose hub does not answer leaves a "good" LCM without a connection.
     if (!network->lcm.good() || network->lcm.getFileno() < 0) {
@@ -121,11 +123,12 @@ StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
 
 Server::Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map,
                std::unique_ptr<Segmenter> segmenter,
-               std::shared_ptr<const ObjectClassLabeler> labeler)
+               std::shared_ptr<const ObjectClassLabeler> labeler, Authenticator auth)
     : options_(options),
       map_(std::move(map)),
       processor_(options.recognizer, options.decode, map_.get(), std::move(segmenter),
-                 options.sequence_rule, std::move(labeler)) {
+                 options.sequence_rule, std::move(labeler)),
+      auth_(std::move(auth)) {
   const std::vector<std::string> urls =
       options.lcm_urls.empty() ? std::vector<std::string>{""} : options.lcm_urls;
   for (const std::string& url : urls) {
@@ -156,11 +159,35 @@ Status Server::Run() {
             << counts.places << " places, " << counts.landmarks << " landmarks, loaded in "
             << map_->open_ms() << " ms) over " << DescribeUrls(options_.lcm_urls) << " with "
             << options_.workers << " workers, queue of " << options_.queue_capacity;
+  if (options_.auth.enabled) {
+    std::string ids;
+    for (const std::string& id : auth_.KeyIds()) ids += (ids.empty() ? "" : ", ") + id;
+    LOG(INFO) << "authentication on: frames must be signed with one of the keys of "
+              << options_.auth.keys_file << " (" << ids << "); window " << options_.auth.window_s
+              << " s";
+    if (!auth_.warning().empty()) LOG(WARNING) << auth_.warning();
+  } else {
+    LOG(WARNING) << "AUTHENTICATION IS OFF (--auth off): any process that can publish on "
+                 << DescribeUrls(options_.lcm_urls)
+                 << " may insert frames under any robot's name and query the map, and answers "
+                    "are unsigned. Use this on a lab LAN only; give --keys FILE everywhere else.";
+  }
   const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
       std::chrono::duration<double>(options_.status_period_s));
   auto next_status = std::chrono::steady_clock::now();
   Status result;
   while (!stop_requested_.load()) {
+    if (reload_requested_.exchange(false) && options_.auth.enabled) {
+      const Status reloaded = auth_.Reload();
+      if (reloaded.ok()) {
+        std::string ids;
+        for (const std::string& id : auth_.KeyIds()) ids += (ids.empty() ? "" : ", ") + id;
+        LOG(INFO) << "reloaded the keys file " << options_.auth.keys_file << ": " << ids;
+        if (!auth_.warning().empty()) LOG(WARNING) << auth_.warning();
+      } else {
+        LOG(ERROR) << "could not reload the keys file, the old keys stay: " << reloaded.message();
+      }
+    }
     const auto now = std::chrono::steady_clock::now();
     if (now >= next_status) {
       PublishStatus();
@@ -183,7 +210,7 @@ Status Server::Run() {
     result_t answer = AnswerTemplate(job.frame);
     SetError(result_t::STATUS_SHUTTING_DOWN,
              "the server is shutting down; the frame was not processed", &answer);
-    Publish(&answer, false, job.network);
+    Publish(&answer, false, job.network, job.key ? &*job.key : nullptr);
   }
   PublishStatus();
   LOG(INFO) << "placerec-server stopped; " << pending.size()
@@ -247,6 +274,21 @@ void Server::OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer,
     RejectFrame(job.frame, why, network);
     return;
   }
+  Authenticator::Verdict verdict =
+      auth_.Check(job.frame, NowUtime(), buffer->data, buffer->data_size);
+  if (!verdict.ok) {
+    // Never queued: the map and the robot's state stay as they are.
+    if (unauthorised_logged_ < 10 || unauthorised_logged_ % 100 == 0) {
+      LOG(WARNING) << "refused frame " << job.frame.sequence << " of robot '" << job.frame.robot
+                   << "' (" << (job.frame.insert ? "insert" : "query") << "): " << verdict.message;
+    }
+    ++unauthorised_logged_;
+    RejectFrame(job.frame, verdict.message, network, result_t::STATUS_UNAUTHORISED,
+                verdict.key ? &*verdict.key : nullptr);
+    return;
+  }
+  job.key = std::move(verdict.key);
+  const SigningKey* key = job.key ? &*job.key : nullptr;
   stats_.SawRobot(job.frame.robot);
   result_t recorded;
   switch (answers_.Begin(job.frame, &recorded)) {
@@ -257,12 +299,14 @@ void Server::OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer,
     case AnswerRecord::Seen::kAnswered:
       VLOG(1) << "frame " << job.frame.sequence << " of robot '" << job.frame.robot
               << "' sent again: its answer is sent again";
-      Publish(&recorded, false, network);
+      Publish(&recorded, false, network, key);
       return;
     case AnswerRecord::Seen::kNew:
       break;
   }
   const std::string robot = job.frame.robot;
+  const std::optional<SigningKey> sender = job.key;  // `job` is moved into the queue
+  key = sender ? &*sender : nullptr;
   LaneWorkQueue<Job>::PushResult pushed = queue_->Push(robot, &job);
   if (pushed.evicted) {
     answers_.Forget(pushed.evicted->frame);
@@ -277,7 +321,8 @@ void Server::OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer,
                  "' waited, so its newest frame gave way; it was not processed, send it again "
                  "later",
              &answer);
-    Publish(&answer, false, pushed.evicted->network);
+    Publish(&answer, false, pushed.evicted->network,
+            pushed.evicted->key ? &*pushed.evicted->key : nullptr);
   }
   if (!pushed.queued) {
     answers_.Forget(job.frame);
@@ -293,18 +338,19 @@ void Server::OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer,
                    "not processed, send it again later",
                &answer);
     }
-    Publish(&answer, false, network);
+    Publish(&answer, false, network, key);
   }
 }
 
-void Server::RejectFrame(const frame_t& frame, const std::string& message, size_t network) {
+void Server::RejectFrame(const frame_t& frame, const std::string& message, size_t network,
+                         int8_t status, const SigningKey* key) {
   result_t answer = AnswerTemplate(frame);
-  SetError(result_t::STATUS_BAD_REQUEST, message, &answer);
+  SetError(status, message, &answer);
   const MapCounts counts = map_->Counts();
   answer.map_places = counts.places;
   answer.map_landmarks = counts.landmarks;
   answer.map_descriptors = counts.descriptors;
-  Publish(&answer, false, network);
+  Publish(&answer, false, network, key);
 }
 
 void Server::Work(Job& job) {
@@ -326,11 +372,16 @@ void Server::Work(Job& job) {
                  << "': " << WireStatusName(answer.status) << ": " << answer.message;
   }
   answers_.Finish(job.frame, answer);
-  Publish(&answer, true, job.network);
+  Publish(&answer, true, job.network, job.key ? &*job.key : nullptr);
 }
 
-void Server::Publish(result_t* answer, bool processed, size_t network) {
+void Server::Publish(result_t* answer, bool processed, size_t network, const SigningKey* key) {
   answer->utime = NowUtime();
+  if (key != nullptr) {
+    SignAnswer(*key, answer);
+  } else {
+    ClearAnswerSignature(answer);
+  }
   const std::string channel = ResultChannel(answer->robot);
   Network& to = *networks_[network];
   int rc = -1;

@@ -8,6 +8,7 @@
 #include <atomic>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,7 @@
 #include "placerec/result_t.hpp"
 #include "placerec/status_t.hpp"
 #include "server/answer_record.h"
+#include "server/authenticator.h"
 #include "server/frame_processor.h"
 #include "server/sequence_gate.h"
 #include "server/server_stats.h"
@@ -49,6 +51,8 @@ struct ServerOptions {
   // back whole, keep the damaged file as <db>.damaged and log how many places were dropped. A
   // damaged map is refused at start-up otherwise.
   bool repair = false;
+  // Who may send frames (keys file, on by default; server/README.md "Keys").
+  AuthOptions auth;
   SqliteStoreOptions store;
   DecodeOptions decode;
   SequenceRuleOptions sequence_rule;
@@ -72,6 +76,10 @@ class Server {
   // handler or another thread.
   void Stop() { stop_requested_.store(true); }
 
+  // Asks Run() to read the keys file again (SIGHUP). Async-signal-safe. A file that does not
+  // read keeps the old keys, and the log says why.
+  void ReloadKeys() { reload_requested_.store(true); }
+
   // What the next heartbeat would say.
   status_t CurrentStatus();
 
@@ -80,6 +88,8 @@ class Server {
     frame_t frame;
     Timer received;      // since the message arrived
     size_t network = 0;  // index in networks_ of the network the frame came on
+    // The sender's key (frames signed with a known key): its answer is signed with it.
+    std::optional<SigningKey> key;
   };
 
   // One LCM network the server serves (ServerOptions::lcm_urls).
@@ -101,14 +111,17 @@ class Server {
   };
 
   Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map,
-         std::unique_ptr<Segmenter> segmenter, std::shared_ptr<const ObjectClassLabeler> labeler);
+         std::unique_ptr<Segmenter> segmenter, std::shared_ptr<const ObjectClassLabeler> labeler,
+         Authenticator auth);
   void OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer, const std::string& channel);
   void Work(Job& job);
-  // Publishes `answer` on its robot's channel of network `network`; `processed` says whether a
-  // worker ran the frame.
-  void Publish(result_t* answer, bool processed, size_t network);
-  // Answers `frame` at once, unprocessed, with STATUS_BAD_REQUEST, `message` and the map's size.
-  void RejectFrame(const frame_t& frame, const std::string& message, size_t network);
+  // Publishes `answer` on its robot's channel of network `network`, signed with `key` (unsigned
+  // when null); `processed` says whether a worker ran the frame.
+  void Publish(result_t* answer, bool processed, size_t network, const SigningKey* key);
+  // Answers `frame` at once, unprocessed, with `status` (STATUS_BAD_REQUEST by default),
+  // `message` and the map's size, signed with `key` when given.
+  void RejectFrame(const frame_t& frame, const std::string& message, size_t network,
+                   int8_t status = result_t::STATUS_BAD_REQUEST, const SigningKey* key = nullptr);
   void PublishStatus();
   // Waits up to `timeout_ms` for messages on every network and dispatches them; false when
   // every network's LCM failed.
@@ -122,7 +135,11 @@ class Server {
   // Frames in flight and recent answers per robot, so that a re-sent frame is not processed twice.
   AnswerRecord answers_;
   std::atomic<bool> stop_requested_{false};
+  std::atomic<bool> reload_requested_{false};
+  // Used by the receive loop only.
+  Authenticator auth_;
   int64_t dropped_logged_ = 0;
+  int64_t unauthorised_logged_ = 0;
   // Last: its workers use everything above, so it is destroyed (joined) first.
   std::unique_ptr<LaneWorkQueue<Job>> queue_;
 };

@@ -54,6 +54,9 @@ ServerOptions TestOptions(const std::string& db) {
   options.db_path = db;
   options.lcm_urls = {"memq://"};
   options.recognizer.analyzer.segmentation = SegmentationMethod::kSuperpixels;
+  // These tests are about the map and the serving loop in one process, where no frame arrives
+  // from outside; authentication has its own tests (authenticator_test.cc, the service tests).
+  options.auth.enabled = false;
   return options;
 }
 
@@ -109,6 +112,7 @@ TEST(ServerOptionsTest, DefaultsPassAndBadValuesNameTheirFlag) {
          o->sequence_rule.restart_gap_s = std::numeric_limits<double>::quiet_NaN();
        }},
       // The parts' own checks run too.
+      {"--auth-window", [](ServerOptions* o) { o->auth.window_s = 0; }},
       {"max_image_width", [](ServerOptions* o) { o->recognizer.analyzer.max_image_width = 10; }},
   });
   // The edges are allowed.
@@ -185,8 +189,28 @@ TEST(ServerTest, DefaultOptionsServeWithTheShippedModels) {
   ServerOptions options;
   options.db_path = dir.File("map.db");
   options.lcm_urls = {"memq://"};
+  options.auth.enabled = false;  // the models are the point here
   const StatusOr<std::unique_ptr<Server>> server = Server::Create(options);
   ASSERT_TRUE(server.ok()) << server.status().ToString();
+}
+
+// Authentication is on by default: without a keys file the server refuses to start and says what
+// to do; an unreadable keys file is named.
+TEST(ServerTest, CreateRefusesToServeWithoutKeys) {
+  const TempDir dir("keys");
+  ServerOptions options = TestOptions(dir.File("map.db"));
+  options.auth = AuthOptions();
+  StatusOr<std::unique_ptr<Server>> server = Server::Create(options);
+  ASSERT_FALSE(server.ok());
+  EXPECT_NE(server.status().message().find("--keys"), std::string::npos)
+      << server.status().message();
+  EXPECT_NE(server.status().message().find("--auth off"), std::string::npos)
+      << server.status().message();
+  options.auth.keys_file = dir.File("missing_keys");
+  server = Server::Create(options);
+  ASSERT_FALSE(server.ok());
+  EXPECT_NE(server.status().message().find("missing_keys"), std::string::npos)
+      << server.status().message();
 }
 
 // A server opened on an existing map serves all of it; before any frame the heartbeat reports
