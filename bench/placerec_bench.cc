@@ -1,6 +1,7 @@
 // placerec-bench: speed of the pipeline, measured against OpenCV's SIFT on the same frame in the
 // same run (the machine is shared and noisy, so only ratios from one run mean much), and
-// retrieval time against synthetic maps of 1,000 to 100,000 landmark objects.
+// retrieval time against synthetic maps of 1,000 to 100,000 landmark objects, and the cost of
+// signed frames (protocol 4) against a frame's processing time.
 //
 //   placerec-bench [--benchmark_filter=REGEX] [--benchmark_repetitions=N] ...
 //
@@ -8,6 +9,8 @@
 // used and the output says so.
 #include <algorithm>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <random>
@@ -17,6 +20,7 @@
 #include <benchmark/benchmark.h>
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "common/image/image.h"
@@ -30,6 +34,7 @@
 #include "common/storage/sqlite_store.h"
 #include "common/util/logging.h"
 #include "common/util/paths.h"
+#include "proto/auth/signing.h"
 
 namespace placerec {
 namespace {
@@ -186,6 +191,118 @@ void BM_Pipeline(benchmark::State& state) {
   state.counters["map_landmarks"] = static_cast<double>((*map)->Counts().landmarks);
 }
 BENCHMARK(BM_Pipeline)->Unit(benchmark::kMillisecond)->Iterations(120);
+
+// ---- Signed frames (protocol 4, proto/README.md "Signed frames") ----
+
+// A frame as placerec-client sends Gardens Point day_left Image120: its JPEG file's bytes, signed;
+// an answer with five matches, as the server sends it.
+struct SigningFixture {
+  SigningFixture() {
+    key.id = "robots";
+    key.secret.assign(kKeyBytes, '\x5a');
+    key.may_insert = key.may_query = true;
+    std::ifstream in(DataRoot() + "/gardens_point/day_left/Image120.jpg", std::ios::binary);
+    std::vector<uint8_t> jpeg{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    if (jpeg.empty()) cv::imencode(".jpg", Data().frame, jpeg);
+    frame.utime = 1800000000000000;
+    frame.sequence = 120;
+    frame.request_id = 7;
+    frame.insert = true;
+    frame.encoding = frame_t::ENCODING_JPEG;
+    frame.width = frame.height = 0;
+    frame.robot = "left";
+    frame.size = static_cast<int32_t>(jpeg.size());
+    frame.data = std::move(jpeg);
+    SignFrame(key, 1, 1800000000000000, &frame);
+    bytes = EncodeFrame(frame);
+    answer.utime = 1;
+    answer.robot = "left";
+    answer.sequence = 120;
+    answer.request_id = 7;
+    answer.frame_utime = frame.utime;
+    answer.insert = true;
+    answer.status = result_t::STATUS_OK;
+    answer.loop_closure = true;
+    for (int i = 0; i < 5; ++i) {
+      match_t m;
+      m.utime = i;
+      m.robot = "right";
+      m.sequence = i;
+      m.place_id = i;
+      m.score = 40;
+      m.matched_landmarks = 3;
+      m.matched_descriptors = 60;
+      m.inliers = 40;
+      m.classes = {"building", "tree"};
+      m.class_counts = {2, 1};
+      m.num_classes = 2;
+      answer.matches.push_back(m);
+    }
+    answer.num_matches = 5;
+    answer.keypoints = 800;
+    answer.objects = 14;
+    answer.landmarks = 3;
+    answer.stored_descriptors = 90;
+    answer.place_id = 120;
+    answer.map_places = answer.map_landmarks = answer.map_descriptors = 1000;
+    answer.queue_ms = answer.server_ms = 100;
+    for (const char* stage : {"decode", "sift", "segmentation", "objects", "landmarks", "index"}) {
+      stage_time_t t;
+      t.stage = stage;
+      t.ms = 10;
+      answer.timings.push_back(t);
+    }
+    answer.num_timings = static_cast<int32_t>(answer.timings.size());
+    ClearAnswerSignature(&answer);
+  }
+  SigningKey key;
+  frame_t frame;
+  std::vector<uint8_t> bytes;  // the signed frame as published
+  result_t answer;
+};
+
+SigningFixture& Signing() {
+  static SigningFixture fixture;
+  return fixture;
+}
+
+// The client's cost per send: sign the frame (HMAC over its encoding) and encode it again.
+void BM_AuthSignFrame(benchmark::State& state) {
+  frame_t frame = Signing().frame;
+  int64_t counter = 1;
+  for (auto _ : state) {
+    SignFrame(Signing().key, ++counter, 1800000000000000, &frame);
+    std::vector<uint8_t> bytes = EncodeFrame(frame);
+    benchmark::DoNotOptimize(bytes.data());
+  }
+  state.counters["frame_bytes"] = static_cast<double>(Signing().bytes.size());
+}
+BENCHMARK(BM_AuthSignFrame)->Unit(benchmark::kMicrosecond)->MinTime(1.0);
+
+// The server's cost per frame: check the signature over the received bytes, and sign the answer.
+void BM_AuthServerPerFrame(benchmark::State& state) {
+  const SigningFixture& f = Signing();
+  for (auto _ : state) {
+    const bool valid = FrameSignatureValid(f.frame, f.key.secret, f.bytes.data(), f.bytes.size());
+    benchmark::DoNotOptimize(valid);
+    result_t answer = f.answer;
+    SignAnswer(f.key, &answer);
+    benchmark::DoNotOptimize(answer.signature);
+  }
+}
+BENCHMARK(BM_AuthServerPerFrame)->Unit(benchmark::kMicrosecond)->MinTime(1.0);
+
+// The client's cost per answer: check the server's signature.
+void BM_AuthCheckAnswer(benchmark::State& state) {
+  result_t answer = Signing().answer;
+  SignAnswer(Signing().key, &answer);
+  const std::vector<uint8_t> bytes = EncodeAnswer(answer);
+  for (auto _ : state) {
+    const bool valid = AnswerSignatureValid(answer, Signing().key, bytes.data(), bytes.size());
+    benchmark::DoNotOptimize(valid);
+  }
+}
+BENCHMARK(BM_AuthCheckAnswer)->Unit(benchmark::kMicrosecond)->MinTime(1.0);
 
 // ---- Retrieval against large synthetic maps ----
 
@@ -512,6 +629,21 @@ int main(int argc, char** argv) {
       const auto it = t.find(name);
       if (it != t.end()) std::printf("  %-30s %6.2f\n", name, it->second / sift->second);
     }
+  }
+  const auto pipeline = t.find("BM_Pipeline");
+  const auto sign = t.find("BM_AuthSignFrame");
+  const auto server = t.find("BM_AuthServerPerFrame");
+  const auto check = t.find("BM_AuthCheckAnswer");
+  if (pipeline != t.end() && sign != t.end() && server != t.end() && check != t.end() &&
+      pipeline->second > 0) {
+    // Every time is in its benchmark's unit: the pipeline in ms, the signing in us.
+    const double frame_us = pipeline->second * 1000;
+    const double auth_us = sign->second + server->second + check->second;
+    std::printf(
+        "\nSigned frames: sign %.1f us + server check and answer signature %.1f us + answer "
+        "check %.1f us = %.1f us per frame, %.3f %% of the pipeline's %.1f ms per frame\n",
+        sign->second, server->second, check->second, auth_us, 100 * auth_us / frame_us,
+        pipeline->second);
   }
   const auto r10k = t.find("BM_Retrieval/10000");
   const auto r100k = t.find("BM_Retrieval/100000");

@@ -16,6 +16,7 @@
 #include "placerec/frame_t.hpp"
 #include "placerec/result_t.hpp"
 #include "placerec/status_t.hpp"
+#include "proto/auth/signing.h"
 #include "proto/channels.h"
 
 namespace placerec {
@@ -48,6 +49,19 @@ AnswerCode CodeFromWire(int8_t status) {
     default:
       return AnswerCode::kUnknownStatus;
   }
+}
+
+int64_t NowUtime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// "unauthorised" and so on, for a result_t status code.
+std::string WireStatusText(int8_t status) {
+  const AnswerCode code = CodeFromWire(status);
+  return code == AnswerCode::kUnknownStatus ? "status " + std::to_string(status)
+                                            : AnswerCodeName(code);
 }
 
 FrameResult FromWire(const result_t& answer) {
@@ -206,6 +220,10 @@ bool ClientOptions::Check(std::string* error) const {
     *error = "--retry-after must be between 0 and 3600 seconds";
     return false;
   }
+  if (key_file.empty() && !key_id.empty()) {
+    *error = "--key-id needs --key-file";
+    return false;
+  }
   return true;
 }
 
@@ -220,11 +238,29 @@ StatusOr<std::unique_ptr<PlacerecClient>> PlacerecClient::Connect(const ClientOp
   std::string error;
   if (!options.Check(&error)) return Status::InvalidArgument(error);
   std::unique_ptr<PlacerecClient> client(new PlacerecClient(options));
-  if (!client->lcm_->good()) {
+  if (!options.key_file.empty()) {
+    std::string warning;
+    StatusOr<std::vector<SigningKey>> keys = ReadKeysFile(options.key_file, &warning);
+    if (!keys.ok()) return keys.status();
+    if (!warning.empty()) LOG(WARNING) << warning;
+    const SigningKey* key = FindKey(*keys, options.key_id);
+    if (key == nullptr) {
+      return Status::InvalidArgument(options.key_id.empty()
+                                         ? "the key file " + options.key_file + " holds no key"
+                                         : "the key file " + options.key_file + " has no key '" +
+                                               options.key_id + "'");
+    }
+    client->key_ = std::make_unique<SigningKey>(*key);
+  }
+  // A tcpq URL whose hub does not answer leaves a "good" LCM without a connection.
+  if (!client->lcm_->good() || client->lcm_->getFileno() < 0) {
+    const bool tcpq = options.lcm_url.rfind("tcpq://", 0) == 0;
     return Status::IoError("cannot open LCM" +
                            (options.lcm_url.empty() ? std::string(" with its default URL")
                                                     : " with URL " + options.lcm_url) +
-                           "; check the URL and that the network has multicast");
+                           (tcpq ? "; is the LCM TCP hub running at that address? "
+                                   "(scripts/lcm-hub.sh start PORT on the hub's machine)"
+                                 : "; check the URL and that the network has multicast"));
   }
   if (client->lcm_->subscribe(kStatusChannel, &PlacerecClient::OnStatus, client.get()) == nullptr) {
     return Status::IoError("cannot subscribe to the placerec channels");
@@ -251,8 +287,11 @@ void PlacerecClient::ReceiveLoop() {
       std::lock_guard lock(mutex_);
       if (stop_) return;
     }
-    if (lcm_->handleTimeout(50) < 0) {
-      LOG(ERROR) << "LCM stopped delivering messages";
+    // A tcpq connection that broke leaves no descriptor to wait on.
+    if (lcm_->getFileno() < 0 || lcm_->handleTimeout(50) < 0) {
+      LOG(ERROR) << "LCM stopped delivering messages"
+                 << (options_.lcm_url.rfind("tcpq://", 0) == 0 ? " (the LCM TCP hub went away?)"
+                                                               : "");
       return;
     }
   }
@@ -294,6 +333,7 @@ StatusOr<PendingFrame> PlacerecClient::Publish(const OutgoingFrame& frame) {
   message.width = frame.image.width;
   message.height = frame.image.height;
   message.robot = frame.robot;
+  ClearFrameSignature(&message);
   message.size = static_cast<int32_t>(frame.image.bytes.size());
   message.data = frame.image.bytes;
   PendingFrame pending;
@@ -309,11 +349,7 @@ StatusOr<PendingFrame> PlacerecClient::Publish(const OutgoingFrame& frame) {
   auto bytes = std::make_shared<std::vector<uint8_t>>(message.getEncodedSize());
   message.encode(bytes->data(), 0, static_cast<int>(bytes->size()));
   pending.message = bytes;
-  int rc = 0;
-  {
-    std::lock_guard lock(publish_mutex_);
-    rc = lcm_->publish(kFrameChannel, bytes->data(), static_cast<unsigned int>(bytes->size()));
-  }
+  const int rc = PublishFrame(*bytes);
   if (rc != 0) {
     std::lock_guard lock(mutex_);
     awaited_.erase(pending.request_id);
@@ -341,17 +377,17 @@ FrameResult PlacerecClient::Wait(const PendingFrame& pending, double timeout_s) 
     }
     // No answer yet: send the same frame (same request id) again.
     lock.unlock();
-    {
-      std::lock_guard publish(publish_mutex_);
-      if (lcm_->publish(kFrameChannel, pending.message->data(),
-                        static_cast<unsigned int>(pending.message->size())) == 0) {
-        ++sends;
-      }
-    }
+    if (PublishFrame(*pending.message) == 0) ++sends;
     next_send = std::chrono::steady_clock::now() + retry;
     lock.lock();
   }
   auto it = answers_.find(pending.request_id);
+  auto untrusted = untrusted_.find(pending.request_id);
+  std::string ignored;
+  if (untrusted != untrusted_.end()) {
+    ignored = std::move(untrusted->second);
+    untrusted_.erase(untrusted);
+  }
   if (it == answers_.end()) {
     awaited_.erase(pending.request_id);  // a late answer is ignored
     FrameResult timeout;
@@ -365,6 +401,7 @@ FrameResult PlacerecClient::Wait(const PendingFrame& pending, double timeout_s) 
                   "LCM network?)",
                   timeout_s, sends, sends == 1 ? "" : "s");
     timeout.message = text;
+    if (!ignored.empty()) timeout.message += "; " + ignored;
     return timeout;
   }
   FrameResult result = std::move(it->second);
@@ -405,6 +442,20 @@ void PlacerecClient::OnResult(const lcm::ReceiveBuffer* buffer, const std::strin
     return;
   }
   if (channel != kInvalidRobotResultChannel && channel != ResultChannel(answer.robot)) return;
+  if (key_ != nullptr && !AnswerSignatureValid(answer, *key_, buffer->data, buffer->data_size)) {
+    // Not the server's answer to our frame (or a server without our key): ignored, but kept to
+    // explain a timeout.
+    std::lock_guard lock(mutex_);
+    auto it = awaited_.find(answer.request_id);
+    if (it != awaited_.end() && it->second.sequence == answer.sequence) {
+      untrusted_[answer.request_id] =
+          "an answer not signed with key '" + key_->id + "' was ignored (" +
+          (answer.key_id.empty() ? std::string("unsigned") : "signed as '" + answer.key_id + "'") +
+          "; it said: " + WireStatusText(answer.status) +
+          (answer.message.empty() ? "" : ": " + answer.message) + ")";
+    }
+    return;
+  }
   FrameResult result = FromWire(answer);
   std::function<void(const FrameResult&)> callback;
   {
@@ -466,6 +517,21 @@ void PlacerecClient::OnStatus(const lcm::ReceiveBuffer* buffer, const std::strin
   last_status_ = s;
   ++statuses_;
   answered_.notify_all();
+}
+
+int PlacerecClient::PublishFrame(const std::vector<uint8_t>& message) {
+  std::lock_guard lock(publish_mutex_);
+  if (key_ == nullptr) {
+    return lcm_->publish(kFrameChannel, message.data(), static_cast<unsigned int>(message.size()));
+  }
+  frame_t frame;
+  if (frame.decode(message.data(), 0, static_cast<int>(message.size())) < 0) return -1;
+  // The counter increases within this client and across its restarts (it starts from the clock).
+  const int64_t now = NowUtime();
+  last_counter_ = std::max(last_counter_ + 1, now);
+  SignFrame(*key_, last_counter_, now, &frame);
+  const std::vector<uint8_t> bytes = EncodeFrame(frame);
+  return lcm_->publish(kFrameChannel, bytes.data(), static_cast<unsigned int>(bytes.size()));
 }
 
 StatusOr<ServerStatus> PlacerecClient::WaitForStatus(double timeout_s) {

@@ -28,6 +28,8 @@ struct ReceiveBuffer;
 
 namespace placerec {
 
+struct SigningKey;  // proto/auth/signing.h
+
 // How the image bytes of a frame are encoded (the values of frame_t::ENCODING_*).
 enum class FrameEncoding : int8_t { kJpeg = 0, kPng = 1, kRawBgr8 = 2, kRawGray8 = 3 };
 
@@ -147,6 +149,12 @@ struct ClientOptions {
   // further interval until the timeout; the server answers a frame it already processed from its
   // record instead of processing it twice. 0 never sends again.
   double retry_after_s = 5.0;
+  // A keys file (server/README.md "Keys"; scripts/make-key.sh): frames are signed with its key
+  // and only answers the server signed with that key are accepted (others are ignored and named
+  // in the timeout message). Empty: frames go unsigned (a server with --auth off).
+  std::string key_file;
+  // Which key of key_file to use; empty: its first.
+  std::string key_id;
 
   bool Check(std::string* error) const;
 };
@@ -157,7 +165,8 @@ struct PendingFrame {
   int64_t sequence = 0;
   int64_t request_id = 0;
   std::chrono::steady_clock::time_point sent;
-  // The encoded frame_t, kept to send it again (ClientOptions::retry_after_s).
+  // The encoded frame_t, unsigned, kept to send it again (ClientOptions::retry_after_s); each
+  // send is signed anew (a new replay-guard counter).
   std::shared_ptr<const std::vector<uint8_t>> message;
   int sends = 1;  // how often Wait published it
 };
@@ -194,6 +203,8 @@ class PlacerecClient {
   void OnResult(const lcm::ReceiveBuffer* buffer, const std::string& channel);
   void OnStatus(const lcm::ReceiveBuffer* buffer, const std::string& channel);
   void ReceiveLoop();
+  // Signs (when a key is set) and publishes an encoded unsigned frame; LCM's return code.
+  int PublishFrame(const std::vector<uint8_t>& message);
 
   ClientOptions options_;
   std::unique_ptr<lcm::LCM> lcm_;
@@ -201,6 +212,10 @@ class PlacerecClient {
   std::condition_variable answered_;
   std::unordered_map<int64_t, PendingFrame> awaited_;  // by request id
   std::unordered_map<int64_t, FrameResult> answers_;   // by request id
+  // Answers to awaited frames that were not signed with our key, by request id: what they said.
+  std::unordered_map<int64_t, std::string> untrusted_;
+  std::unique_ptr<SigningKey> key_;  // null: unsigned
+  int64_t last_counter_ = 0;         // the last replay-guard counter signed (publish_mutex_)
   std::set<std::string> subscribed_;
   bool wildcard_subscribed_ = false;
   int64_t next_request_id_ = 0;

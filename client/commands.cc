@@ -28,6 +28,11 @@ void AddConnectionFlags(FlagParser* parser, ClientOptions* options) {
               "LCM URL (empty: LCM's default, i.e. $LCM_DEFAULT_URL or "
               "udpm://239.255.76.67:7667?ttl=0)");
   parser->Add("timeout", &options->timeout_s, "seconds to wait for each answer");
+  parser->Add("key-file", &options->key_file,
+              "keys file (a line 'ID PERMISSION KEY' from the server's operator, "
+              "scripts/make-key.sh): frames are signed with its key and only answers signed with "
+              "it are accepted; empty: unsigned frames, for a server run with --auth off");
+  parser->Add("key-id", &options->key_id, "which key of --key-file to use (empty: its first)");
   parser->Add("retry-after", &options->retry_after_s,
               "send a frame again (same request id) when its answer has not come after this "
               "many seconds, and again after each further interval until the timeout; 0: never");

@@ -5,7 +5,9 @@
 # its answer arrives, then a summary; the server is stopped at the end (and on Ctrl-C).
 # As root, server and client run in a private network namespace (loopback only), so no LCM
 # traffic leaves the machine; otherwise they use the host's loopback with TTL 0.
-# Output: out/demo/answers.csv, summary.json, pr_curve.png, map.db, server.log.
+# Frames are signed: the demo makes a fresh key for the robots (out/demo/keys, mode 600) and gives
+# it to server (--keys) and client (--key-file).
+# Output: out/demo/answers.csv, summary.json, pr_curve.png, map.db, keys, server.log.
 # Extra arguments go to `placerec-client run` (e.g. --max-frames 40). Set PLACEREC_DATA when the
 # data is not at ../shared/data.
 set -euo pipefail
@@ -41,8 +43,10 @@ rm -f "$out/map.db" "$out/map.db-wal" "$out/map.db-shm"
 url="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
 server="$build_dir/bin/placerec-server"
 client="$build_dir/bin/placerec-client"
+keys=$out/keys
+(umask 077 && bash "$root/scripts/make-key.sh" demo-robots both > "$keys")
 
-"$server" --db "$out/map.db" --lcm-url "$url" 2> "$out/server.log" &
+"$server" --db "$out/map.db" --lcm-url "$url" --keys "$keys" 2> "$out/server.log" &
 server_pid=$!
 stop_server() {
   if kill -0 "$server_pid" 2>/dev/null; then
@@ -70,7 +74,7 @@ echo "demo: placerec-server is up (map $out/map.db); feeding day_left_then_day_r
 
 rc=0
 "$client" run --dataset "$data/gardens_point" --run day_left_then_day_right --out "$out" \
-  --lcm-url "$url" "$@" || rc=$?
+  --lcm-url "$url" --key-file "$keys" "$@" || rc=$?
 "$client" status --lcm-url "$url" --timeout 3 || true
 stop_server
 echo "demo: server stopped; log in $out/server.log"

@@ -15,6 +15,7 @@ packages=(
   clang-15 libfuzzer-15-dev
   libcpp-httplib-dev libssl-dev openssl chromium chromium-driver
   iproute2 util-linux procps
+  liblcm-java default-jre-headless
 )
 
 missing=()

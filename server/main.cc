@@ -9,6 +9,7 @@
 #include "common/pipeline/flags.h"
 #include "common/util/logging.h"
 #include "common/util/options.h"
+#include "server/authenticator.h"
 #include "server/server.h"
 
 namespace placerec {
@@ -20,22 +21,41 @@ void OnStopSignal(int) {
   if (g_server != nullptr) g_server->Stop();
 }
 
+void OnReloadSignal(int) {
+  if (g_server != nullptr) g_server->ReloadKeys();
+}
+
 constexpr char kUsage[] =
-    "placerec-server [--db FILE] [--lcm-url URL] [options]\n\n"
+    "placerec-server [--db FILE] [--lcm-url URL]... [options]\n\n"
     "Serves place recognition over LCM: frames (placerec.frame_t) on PLACEREC_FRAME, one answer\n"
     "(placerec.result_t) per frame on PLACEREC_RESULT_<robot>, a heartbeat (placerec.status_t) on\n"
     "PLACEREC_STATUS every second. The landmark map lives in the SQLite file --db; it is reloaded\n"
     "at start-up, and each frame's landmarks are committed before its answer is published.\n"
-    "Stops cleanly on SIGINT or SIGTERM.";
+    "Frames must be signed with a key of the --keys file (proto/README.md \"Signed frames\");\n"
+    "SIGHUP reloads it. Stops cleanly on SIGINT or SIGTERM.";
 
 int Main(int argc, char** argv) {
   ServerOptions options;
   bool sqlite_normal = false;
+  std::string auth = "on";
   FlagParser parser(kUsage);
   parser.Add("db", &options.db_path, "SQLite map file (created when missing)");
-  parser.Add("lcm-url", &options.lcm_url,
-             "LCM URL, e.g. udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304 (empty: LCM's "
-             "default, i.e. $LCM_DEFAULT_URL or udpm://239.255.76.67:7667?ttl=0)");
+  parser.AddRepeated(
+      "lcm-url", &options.lcm_urls,
+      "LCM URL of a network to serve; give it once per network, e.g. --lcm-url "
+      "'udpm://239.255.76.67:7667?ttl=1' for the robot LAN and --lcm-url tcpq://127.0.0.1:7700 "
+      "for remote devices through an LCM TCP hub (scripts/lcm-hub.sh); each answer goes back on "
+      "the network its frame came from, heartbeats go to all (none: LCM's default, i.e. "
+      "$LCM_DEFAULT_URL or udpm://239.255.76.67:7667?ttl=0)");
+  parser.Add("keys", &options.auth.keys_file,
+             "keys file: one line per robot or device, 'ID insert|query|both KEY' (64 hex digits; "
+             "scripts/make-key.sh makes one); chmod 600; SIGHUP reloads it");
+  parser.Add("auth", &auth,
+             "on: only frames signed with a key of --keys are served, answers are signed; off: "
+             "anyone on the network may insert and query (a lab LAN only)");
+  parser.Add("auth-window", &options.auth.window_s,
+             "seconds a frame's signing time may differ from the server's clock; also how long "
+             "each key's counters are remembered against replays");
   parser.Add("workers", &options.workers,
              "worker threads running the pipeline (one robot's frames never run at once)");
   parser.Add("queue", &options.queue_capacity,
@@ -65,9 +85,24 @@ int Main(int argc, char** argv) {
     return *exit;
   }
   options.store.synchronous_full = !sqlite_normal;
+  if (auth != "on" && auth != "off") {
+    std::fprintf(stderr, "placerec-server: --auth must be on or off\n");
+    return 2;
+  }
+  options.auth.enabled = auth == "on";
+  if (!options.auth.enabled) {
+    std::fprintf(stderr,
+                 "placerec-server: WARNING: AUTHENTICATION IS OFF (--auth off). Anyone who can "
+                 "publish on the LCM network may insert frames under any robot's name and read "
+                 "the map. Use this on a lab LAN only.\n");
+  }
   std::string error;
   if (!options.Check(&error)) {
     std::fprintf(stderr, "placerec-server: %s\n", error.c_str());
+    return 2;
+  }
+  if (options.auth.enabled && options.auth.keys_file.empty()) {
+    std::fprintf(stderr, "placerec-server: %s\n", MissingKeysAdvice().c_str());
     return 2;
   }
   StatusOr<std::unique_ptr<Server>> server = Server::Create(options);
@@ -81,6 +116,10 @@ int Main(int argc, char** argv) {
   sigemptyset(&action.sa_mask);
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
+  struct sigaction reload = {};
+  reload.sa_handler = OnReloadSignal;
+  sigemptyset(&reload.sa_mask);
+  sigaction(SIGHUP, &reload, nullptr);
   const Status served = (*server)->Run();
   g_server = nullptr;
   if (!served.ok()) {

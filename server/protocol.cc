@@ -2,6 +2,7 @@
 
 #include <exception>
 
+#include "proto/auth/signing.h"
 #include "proto/channels.h"
 
 namespace placerec {
@@ -25,7 +26,8 @@ bool ReadInt32(const uint8_t* data, size_t size, size_t offset, int32_t* value) 
 // The code lcm-gen writes resizes strings and arrays to the length a message claims before it
 // checks that the bytes are there, so a forged length would make it allocate gigabytes or throw.
 // This walks frame_t's layout (fingerprint, utime, sequence, request_id, insert, encoding, width,
-// height, robot, size, data; see proto/frame_t.lcm) and checks both lengths first.
+// height, robot, key_id, auth_counter, auth_utime, signature[32], size, data; see
+// proto/frame_t.lcm) and checks the three lengths first.
 Status CheckFrameLengths(const uint8_t* data, size_t size) {
   int32_t robot_length = 0;
   if (!ReadInt32(data, size, kRobotLengthOffset, &robot_length)) {
@@ -37,7 +39,18 @@ Status CheckFrameLengths(const uint8_t* data, size_t size) {
     return Status::InvalidArgument("robot id length " + std::to_string(robot_length) +
                                    " does not fit the message");
   }
-  const size_t size_offset = robot_begin + static_cast<size_t>(robot_length);
+  const size_t key_id_offset = robot_begin + static_cast<size_t>(robot_length);
+  int32_t key_id_length = 0;
+  if (!ReadInt32(data, size, key_id_offset, &key_id_length)) {
+    return Status::InvalidArgument("message ends before the key id");
+  }
+  const size_t key_id_begin = key_id_offset + 4;
+  if (key_id_length < 1 || static_cast<size_t>(key_id_length) > size - key_id_begin) {
+    return Status::InvalidArgument("key id length " + std::to_string(key_id_length) +
+                                   " does not fit the message");
+  }
+  // auth_counter, auth_utime and the signature have fixed sizes.
+  const size_t size_offset = key_id_begin + static_cast<size_t>(key_id_length) + 8 + 8 + 32;
   int32_t data_size = 0;
   if (!ReadInt32(data, size, size_offset, &data_size)) {
     return Status::InvalidArgument("message ends before the image size");
@@ -82,6 +95,7 @@ StatusOr<frame_t> DecodeFrameHead(const void* data, size_t size) {
   frame.robot.assign(reinterpret_cast<const char*>(bytes + robot_begin),
                      static_cast<size_t>(robot_length) - 1);
   frame.size = 0;
+  ClearFrameSignature(&frame);  // the head is never authenticated
   return frame;
 }
 
@@ -208,6 +222,7 @@ result_t AnswerTemplate(const frame_t& frame) {
   answer.queue_ms = 0;
   answer.server_ms = 0;
   answer.num_timings = 0;
+  ClearAnswerSignature(&answer);
   return answer;
 }
 

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include "proto/auth/signing.h"
 #include "proto/channels.h"
 
 namespace placerec {
@@ -20,6 +21,7 @@ frame_t MakeFrame(const std::string& robot, int bytes) {
   frame.width = 4;
   frame.height = bytes / 4;
   frame.robot = robot;
+  ClearFrameSignature(&frame);
   frame.size = bytes;
   frame.data.assign(bytes, 0x5a);
   return frame;
@@ -32,9 +34,15 @@ std::vector<uint8_t> Encode(const frame_t& frame) {
   return bytes;
 }
 
-// Offset of frame_t's `size` field for a robot id of `robot_length` bytes.
-size_t SizeOffset(size_t robot_length) {
+// Offset of frame_t's key id length for a robot id of `robot_length` bytes.
+size_t KeyIdOffset(size_t robot_length) {
   return 8 + 8 + 8 + 8 + 1 + 1 + 4 + 4 + 4 + robot_length + 1;
+}
+
+// Offset of frame_t's `size` field for a robot id of `robot_length` bytes and a key id of
+// `key_id_length` bytes (after them: auth_counter, auth_utime, signature[32]).
+size_t SizeOffset(size_t robot_length, size_t key_id_length = 0) {
+  return KeyIdOffset(robot_length) + 4 + key_id_length + 1 + 8 + 8 + 32;
 }
 
 void PutInt32(std::vector<uint8_t>* bytes, size_t offset, int32_t value) {
@@ -121,8 +129,26 @@ TEST(ProtocolTest, ForgedLengthsNeitherAllocateNorThrow) {
     PutInt32(&b, SizeOffset(4), forged);
     const StatusOr<frame_t> got = DecodeFrameMessage(b.data(), b.size());
     ASSERT_FALSE(got.ok()) << forged;
-    EXPECT_NE(got.status().message().find("does not fit"), std::string::npos);
+    EXPECT_NE(got.status().message().find("image size"), std::string::npos)
+        << got.status().message();
   }
+  // Protocol 4's key id is a string too: its length is checked before decoding.
+  for (int32_t forged : {INT32_MIN, -1, 0, 1000, INT32_MAX}) {
+    std::vector<uint8_t> b = bytes;
+    PutInt32(&b, KeyIdOffset(4), forged);
+    const StatusOr<frame_t> got = DecodeFrameMessage(b.data(), b.size());
+    ASSERT_FALSE(got.ok()) << forged;
+    EXPECT_NE(got.status().message().find("key id length"), std::string::npos)
+        << got.status().message();
+  }
+  // A signed frame's size is found after its key id.
+  frame_t signed_frame = MakeFrame("left", 64);
+  signed_frame.key_id = "robots";
+  std::vector<uint8_t> b = Encode(signed_frame);
+  PutInt32(&b, SizeOffset(4, 6), 1 << 30);
+  const StatusOr<frame_t> got = DecodeFrameMessage(b.data(), b.size());
+  ASSERT_FALSE(got.ok());
+  EXPECT_NE(got.status().message().find("image size"), std::string::npos);
 }
 
 TEST(ProtocolTest, RandomMutationsNeverCrash) {

@@ -1,5 +1,7 @@
 #include "server/server.h"
 
+#include <poll.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
@@ -35,6 +37,21 @@ std::string DescribeUrl(const std::string& url) {
                                         : std::string("LCM's default URL");
 }
 
+std::string DescribeUrls(const std::vector<std::string>& urls) {
+  if (urls.empty()) return DescribeUrl("");
+  std::string text;
+  for (const std::string& url : urls) text += (text.empty() ? "" : " and ") + DescribeUrl(url);
+  return text;
+}
+
+// What to check when LCM cannot open `url`.
+std::string OpenAdvice(const std::string& url) {
+  if (url.rfind("tcpq://", 0) == 0) {
+    return "is the LCM TCP hub running at that address? (scripts/lcm-hub.sh start PORT)";
+  }
+  return "check the URL and that the network has multicast";
+}
+
 }  // namespace
 
 bool ServerOptions::Check(std::string* error) const {
@@ -54,13 +71,15 @@ bool ServerOptions::Check(std::string* error) const {
     *error = "--status-period must be positive and at most 3600 seconds";
     return false;
   }
-  return store.Check(error) && decode.Check(error) && sequence_rule.Check(error) &&
-         recognizer.Check(error);
+  return auth.Check(error) && store.Check(error) && decode.Check(error) &&
+         sequence_rule.Check(error) && recognizer.Check(error);
 }
 
 StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
   std::string error;
   if (!options.Check(&error)) return Status::InvalidArgument(error);
+  StatusOr<Authenticator> auth = Authenticator::Create(options.auth, NowUtime());
+  if (!auth.ok()) return auth.status();
   StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.recognizer.analyzer);
   if (!segmenter.ok()) return segmenter.status();
   // Without the object classifiers the server refuses to start, with the loader's advice.
@@ -90,23 +109,31 @@ StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
   StatusOr<std::unique_ptr<PlaceMap>> map =
       PlaceMap::Open(std::move(*store), options.recognizer.index);
   if (!map.ok()) return map.status();
-  std::unique_ptr<Server> server(
-      new Server(options, std::move(*map), std::move(*segmenter), std::move(labeler)));
-  if (!server->lcm_.good()) {
-    return Status::IoError("cannot open LCM (" + DescribeUrl(options.lcm_url) +
-                           "); check the URL and that the network has multicast");
+  std::unique_ptr<Server> server(new Server(options, std::move(*map), std::move(*segmenter),
+                                            std::move(labeler), std::move(*auth)));
+  for (const std::unique_ptr<Network>& network : server->networks_) {
+    // A tcpq URL whose hub does not answer leaves a "good" LCM without a connection.
+    if (!network->lcm.good() || network->lcm.getFileno() < 0) {
+      return Status::IoError("cannot open LCM (" + DescribeUrl(network->url) + "); " +
+                             OpenAdvice(network->url));
+    }
   }
   return server;
 }
 
 Server::Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map,
                std::unique_ptr<Segmenter> segmenter,
-               std::shared_ptr<const ObjectClassLabeler> labeler)
+               std::shared_ptr<const ObjectClassLabeler> labeler, Authenticator auth)
     : options_(options),
       map_(std::move(map)),
       processor_(options.recognizer, options.decode, map_.get(), std::move(segmenter),
                  options.sequence_rule, std::move(labeler)),
-      lcm_(options.lcm_url) {
+      auth_(std::move(auth)) {
+  const std::vector<std::string> urls =
+      options.lcm_urls.empty() ? std::vector<std::string>{""} : options.lcm_urls;
+  for (const std::string& url : urls) {
+    networks_.push_back(std::make_unique<Network>(this, networks_.size(), url));
+  }
   queue_ = std::make_unique<LaneWorkQueue<Job>>(options_.workers, options_.queue_capacity,
                                                 [this](Job& job) { Work(job); });
 }
@@ -116,22 +143,51 @@ Server::~Server() {
 }
 
 Status Server::Run() {
-  lcm::Subscription* subscription = lcm_.subscribe(kFrameChannel, &Server::OnFrameMessage, this);
-  if (subscription == nullptr) return Status::Internal("cannot subscribe to PLACEREC_FRAME");
-  // LCM keeps at most 30 undispatched messages per subscription by default and silently drops
-  // the rest; a burst from a fleet can exceed that before this loop dispatches them (each
-  // dispatch only decodes and queues). Our own queue decides what is "overloaded".
-  subscription->setQueueCapacity(kLcmFrameQueue);
+  for (const std::unique_ptr<Network>& network : networks_) {
+    network->subscription =
+        network->lcm.subscribe(kFrameChannel, &Network::OnFrameMessage, network.get());
+    if (network->subscription == nullptr) {
+      return Status::Internal("cannot subscribe to PLACEREC_FRAME on " + DescribeUrl(network->url));
+    }
+    // LCM keeps at most 30 undispatched messages per subscription by default and silently drops
+    // the rest; a burst from a fleet can exceed that before this loop dispatches them (each
+    // dispatch only decodes and queues). Our own queue decides what is "overloaded".
+    network->subscription->setQueueCapacity(kLcmFrameQueue);
+  }
   const MapCounts counts = map_->Counts();
   LOG(INFO) << "placerec-server " << PLACEREC_VERSION << " serving " << map_->Describe() << " ("
             << counts.places << " places, " << counts.landmarks << " landmarks, loaded in "
-            << map_->open_ms() << " ms) over " << DescribeUrl(options_.lcm_url) << " with "
+            << map_->open_ms() << " ms) over " << DescribeUrls(options_.lcm_urls) << " with "
             << options_.workers << " workers, queue of " << options_.queue_capacity;
+  if (options_.auth.enabled) {
+    std::string ids;
+    for (const std::string& id : auth_.KeyIds()) ids += (ids.empty() ? "" : ", ") + id;
+    LOG(INFO) << "authentication on: frames must be signed with one of the keys of "
+              << options_.auth.keys_file << " (" << ids << "); window " << options_.auth.window_s
+              << " s";
+    if (!auth_.warning().empty()) LOG(WARNING) << auth_.warning();
+  } else {
+    LOG(WARNING) << "AUTHENTICATION IS OFF (--auth off): any process that can publish on "
+                 << DescribeUrls(options_.lcm_urls)
+                 << " may insert frames under any robot's name and query the map, and answers "
+                    "are unsigned. Use this on a lab LAN only; give --keys FILE everywhere else.";
+  }
   const auto period = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
       std::chrono::duration<double>(options_.status_period_s));
   auto next_status = std::chrono::steady_clock::now();
   Status result;
   while (!stop_requested_.load()) {
+    if (reload_requested_.exchange(false) && options_.auth.enabled) {
+      const Status reloaded = auth_.Reload();
+      if (reloaded.ok()) {
+        std::string ids;
+        for (const std::string& id : auth_.KeyIds()) ids += (ids.empty() ? "" : ", ") + id;
+        LOG(INFO) << "reloaded the keys file " << options_.auth.keys_file << ": " << ids;
+        if (!auth_.warning().empty()) LOG(WARNING) << auth_.warning();
+      } else {
+        LOG(ERROR) << "could not reload the keys file, the old keys stay: " << reloaded.message();
+      }
+    }
     const auto now = std::chrono::steady_clock::now();
     if (now >= next_status) {
       PublishStatus();
@@ -140,19 +196,21 @@ Status Server::Run() {
     }
     const int wait_ms = static_cast<int>(std::min<int64_t>(
         100, std::chrono::duration_cast<std::chrono::milliseconds>(next_status - now).count() + 1));
-    errno = 0;
-    if (lcm_.handleTimeout(wait_ms) < 0 && errno != EINTR && !stop_requested_.load()) {
-      result = Status::IoError("LCM stopped delivering messages");
+    if (!HandleMessages(wait_ms) && !stop_requested_.load()) {
+      result = Status::IoError("LCM stopped delivering messages on every network");
       break;
     }
   }
-  lcm_.unsubscribe(subscription);
+  for (const std::unique_ptr<Network>& network : networks_) {
+    network->lcm.unsubscribe(network->subscription);
+    network->subscription = nullptr;
+  }
   std::vector<Job> pending = queue_->Shutdown();
   for (Job& job : pending) {
     result_t answer = AnswerTemplate(job.frame);
     SetError(result_t::STATUS_SHUTTING_DOWN,
              "the server is shutting down; the frame was not processed", &answer);
-    Publish(&answer, false);
+    Publish(&answer, false, job.network, job.key ? &*job.key : nullptr);
   }
   PublishStatus();
   LOG(INFO) << "placerec-server stopped; " << pending.size()
@@ -160,15 +218,44 @@ Status Server::Run() {
   return result;
 }
 
-void Server::OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
+bool Server::HandleMessages(int timeout_ms) {
+  std::vector<pollfd> fds;
+  for (const std::unique_ptr<Network>& network : networks_) {
+    // A failed network is left out (poll skips negative descriptors).
+    fds.push_back(pollfd{network->failed ? -1 : network->lcm.getFileno(), POLLIN, 0});
+  }
+  const int ready = poll(fds.data(), fds.size(), timeout_ms);
+  if (ready < 0) return errno == EINTR;
+  bool any_serving = false;
+  for (size_t i = 0; i < fds.size(); ++i) {
+    Network& network = *networks_[i];
+    if (!network.failed && (fds[i].revents & (POLLIN | POLLHUP | POLLERR | POLLNVAL))) {
+      // handleTimeout(0) dispatches what is there without blocking when nothing complete is.
+      if ((fds[i].revents & POLLNVAL) || network.lcm.handleTimeout(0) < 0 ||
+          network.lcm.getFileno() < 0) {
+        network.failed = true;
+        LOG(ERROR) << "LCM network " << DescribeUrl(network.url)
+                   << " stopped delivering messages; the server goes on without it (restart it "
+                      "to serve that network again: "
+                   << OpenAdvice(network.url) << ")";
+      }
+    }
+    any_serving = any_serving || !network.failed;
+  }
+  return any_serving;
+}
+
+void Server::OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer,
+                            const std::string& channel) {
   Job job;
+  job.network = network;
   StatusOr<frame_t> frame = DecodeFrameMessage(buffer->data, buffer->data_size);
   if (!frame.ok()) {
     // A frame whose head is whole (robot and request id readable) is answered with the reason;
     // anything else is dropped.
     const StatusOr<frame_t> head = DecodeFrameHead(buffer->data, buffer->data_size);
     if (head.ok()) {
-      RejectFrame(*head, "malformed frame: " + frame.status().message());
+      RejectFrame(*head, "malformed frame: " + frame.status().message(), network);
       return;
     }
     stats_.Dropped();
@@ -184,9 +271,24 @@ void Server::OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string&
   std::string why;
   if (!IsValidWireRobotId(job.frame.robot, &why)) {
     // No lane and no channel of its own: answer at once on the shared error channel.
-    RejectFrame(job.frame, why);
+    RejectFrame(job.frame, why, network);
     return;
   }
+  Authenticator::Verdict verdict =
+      auth_.Check(job.frame, NowUtime(), buffer->data, buffer->data_size);
+  if (!verdict.ok) {
+    // Never queued: the map and the robot's state stay as they are.
+    if (unauthorised_logged_ < 10 || unauthorised_logged_ % 100 == 0) {
+      LOG(WARNING) << "refused frame " << job.frame.sequence << " of robot '" << job.frame.robot
+                   << "' (" << (job.frame.insert ? "insert" : "query") << "): " << verdict.message;
+    }
+    ++unauthorised_logged_;
+    RejectFrame(job.frame, verdict.message, network, result_t::STATUS_UNAUTHORISED,
+                verdict.key ? &*verdict.key : nullptr);
+    return;
+  }
+  job.key = std::move(verdict.key);
+  const SigningKey* key = job.key ? &*job.key : nullptr;
   stats_.SawRobot(job.frame.robot);
   result_t recorded;
   switch (answers_.Begin(job.frame, &recorded)) {
@@ -197,12 +299,14 @@ void Server::OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string&
     case AnswerRecord::Seen::kAnswered:
       VLOG(1) << "frame " << job.frame.sequence << " of robot '" << job.frame.robot
               << "' sent again: its answer is sent again";
-      Publish(&recorded, false);
+      Publish(&recorded, false, network, key);
       return;
     case AnswerRecord::Seen::kNew:
       break;
   }
   const std::string robot = job.frame.robot;
+  const std::optional<SigningKey> sender = job.key;  // `job` is moved into the queue
+  key = sender ? &*sender : nullptr;
   LaneWorkQueue<Job>::PushResult pushed = queue_->Push(robot, &job);
   if (pushed.evicted) {
     answers_.Forget(pushed.evicted->frame);
@@ -217,7 +321,8 @@ void Server::OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string&
                  "' waited, so its newest frame gave way; it was not processed, send it again "
                  "later",
              &answer);
-    Publish(&answer, false);
+    Publish(&answer, false, pushed.evicted->network,
+            pushed.evicted->key ? &*pushed.evicted->key : nullptr);
   }
   if (!pushed.queued) {
     answers_.Forget(job.frame);
@@ -233,18 +338,19 @@ void Server::OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string&
                    "not processed, send it again later",
                &answer);
     }
-    Publish(&answer, false);
+    Publish(&answer, false, network, key);
   }
 }
 
-void Server::RejectFrame(const frame_t& frame, const std::string& message) {
+void Server::RejectFrame(const frame_t& frame, const std::string& message, size_t network,
+                         int8_t status, const SigningKey* key) {
   result_t answer = AnswerTemplate(frame);
-  SetError(result_t::STATUS_BAD_REQUEST, message, &answer);
+  SetError(status, message, &answer);
   const MapCounts counts = map_->Counts();
   answer.map_places = counts.places;
   answer.map_landmarks = counts.landmarks;
   answer.map_descriptors = counts.descriptors;
-  Publish(&answer, false);
+  Publish(&answer, false, network, key);
 }
 
 void Server::Work(Job& job) {
@@ -266,20 +372,26 @@ void Server::Work(Job& job) {
                  << "': " << WireStatusName(answer.status) << ": " << answer.message;
   }
   answers_.Finish(job.frame, answer);
-  Publish(&answer, true);
+  Publish(&answer, true, job.network, job.key ? &*job.key : nullptr);
 }
 
-void Server::Publish(result_t* answer, bool processed) {
+void Server::Publish(result_t* answer, bool processed, size_t network, const SigningKey* key) {
   answer->utime = NowUtime();
+  if (key != nullptr) {
+    SignAnswer(*key, answer);
+  } else {
+    ClearAnswerSignature(answer);
+  }
   const std::string channel = ResultChannel(answer->robot);
-  int rc = 0;
-  {
-    std::lock_guard lock(publish_mutex_);
-    rc = lcm_.publish(channel, answer);
+  Network& to = *networks_[network];
+  int rc = -1;
+  if (!to.failed) {
+    std::lock_guard lock(to.publish_mutex);
+    rc = to.lcm.publish(channel, answer);
   }
   if (rc != 0) {
     LOG(ERROR) << "could not publish the answer to frame " << answer->sequence << " of robot '"
-               << answer->robot << "' on " << channel;
+               << answer->robot << "' on " << channel << " of " << DescribeUrl(to.url);
   }
   stats_.Answered(processed, answer->status != result_t::STATUS_OK,
                   answer->status == result_t::STATUS_OVERLOADED);
@@ -312,9 +424,13 @@ status_t Server::CurrentStatus() {
 
 void Server::PublishStatus() {
   const status_t status = CurrentStatus();
-  std::lock_guard lock(publish_mutex_);
-  if (lcm_.publish(kStatusChannel, &status) != 0) {
-    LOG(WARNING) << "could not publish the status on " << kStatusChannel;
+  for (const std::unique_ptr<Network>& network : networks_) {
+    if (network->failed) continue;
+    std::lock_guard lock(network->publish_mutex);
+    if (network->lcm.publish(kStatusChannel, &status) != 0) {
+      LOG(WARNING) << "could not publish the status on " << kStatusChannel << " of "
+                   << DescribeUrl(network->url);
+    }
   }
 }
 

@@ -8,7 +8,9 @@
 #include <atomic>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include <lcm/lcm-cpp.hpp>
 
@@ -22,6 +24,7 @@
 #include "placerec/result_t.hpp"
 #include "placerec/status_t.hpp"
 #include "server/answer_record.h"
+#include "server/authenticator.h"
 #include "server/frame_processor.h"
 #include "server/sequence_gate.h"
 #include "server/server_stats.h"
@@ -32,9 +35,12 @@ namespace placerec {
 struct ServerOptions {
   // The SQLite map file; created when missing, reloaded when present.
   std::string db_path = "placerec.db";
-  // LCM URL, e.g. "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304". Empty uses LCM's
+  // LCM URLs, one per network the server serves at once, e.g.
+  // "udpm://239.255.76.67:7667?ttl=1" for the robot LAN and "tcpq://127.0.0.1:7700" for remote
+  // devices through an LCM TCP hub (scripts/lcm-hub.sh). Each frame's answer goes back on the
+  // network the frame came from; heartbeats go to all. Empty (or an empty URL) uses LCM's
   // default: the LCM_DEFAULT_URL environment variable, else udpm://239.255.76.67:7667?ttl=0.
-  std::string lcm_url;
+  std::vector<std::string> lcm_urls;
   // Worker threads running the pipeline; frames of one robot never run at once.
   int workers = 2;
   // Frames waiting for a worker before new ones are answered "overloaded".
@@ -45,6 +51,8 @@ struct ServerOptions {
   // back whole, keep the damaged file as <db>.damaged and log how many places were dropped. A
   // damaged map is refused at start-up otherwise.
   bool repair = false;
+  // Who may send frames (keys file, on by default; server/README.md "Keys").
+  AuthOptions auth;
   SqliteStoreOptions store;
   DecodeOptions decode;
   SequenceRuleOptions sequence_rule;
@@ -68,35 +76,70 @@ class Server {
   // handler or another thread.
   void Stop() { stop_requested_.store(true); }
 
+  // Asks Run() to read the keys file again (SIGHUP). Async-signal-safe. A file that does not
+  // read keeps the old keys, and the log says why.
+  void ReloadKeys() { reload_requested_.store(true); }
+
   // What the next heartbeat would say.
   status_t CurrentStatus();
 
  private:
   struct Job {
     frame_t frame;
-    Timer received;  // since the message arrived
+    Timer received;      // since the message arrived
+    size_t network = 0;  // index in networks_ of the network the frame came on
+    // The sender's key (frames signed with a known key): its answer is signed with it.
+    std::optional<SigningKey> key;
+  };
+
+  // One LCM network the server serves (ServerOptions::lcm_urls).
+  struct Network {
+    Network(Server* server, size_t index, const std::string& url)
+        : server(server), index(index), url(url), lcm(url) {}
+    void OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
+      server->OnFrameMessage(index, buffer, channel);
+    }
+    Server* server;
+    size_t index;
+    std::string url;  // as given; empty for LCM's default
+    lcm::LCM lcm;
+    std::mutex publish_mutex;
+    lcm::Subscription* subscription = nullptr;
+    // Set by the receive loop when LCM stopped delivering (e.g. the TCP hub went away); a failed
+    // network is neither read nor written again.
+    std::atomic<bool> failed{false};
   };
 
   Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map,
-         std::unique_ptr<Segmenter> segmenter, std::shared_ptr<const ObjectClassLabeler> labeler);
-  void OnFrameMessage(const lcm::ReceiveBuffer* buffer, const std::string& channel);
+         std::unique_ptr<Segmenter> segmenter, std::shared_ptr<const ObjectClassLabeler> labeler,
+         Authenticator auth);
+  void OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer, const std::string& channel);
   void Work(Job& job);
-  // Publishes `answer` on its robot's channel; `processed` says whether a worker ran the frame.
-  void Publish(result_t* answer, bool processed);
-  // Answers `frame` at once, unprocessed, with STATUS_BAD_REQUEST, `message` and the map's size.
-  void RejectFrame(const frame_t& frame, const std::string& message);
+  // Publishes `answer` on its robot's channel of network `network`, signed with `key` (unsigned
+  // when null); `processed` says whether a worker ran the frame.
+  void Publish(result_t* answer, bool processed, size_t network, const SigningKey* key);
+  // Answers `frame` at once, unprocessed, with `status` (STATUS_BAD_REQUEST by default),
+  // `message` and the map's size, signed with `key` when given.
+  void RejectFrame(const frame_t& frame, const std::string& message, size_t network,
+                   int8_t status = result_t::STATUS_BAD_REQUEST, const SigningKey* key = nullptr);
   void PublishStatus();
+  // Waits up to `timeout_ms` for messages on every network and dispatches them; false when
+  // every network's LCM failed.
+  bool HandleMessages(int timeout_ms);
 
   ServerOptions options_;
   std::unique_ptr<PlaceMap> map_;
   FrameProcessor processor_;
-  lcm::LCM lcm_;
-  std::mutex publish_mutex_;
+  std::vector<std::unique_ptr<Network>> networks_;
   ServerStats stats_;
   // Frames in flight and recent answers per robot, so that a re-sent frame is not processed twice.
   AnswerRecord answers_;
   std::atomic<bool> stop_requested_{false};
+  std::atomic<bool> reload_requested_{false};
+  // Used by the receive loop only.
+  Authenticator auth_;
   int64_t dropped_logged_ = 0;
+  int64_t unauthorised_logged_ = 0;
   // Last: its workers use everything above, so it is destroyed (joined) first.
   std::unique_ptr<LaneWorkQueue<Job>> queue_;
 };

@@ -52,8 +52,11 @@ class TempDir {
 ServerOptions TestOptions(const std::string& db) {
   ServerOptions options;
   options.db_path = db;
-  options.lcm_url = "memq://";
+  options.lcm_urls = {"memq://"};
   options.recognizer.analyzer.segmentation = SegmentationMethod::kSuperpixels;
+  // These tests are about the map and the serving loop in one process, where no frame arrives
+  // from outside; authentication has its own tests (authenticator_test.cc, the service tests).
+  options.auth.enabled = false;
   return options;
 }
 
@@ -109,6 +112,7 @@ TEST(ServerOptionsTest, DefaultsPassAndBadValuesNameTheirFlag) {
          o->sequence_rule.restart_gap_s = std::numeric_limits<double>::quiet_NaN();
        }},
       // The parts' own checks run too.
+      {"--auth-window", [](ServerOptions* o) { o->auth.window_s = 0; }},
       {"max_image_width", [](ServerOptions* o) { o->recognizer.analyzer.max_image_width = 10; }},
   });
   // The edges are allowed.
@@ -152,7 +156,7 @@ TEST(ServerTest, CreateSaysWhyItCannotServe) {
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), text);
 
   ServerOptions bad_url = TestOptions(dir.File("map.db"));
-  bad_url.lcm_url = "nosuchprovider://x";
+  bad_url.lcm_urls = {"nosuchprovider://x"};
   server = Server::Create(bad_url);
   ASSERT_FALSE(server.ok());
   EXPECT_EQ(server.status().code(), StatusCode::kIoError);
@@ -167,7 +171,7 @@ TEST(ServerTest, CreateNamesTheUrlTakenFromTheEnvironment) {
   const std::string saved = previous != nullptr ? previous : "";
   ASSERT_EQ(setenv("LCM_DEFAULT_URL", "nosuchprovider://y", 1), 0);
   ServerOptions options = TestOptions(dir.File("map.db"));
-  options.lcm_url.clear();
+  options.lcm_urls.clear();
   const StatusOr<std::unique_ptr<Server>> server = Server::Create(options);
   if (previous != nullptr) {
     setenv("LCM_DEFAULT_URL", saved.c_str(), 1);
@@ -184,9 +188,29 @@ TEST(ServerTest, DefaultOptionsServeWithTheShippedModels) {
   const TempDir dir("models");
   ServerOptions options;
   options.db_path = dir.File("map.db");
-  options.lcm_url = "memq://";
+  options.lcm_urls = {"memq://"};
+  options.auth.enabled = false;  // the models are the point here
   const StatusOr<std::unique_ptr<Server>> server = Server::Create(options);
   ASSERT_TRUE(server.ok()) << server.status().ToString();
+}
+
+// Authentication is on by default: without a keys file the server refuses to start and says what
+// to do; an unreadable keys file is named.
+TEST(ServerTest, CreateRefusesToServeWithoutKeys) {
+  const TempDir dir("keys");
+  ServerOptions options = TestOptions(dir.File("map.db"));
+  options.auth = AuthOptions();
+  StatusOr<std::unique_ptr<Server>> server = Server::Create(options);
+  ASSERT_FALSE(server.ok());
+  EXPECT_NE(server.status().message().find("--keys"), std::string::npos)
+      << server.status().message();
+  EXPECT_NE(server.status().message().find("--auth off"), std::string::npos)
+      << server.status().message();
+  options.auth.keys_file = dir.File("missing_keys");
+  server = Server::Create(options);
+  ASSERT_FALSE(server.ok());
+  EXPECT_NE(server.status().message().find("missing_keys"), std::string::npos)
+      << server.status().message();
 }
 
 // A server opened on an existing map serves all of it; before any frame the heartbeat reports

@@ -1,9 +1,12 @@
 #include "tests/service_harness.h"
 
+#include <arpa/inet.h>
 #include <fcntl.h>
+#include <netinet/in.h>
 #include <sched.h>
 #include <signal.h>
 #include <sys/prctl.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -64,6 +67,8 @@ Status EnterPrivateNetwork() {
 std::string TestLcmUrl() {
   return "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=" + std::to_string(kReceiveBuffer);
 }
+
+std::string HubLcmUrl(int port) { return "tcpq://127.0.0.1:" + std::to_string(port); }
 
 std::string BinaryPath(const std::string& name) {
   return std::string(PLACEREC_BINARY_DIR) + "/bin/" + name;
@@ -187,6 +192,32 @@ StatusOr<std::unique_ptr<ChildProcess>> StartServer(const std::string& db,
   }
   return Status::Internal("no heartbeat from placerec-server within " + std::to_string(timeout_s) +
                           " s\n" + Tail(log_path));
+}
+
+StatusOr<std::unique_ptr<ChildProcess>> StartLcmHub(int port, const std::string& log_path,
+                                                    double timeout_s) {
+  StatusOr<std::unique_ptr<ChildProcess>> hub =
+      ChildProcess::Start({"/bin/bash", std::string(PLACEREC_SOURCE_DIR) + "/scripts/lcm-hub.sh",
+                           "run", std::to_string(port)},
+                          log_path);
+  if (!hub.ok()) return hub.status();
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::milliseconds(static_cast<int64_t>(timeout_s * 1000));
+  sockaddr_in address = {};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<uint16_t>(port));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (!(*hub)->running()) return Status::Internal("the LCM hub exited\n" + Tail(log_path));
+    const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    const bool accepted =
+        fd >= 0 && connect(fd, reinterpret_cast<const sockaddr*>(&address), sizeof(address)) == 0;
+    if (fd >= 0) close(fd);
+    if (accepted) return hub;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  return Status::Internal("the LCM hub did not accept connections on port " + std::to_string(port) +
+                          " within " + std::to_string(timeout_s) + " s\n" + Tail(log_path));
 }
 
 StatusOr<int> StopServer(ChildProcess* server, double timeout_s) {

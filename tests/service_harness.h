@@ -24,6 +24,9 @@ Status EnterPrivateNetwork();
 // enough for raw frames (up to net.core.rmem_max).
 std::string TestLcmUrl();
 
+// The LCM URL of a TCP hub on this machine's loopback (tcpq, for remote devices).
+std::string HubLcmUrl(int port);
+
 // PLACEREC_BINARY_DIR/bin/<name>.
 std::string BinaryPath(const std::string& name);
 
@@ -67,6 +70,11 @@ StatusOr<std::unique_ptr<ChildProcess>> StartServer(const std::string& db,
                                                     const std::vector<std::string>& extra_args,
                                                     const std::string& log_path,
                                                     PlacerecClient* client, double timeout_s = 60);
+
+// Starts LCM's TCP hub (scripts/lcm-hub.sh run PORT) logging to `log_path` and waits until it
+// accepts connections on 127.0.0.1:PORT.
+StatusOr<std::unique_ptr<ChildProcess>> StartLcmHub(int port, const std::string& log_path,
+                                                    double timeout_s = 30);
 
 // Sends SIGTERM and waits for a clean exit; the exit code.
 StatusOr<int> StopServer(ChildProcess* server, double timeout_s = 60);

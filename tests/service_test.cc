@@ -4,6 +4,7 @@
 // frames change nothing, and a full queue or a shutdown still answers every frame. Tests skip
 // with a message when not root (no namespace) or when ../shared/data is missing.
 #include <signal.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 
 #include <algorithm>
@@ -15,6 +16,7 @@
 #include <future>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <random>
 #include <set>
 #include <string>
@@ -33,6 +35,7 @@
 #include "common/util/paths.h"
 #include "placerec/frame_t.hpp"
 #include "placerec/result_t.hpp"
+#include "proto/auth/signing.h"
 #include "tests/service_harness.h"
 #include "tools/eval_runner.h"
 
@@ -59,8 +62,17 @@ class ServiceTest : public ::testing::Test {
     dir_ = MakeTempDir("placerec_service_");
     ASSERT_FALSE(dir_.empty());
     db_ = dir_ + "/map.db";
-    ClientOptions options;
-    options.lcm_url = TestLcmUrl();
+    // The server serves signed frames only (issue 26): the robots' key may insert and query,
+    // the field devices' key may only query. The fixture's client signs with the robots' key.
+    keys_ = dir_ + "/keys";
+    WriteKeys(keys_, {{"robots", "both"}, {"field", "query"}});
+    std::string warning;
+    StatusOr<std::vector<SigningKey>> keys = ReadKeysFile(keys_, &warning);
+    ASSERT_TRUE(keys.ok()) << keys.status().ToString();
+    EXPECT_TRUE(warning.empty()) << warning;
+    robots_key_ = (*keys)[0];
+    field_key_ = (*keys)[1];
+    ClientOptions options = Options();
     options.timeout_s = 120;
     StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(options);
     ASSERT_TRUE(client.ok()) << client.status().ToString();
@@ -85,9 +97,36 @@ class ServiceTest : public ::testing::Test {
     return true;
   }
 
+  // A client's options on the test network, signing with the robots' key (by default).
+  ClientOptions Options(const std::string& key_id = "robots") const {
+    ClientOptions options;
+    options.lcm_url = TestLcmUrl();
+    options.key_file = keys_;
+    options.key_id = key_id;
+    return options;
+  }
+
+  // Writes a keys file (mode 600) with a new random key for each (id, permission).
+  static void WriteKeys(const std::string& path,
+                        const std::vector<std::pair<std::string, std::string>>& keys) {
+    std::random_device device;
+    std::ofstream out(path, std::ios::trunc);
+    out << "# placerec keys: id permission key\n";
+    for (const auto& [id, permission] : keys) {
+      std::string hex;
+      for (size_t i = 0; i < 2 * kKeyBytes; ++i) hex += "0123456789abcdef"[device() % 16];
+      out << id << " " << permission << " " << hex << "\n";
+    }
+    out.close();
+    chmod(path.c_str(), 0600);
+  }
+
+  // Starts the server on the test network with the keys file and `extra` flags.
   void StartTheServer(const std::vector<std::string>& extra = {}) {
+    std::vector<std::string> args = {"--keys", keys_};
+    args.insert(args.end(), extra.begin(), extra.end());
     StatusOr<std::unique_ptr<ChildProcess>> server =
-        StartServer(db_, extra, dir_ + "/server.log", client_.get());
+        StartServer(db_, args, dir_ + "/server.log", client_.get());
     ASSERT_TRUE(server.ok()) << server.status().ToString();
     server_ = std::move(*server);
   }
@@ -152,6 +191,9 @@ class ServiceTest : public ::testing::Test {
 
   std::string dir_;
   std::string db_;
+  std::string keys_;
+  SigningKey robots_key_;
+  SigningKey field_key_;
   std::unique_ptr<PlacerecClient> client_;
   std::unique_ptr<ChildProcess> server_;
 };
@@ -184,7 +226,9 @@ MapContents ReadMap(const std::string& db) {
 // Listens to every answer channel, to check who got what.
 class AnswerSpy {
  public:
-  AnswerSpy() : lcm_(TestLcmUrl()) {
+  // Frames published through Publish(frame_t) are signed with `key` when given.
+  explicit AnswerSpy(const SigningKey* key = nullptr) : lcm_(TestLcmUrl()) {
+    if (key != nullptr) key_ = *key;
     lcm::Subscription* all = lcm_.subscribe("PLACEREC_RESULT.*", &AnswerSpy::OnAnswer, this);
     if (all != nullptr) all->setQueueCapacity(0);  // keep everything
     thread_ = std::thread([this] {
@@ -200,9 +244,23 @@ class AnswerSpy {
     std::lock_guard lock(publish_mutex_);
     return lcm_.publish(channel, data, static_cast<unsigned>(size));
   }
-  int Publish(const frame_t& frame) {
+  int Publish(frame_t frame) {
     std::lock_guard lock(publish_mutex_);
+    Sign(&frame);
     return lcm_.publish("PLACEREC_FRAME", &frame);
+  }
+  // Signs `frame` with the spy's key (a new counter each time), as the client library does;
+  // leaves it unsigned when the spy has no key.
+  void Sign(frame_t* frame) {
+    if (!key_) {
+      ClearFrameSignature(frame);
+      return;
+    }
+    const int64_t now = std::chrono::duration_cast<std::chrono::microseconds>(
+                            std::chrono::system_clock::now().time_since_epoch())
+                            .count();
+    counter_ = std::max(counter_ + 1, now);
+    SignFrame(*key_, counter_, now, frame);
   }
   // The answers heard so far, markers (see Flush) left out.
   std::vector<std::pair<std::string, result_t>> answers() {
@@ -268,6 +326,8 @@ class AnswerSpy {
   }
 
   lcm::LCM lcm_;
+  std::optional<SigningKey> key_;
+  int64_t counter_ = 0;
   std::mutex publish_mutex_;
   std::mutex mutex_;
   std::condition_variable arrived_;
@@ -292,10 +352,11 @@ TEST_F(ServiceTest, CorridorRunGivesTheSameAnswersAsPlacerecEval) {
 
   StartTheServer();
   const std::string out = dir_ + "/client";
-  StatusOr<std::unique_ptr<ChildProcess>> client = ChildProcess::Start(
-      {BinaryPath("placerec-client"), "run", "--dataset", DataRoot() + "/rtabmap_indoor", "--run",
-       "corridor_loop", "--out", out, "--lcm-url", TestLcmUrl(), "--timeout", "120"},
-      dir_ + "/client.log");
+  StatusOr<std::unique_ptr<ChildProcess>> client =
+      ChildProcess::Start({BinaryPath("placerec-client"), "run", "--dataset",
+                           DataRoot() + "/rtabmap_indoor", "--run", "corridor_loop", "--out", out,
+                           "--lcm-url", TestLcmUrl(), "--timeout", "120", "--key-file", keys_},
+                          dir_ + "/client.log");
   ASSERT_TRUE(client.ok());
   StatusOr<int> code = (*client)->Wait(600);
   ASSERT_TRUE(code.ok()) << code.status().ToString();
@@ -357,7 +418,7 @@ TEST_F(ServiceTest, GardensPointSliceGivesTheSameAnswersAsPlacerecEval) {
   StartTheServer();
   StatusOr<std::unique_ptr<ChildProcess>> client = ChildProcess::Start(
       {BinaryPath("placerec-client"), "run", "--dataset", dataset, "--run", "slice", "--out",
-       dir_ + "/client", "--lcm-url", TestLcmUrl(), "--quiet"},
+       dir_ + "/client", "--lcm-url", TestLcmUrl(), "--quiet", "--key-file", keys_},
       dir_ + "/client.log");
   ASSERT_TRUE(client.ok());
   StatusOr<int> code = (*client)->Wait(600);
@@ -460,7 +521,7 @@ TEST_F(ServiceTest, BadInputGetsErrorAnswersAndTheServerGoesOn) {
   const std::vector<Answer> offline = OfflineAnswers(run, 6);
   // "sequence going back" below must come within the restart gap, however slow the machine.
   StartTheServer({"--robot-restart-gap", "3600"});
-  AnswerSpy spy;
+  AnswerSpy spy(&robots_key_);
   ASSERT_TRUE(spy.good());
 
   // Good frames 0..2 of robot "robot", as the run sends them.
@@ -556,6 +617,7 @@ TEST_F(ServiceTest, BadInputGetsErrorAnswersAndTheServerGoesOn) {
   }
   std::vector<int64_t> malformed;  // request ids of the frames cut short or forged
   auto encode = [&](frame_t f) {
+    spy.Sign(&f);
     std::vector<uint8_t> bytes(f.getEncodedSize());
     f.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
     malformed.push_back(f.request_id);
@@ -563,9 +625,12 @@ TEST_F(ServiceTest, BadInputGetsErrorAnswersAndTheServerGoesOn) {
   };
   const std::vector<uint8_t> cut = encode(make("bad", frame_t::ENCODING_JPEG, 0, 0, jpeg_bytes));
   ASSERT_EQ(spy.Publish("PLACEREC_FRAME", cut.data(), cut.size() / 2), 0);
-  std::vector<uint8_t> forged = encode(make("bad", frame_t::ENCODING_JPEG, 0, 0, jpeg_bytes));
-  const size_t size_offset = 8 + 8 + 8 + 8 + 1 + 1 + 4 + 4 + 4 + 3 + 1;  // after robot "bad"
-  forged[size_offset] = 0x7f;                                            // claims ~2 GB of image
+  frame_t to_forge = make("bad", frame_t::ENCODING_JPEG, 0, 0, jpeg_bytes);
+  std::vector<uint8_t> forged = encode(to_forge);
+  spy.Sign(&to_forge);
+  // The size field follows the signature (proto/frame_t.lcm).
+  const size_t size_offset = FrameSignatureOffset(to_forge) + kSignatureBytes;
+  forged[size_offset] = 0x7f;  // claims ~2 GB of image
   ASSERT_EQ(spy.Publish("PLACEREC_FRAME", forged.data(), forged.size()), 0);
 
   // The spy also heard the answers to the three good frames. Once the markers sent after every
@@ -632,10 +697,8 @@ TEST_F(ServiceTest, TwoRobotsAtOnceShareTheMap) {
   constexpr int kHeadStart = 12;    // right starts once left has mapped frames 0..11
   constexpr int kRightFrames = 12;  // right: frames 200..211, while left sends 12..23
   StartTheServer({"--workers", "2"});
-  AnswerSpy spy;
-  ClientOptions options;
-  options.lcm_url = TestLcmUrl();
-  StatusOr<std::unique_ptr<PlacerecClient>> right_client = PlacerecClient::Connect(options);
+  AnswerSpy spy(&robots_key_);
+  StatusOr<std::unique_ptr<PlacerecClient>> right_client = PlacerecClient::Connect(Options());
   ASSERT_TRUE(right_client.ok());
 
   std::vector<FrameResult> left(kLeftFrames);
@@ -834,9 +897,7 @@ TEST_F(ServiceTest, AFloodFromOneRobotLeavesAnotherRobotsFramesAnswered) {
     alone.push_back(r.latency_ms);
   }
 
-  ClientOptions options;
-  options.lcm_url = TestLcmUrl();
-  StatusOr<std::unique_ptr<PlacerecClient>> flood_client = PlacerecClient::Connect(options);
+  StatusOr<std::unique_ptr<PlacerecClient>> flood_client = PlacerecClient::Connect(Options());
   ASSERT_TRUE(flood_client.ok());
   std::vector<OutgoingFrame> flood_frames;
   for (int i = 0; i < kFloodImages; ++i) flood_frames.push_back(FrameOf(run, 40 + i, "flood", 0));
@@ -897,8 +958,7 @@ TEST_F(ServiceTest, AFrameWithoutAnAnswerIsSentAgainAndNotProcessedTwice) {
   placerec::Run run;
   std::string why;
   if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
-  ClientOptions options;
-  options.lcm_url = TestLcmUrl();
+  ClientOptions options = Options();
   options.retry_after_s = 1;
   StatusOr<std::unique_ptr<PlacerecClient>> retrying = PlacerecClient::Connect(options);
   ASSERT_TRUE(retrying.ok());
@@ -910,7 +970,7 @@ TEST_F(ServiceTest, AFrameWithoutAnAnswerIsSentAgainAndNotProcessedTwice) {
   ASSERT_TRUE(first.ok()) << DescribeResult(first) << ServerLog();
 
   // The same frame twice more, as a sender whose answer was lost sends it again.
-  AnswerSpy spy;
+  AnswerSpy spy(&robots_key_);
   ASSERT_TRUE(spy.good());
   frame_t again;
   again.utime = frame.utime;
@@ -942,6 +1002,332 @@ TEST_F(ServiceTest, AFrameWithoutAnAnswerIsSentAgainAndNotProcessedTwice) {
   EXPECT_EQ(ReadMap(db_).places.size(), static_cast<size_t>(next.map_places));
 }
 
+// Signed frames (issue 26 item 2): a frame without a valid signature, from an unknown key, with
+// a replayed counter, signed outside the time window, or inserting with a query-only key is
+// answered STATUS_UNAUTHORISED (the unsigned one with what to do) and never touches the map.
+// Answers to frames of a known key are signed with it.
+TEST_F(ServiceTest, UnauthorisedFramesAreRefusedAndNeverTouchTheMap) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
+  StartTheServer();
+  FrameResult last;
+  for (int f = 0; f < 3; ++f) {
+    last = client_->Send(FrameOfRun(run, f));
+    ASSERT_TRUE(last.ok()) << DescribeResult(last) << ServerLog();
+  }
+  AnswerSpy spy;  // publishes the bytes it is given, signed or not as each case makes them
+  ASSERT_TRUE(spy.good());
+  const std::string robot = run.frames[3].robot;
+  const OutgoingFrame image = FrameOfRun(run, 3);
+  int64_t request_id = 5000;
+  auto frame_of = [&](bool insert) {
+    frame_t f;
+    f.utime = image.utime;
+    f.sequence = 3 + request_id;  // every case a new, increasing sequence
+    f.request_id = request_id++;
+    f.insert = insert;
+    f.encoding = static_cast<int8_t>(image.image.encoding);
+    f.width = f.height = 0;
+    f.robot = robot;
+    ClearFrameSignature(&f);
+    f.data = image.image.bytes;
+    f.size = static_cast<int32_t>(f.data.size());
+    return f;
+  };
+  const int64_t now = std::chrono::duration_cast<std::chrono::microseconds>(
+                          std::chrono::system_clock::now().time_since_epoch())
+                          .count();
+  int64_t counter = now;
+  SigningKey wrong_secret = robots_key_;
+  wrong_secret.secret[0] ^= 0x01;
+  SigningKey ghost = robots_key_;
+  ghost.id = "ghost";
+  struct Case {
+    std::string name;
+    std::vector<uint8_t> bytes;
+    int64_t request_id;
+    std::string message;           // part of the expected message
+    const SigningKey* answer_key;  // the key the answer must be signed with; null: unsigned
+  };
+  std::vector<Case> cases;
+  auto add = [&](const std::string& name, frame_t f, const std::string& message,
+                 const SigningKey* answer_key) {
+    cases.push_back({name, EncodeFrame(f), f.request_id, message, answer_key});
+  };
+  add("no signature", frame_of(true), "--key-file", nullptr);
+  frame_t f = frame_of(true);
+  SignFrame(wrong_secret, ++counter, now, &f);
+  add("wrong key", f, "signature does not match key 'robots'", nullptr);
+  f = frame_of(true);
+  SignFrame(robots_key_, ++counter, now, &f);
+  std::vector<uint8_t> tampered = EncodeFrame(f);
+  tampered[tampered.size() - 100] ^= 0x01;  // one bit of the image
+  cases.push_back({"tampered byte", tampered, f.request_id, "signature does not match", nullptr});
+  f = frame_of(true);
+  SignFrame(ghost, ++counter, now, &f);
+  add("unknown key id", f, "unknown key id 'ghost'", nullptr);
+  f = frame_of(true);
+  SignFrame(field_key_, ++counter, now, &f);
+  add("query-only key inserting", f, "may only query", &field_key_);
+  f = frame_of(true);
+  SignFrame(robots_key_, ++counter, now - 120 * 1000000LL, &f);
+  add("signed two minutes ago", f, "outside its window", &robots_key_);
+
+  // A genuine insert of frame 3, answered ok, then the very same bytes again: a replay.
+  frame_t genuine = frame_of(true);
+  genuine.sequence = 3;
+  SignFrame(robots_key_, ++counter, now, &genuine);
+  const std::vector<uint8_t> genuine_bytes = EncodeFrame(genuine);
+  ASSERT_EQ(spy.Publish("PLACEREC_FRAME", genuine_bytes.data(), genuine_bytes.size()), 0);
+  ASSERT_TRUE(spy.WaitFor(1, 120)) << ServerLog();
+  const result_t accepted = spy.answers()[0].second;
+  ASSERT_EQ(int{accepted.status}, int{result_t::STATUS_OK}) << accepted.message;
+  EXPECT_TRUE(AnswerSignatureValid(accepted, robots_key_));
+  cases.push_back({"replay", genuine_bytes, genuine.request_id, "replayed frame", &robots_key_});
+
+  for (const Case& c : cases) {
+    ASSERT_EQ(spy.Publish("PLACEREC_FRAME", c.bytes.data(), c.bytes.size()), 0) << c.name;
+  }
+  ASSERT_TRUE(spy.WaitFor(1 + cases.size(), 60)) << ServerLog();
+  ASSERT_TRUE(spy.Flush({robot}, 60)) << ServerLog();
+  const auto answers = spy.answers();
+  ASSERT_EQ(answers.size(), 1 + cases.size()) << "exactly one answer per frame";
+  for (const Case& c : cases) {
+    int found = 0;
+    for (size_t i = 1; i < answers.size(); ++i) {
+      const result_t& a = answers[i].second;
+      if (a.request_id != c.request_id) continue;
+      ++found;
+      EXPECT_EQ(answers[i].first, "PLACEREC_RESULT_" + robot) << c.name;
+      EXPECT_EQ(int{a.status}, int{result_t::STATUS_UNAUTHORISED}) << c.name << ": " << a.message;
+      EXPECT_NE(a.message.find(c.message), std::string::npos)
+          << c.name << ": got '" << a.message << "'";
+      EXPECT_EQ(a.landmarks, 0) << c.name;
+      EXPECT_EQ(a.place_id, -1) << c.name;
+      EXPECT_EQ(a.map_places, accepted.map_places) << c.name;
+      EXPECT_EQ(a.map_landmarks, accepted.map_landmarks) << c.name;
+      if (c.answer_key != nullptr) {
+        EXPECT_TRUE(AnswerSignatureValid(a, *c.answer_key)) << c.name;
+      } else {
+        EXPECT_TRUE(a.key_id.empty()) << c.name;
+      }
+    }
+    EXPECT_EQ(found, 1) << c.name;
+  }
+  StatusOr<ServerStatus> status = client_->WaitForStatus(10);
+  ASSERT_TRUE(status.ok());
+  EXPECT_EQ(status->map_places, accepted.map_places);
+  EXPECT_EQ(status->map_landmarks, accepted.map_landmarks);
+  StopTheServer();
+  const MapContents map = ReadMap(db_);
+  EXPECT_EQ(static_cast<int64_t>(map.places.size()), accepted.map_places);
+  EXPECT_EQ(map.counts.landmarks, accepted.map_landmarks);
+  for (const Place& place : map.places) EXPECT_LE(place.sequence, 3) << "a refused frame's place";
+}
+
+// An answer not signed with the client's key (unsigned, signed with a made-up secret, or signed
+// with another device's real key) is not taken for the server's: the client waits for the
+// server's signed answer, and when none comes, its timeout says what it ignored.
+TEST_F(ServiceTest, TheClientRejectsForgedAnswers) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
+  StartTheServer();
+  AnswerSpy forger;
+  ASSERT_TRUE(forger.good());
+  SigningKey made_up = robots_key_;
+  made_up.secret[5] ^= 0x20;
+  auto forge = [&](const PendingFrame& pending) {
+    for (int variant = 0; variant < 3; ++variant) {
+      result_t a;
+      a.utime = 1;
+      a.robot = pending.robot;
+      a.sequence = pending.sequence;
+      a.request_id = pending.request_id;
+      a.frame_utime = 0;
+      a.insert = true;
+      a.status = result_t::STATUS_OK;
+      a.message = "";
+      a.loop_closure = true;
+      a.num_matches = 0;
+      a.keypoints = a.objects = a.landmarks = a.stored_descriptors = 7;
+      a.place_id = 777;
+      a.map_places = a.map_landmarks = a.map_descriptors = 12345;
+      a.queue_ms = a.server_ms = 0;
+      a.num_timings = 0;
+      ClearAnswerSignature(&a);
+      if (variant == 1) SignAnswer(made_up, &a);
+      if (variant == 2) SignAnswer(field_key_, &a);
+      const std::vector<uint8_t> bytes = EncodeAnswer(a);
+      ASSERT_EQ(forger.Publish("PLACEREC_RESULT_" + pending.robot, bytes.data(), bytes.size()), 0);
+    }
+  };
+  StatusOr<PendingFrame> pending = client_->Publish(FrameOfRun(run, 0));
+  ASSERT_TRUE(pending.ok());
+  forge(*pending);  // long before the server has processed the frame
+  const FrameResult r = client_->Wait(*pending, 120);
+  ASSERT_TRUE(r.ok()) << DescribeResult(r) << ServerLog();
+  EXPECT_NE(r.map_places, 12345);
+  EXPECT_NE(r.place_id, 777);
+  EXPECT_LE(r.map_places, 1);
+
+  // Without the server, only forgeries come: a timeout that names them.
+  StopTheServer();
+  ClientOptions quick = Options();
+  quick.retry_after_s = 0;
+  StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(quick);
+  ASSERT_TRUE(client.ok());
+  pending = (*client)->Publish(FrameOfRun(run, 1));
+  ASSERT_TRUE(pending.ok());
+  forge(*pending);
+  const FrameResult alone = (*client)->Wait(*pending, 3);
+  EXPECT_EQ(alone.code, AnswerCode::kTimeout) << DescribeResult(alone);
+  EXPECT_NE(alone.message.find("not signed with key 'robots' was ignored"), std::string::npos)
+      << alone.message;
+}
+
+// SIGHUP makes the server read its keys file again: a key added is accepted, a key removed is
+// refused, and the server goes on serving.
+TEST_F(ServiceTest, SighupReloadsTheKeysFile) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
+  StartTheServer();
+  const std::string late_keys = dir_ + "/late_keys";
+  WriteKeys(late_keys, {{"late", "query"}});
+  ClientOptions late_options = Options("late");
+  late_options.key_file = late_keys;
+  late_options.retry_after_s = 0;
+  StatusOr<std::unique_ptr<PlacerecClient>> late = PlacerecClient::Connect(late_options);
+  ASSERT_TRUE(late.ok()) << late.status().ToString();
+  ClientOptions robots_options = Options();
+  robots_options.retry_after_s = 0;
+  StatusOr<std::unique_ptr<PlacerecClient>> robots = PlacerecClient::Connect(robots_options);
+  ASSERT_TRUE(robots.ok());
+  int64_t sequence = 0;
+  auto query = [&](PlacerecClient* client) {
+    StatusOr<PendingFrame> pending = client->Publish(FrameOf(run, 40, "asker", sequence++, false));
+    EXPECT_TRUE(pending.ok());
+    return pending.ok() ? client->Wait(*pending, 3) : FrameResult();
+  };
+  // The server does not know "late" yet: its (unsigned) refusal is ignored by the client, and
+  // the timeout says what it said.
+  FrameResult r = query(late->get());
+  EXPECT_EQ(r.code, AnswerCode::kTimeout);
+  EXPECT_NE(r.message.find("unknown key id 'late'"), std::string::npos) << r.message;
+
+  // Add "late", keep "robots" and "field"; SIGHUP.
+  {
+    const std::string line = testing_service::ReadTextFile(late_keys);
+    std::ofstream(keys_, std::ios::app) << line.substr(line.find('\n') + 1);
+  }
+  server_->Signal(SIGHUP);
+  for (int attempt = 0; attempt < 20 && !(r = query(late->get())).ok(); ++attempt) {
+  }
+  EXPECT_TRUE(r.ok()) << DescribeResult(r) << ServerLog();
+  EXPECT_TRUE(query(robots->get()).ok());
+
+  // Remove "robots"; SIGHUP: its frames are refused from then on.
+  {
+    std::string text = testing_service::ReadTextFile(keys_);
+    const size_t begin = text.find("robots ");
+    ASSERT_NE(begin, std::string::npos);
+    text.erase(begin, text.find('\n', begin) + 1 - begin);
+    std::ofstream(keys_, std::ios::trunc) << text;
+  }
+  server_->Signal(SIGHUP);
+  for (int attempt = 0; attempt < 20 && (r = query(robots->get())).ok(); ++attempt) {
+  }
+  EXPECT_EQ(r.code, AnswerCode::kTimeout);
+  EXPECT_NE(r.message.find("unknown key id 'robots'"), std::string::npos) << r.message;
+  EXPECT_TRUE(query(late->get()).ok()) << ServerLog();
+  EXPECT_TRUE(server_->running());
+  EXPECT_NE(testing_service::ReadTextFile(server_->log_path()).find("reloaded the keys file"),
+            std::string::npos);
+  StopTheServer();
+}
+
+// Two LCM networks at once (issue 26 item 1): robots insert over UDP multicast while a field
+// client queries through the LCM TCP hub (tcpq); each answer goes back on the network its frame
+// came on, and the same query frames get the same places over tcpq as over udpm. The median
+// query latency over each network is printed (docs/results.md).
+TEST_F(ServiceTest, AFieldClientOverTcpqGetsTheRobotsPlaces) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
+  constexpr int kPort = 7700;
+  StatusOr<std::unique_ptr<ChildProcess>> hub =
+      testing_service::StartLcmHub(kPort, dir_ + "/hub.log");
+  ASSERT_TRUE(hub.ok()) << hub.status().ToString();
+  StartTheServer({"--lcm-url", testing_service::HubLcmUrl(kPort)});
+  ClientOptions field_options = Options("field");  // a key that may only query
+  field_options.lcm_url = testing_service::HubLcmUrl(kPort);
+  field_options.timeout_s = 120;
+  StatusOr<std::unique_ptr<PlacerecClient>> field = PlacerecClient::Connect(field_options);
+  ASSERT_TRUE(field.ok()) << field.status().ToString();
+  // The heartbeat reaches the hub too.
+  ASSERT_TRUE((*field)->WaitForStatus(10).ok()) << ServerLog();
+
+  // The robots insert over udpm while the field device asks over tcpq.
+  constexpr int kInserted = 40;
+  int64_t map_places = 0;  // after the robots' last insert (frames without landmarks store none)
+  std::thread robots([&] {
+    for (int f = 0; f < kInserted; ++f) {
+      const FrameResult r = client_->Send(FrameOfRun(run, f));
+      EXPECT_TRUE(r.ok()) << f << ": " << DescribeResult(r);
+      map_places = r.map_places;
+    }
+  });
+  for (int f = 60; f < 70; ++f) {
+    const FrameResult r = (*field)->Send(FrameOf(run, f, "field", f, /*insert=*/false));
+    EXPECT_TRUE(r.ok()) << f << ": " << DescribeResult(r) << ServerLog();
+  }
+  robots.join();
+
+  // The same query frames over both networks, one after the other: the same places.
+  std::vector<double> udpm_ms;  // publish to answer, measured by the client
+  std::vector<double> tcpq_ms;
+  // Latency less the server's own time (receipt to answer): the network, the hub, the client.
+  std::vector<double> udpm_transport_ms;
+  std::vector<double> tcpq_transport_ms;
+  int with_robot_places = 0;
+  for (int f = 40; f < 84; f += 2) {
+    const FrameResult over_udpm = client_->Send(FrameOf(run, f, "field", f, false));
+    const FrameResult over_tcpq = (*field)->Send(FrameOf(run, f, "field", f, false));
+    ASSERT_TRUE(over_udpm.ok()) << f << ": " << DescribeResult(over_udpm);
+    ASSERT_TRUE(over_tcpq.ok()) << f << ": " << DescribeResult(over_tcpq);
+    EXPECT_EQ(over_tcpq.map_places, map_places);
+    ASSERT_EQ(over_tcpq.matches.size(), over_udpm.matches.size()) << f;
+    for (size_t i = 0; i < over_tcpq.matches.size(); ++i) {
+      EXPECT_EQ(over_tcpq.matches[i].robot, over_udpm.matches[i].robot) << f;
+      EXPECT_EQ(over_tcpq.matches[i].sequence, over_udpm.matches[i].sequence) << f;
+      EXPECT_EQ(over_tcpq.matches[i].score, over_udpm.matches[i].score) << f;
+    }
+    EXPECT_EQ(over_tcpq.loop_closure, over_udpm.loop_closure) << f;
+    if (!over_tcpq.matches.empty() && over_tcpq.matches[0].robot == run.frames[0].robot) {
+      ++with_robot_places;
+    }
+    udpm_ms.push_back(over_udpm.latency_ms);
+    tcpq_ms.push_back(over_tcpq.latency_ms);
+    udpm_transport_ms.push_back(over_udpm.latency_ms - over_udpm.server_ms);
+    tcpq_transport_ms.push_back(over_tcpq.latency_ms - over_tcpq.server_ms);
+  }
+  EXPECT_GT(with_robot_places, 0) << "the field client got none of the robots' places";
+  auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  std::printf(
+      "query latency (publish to answer) over udpm median %.1f ms, over tcpq median %.1f ms; "
+      "less the server's time: median %.1f ms and %.1f ms (%zu frames each, %d with a place of "
+      "robot %s)\n",
+      median(udpm_ms), median(tcpq_ms), median(udpm_transport_ms), median(tcpq_transport_ms),
+      udpm_ms.size(), with_robot_places, run.frames[0].robot.c_str());
+  StopTheServer();
+  EXPECT_EQ(ReadMap(db_).places.size(), static_cast<size_t>(map_places));
+}
+
 // --help documents every flag; bad flags and an unusable LCM URL (also from LCM_DEFAULT_URL) are
 // reported with a message and a non-zero exit code. No network needed.
 TEST(ServiceCommandLineTest, HelpAndErrors) {
@@ -958,8 +1344,9 @@ TEST(ServiceCommandLineTest, HelpAndErrors) {
   const std::string client = BinaryPath("placerec-client");
   auto [help_rc, help] = run({server, "--help"});
   EXPECT_EQ(help_rc, 0);
-  for (const char* flag : {"--db", "--lcm-url", "--workers", "--queue", "--status-period",
-                           "--loop-min-score", "--max-image-width", "--landmark-history"}) {
+  for (const char* flag :
+       {"--db", "--lcm-url", "--keys", "--auth", "--auth-window", "--workers", "--queue",
+        "--status-period", "--loop-min-score", "--max-image-width", "--landmark-history"}) {
     EXPECT_NE(help.find(flag), std::string::npos) << flag;
   }
   auto [bad_rc, bad] = run({server, "--no-such-flag"});
@@ -968,14 +1355,25 @@ TEST(ServiceCommandLineTest, HelpAndErrors) {
   auto [workers_rc, workers] = run({server, "--workers", "0"});
   EXPECT_EQ(workers_rc, 2);
   EXPECT_NE(workers.find("--workers"), std::string::npos) << workers;
-  auto [url_rc, url] = run({server, "--db", dir + "/map.db"}, "LCM_DEFAULT_URL=nosuchprovider://x");
+  auto [url_rc, url] =
+      run({server, "--db", dir + "/map.db", "--auth", "off"}, "LCM_DEFAULT_URL=nosuchprovider://x");
   EXPECT_EQ(url_rc, 1);
   EXPECT_NE(url.find("LCM_DEFAULT_URL=nosuchprovider://x"), std::string::npos) << url;
+  EXPECT_NE(url.find("AUTHENTICATION IS OFF"), std::string::npos) << url;
+  // Authentication is on by default: without keys the server refuses and says what to do.
+  auto [keys_rc, keys] = run({server, "--db", dir + "/map.db"});
+  EXPECT_EQ(keys_rc, 2);
+  EXPECT_NE(keys.find("--keys FILE"), std::string::npos) << keys;
+  EXPECT_NE(keys.find("--auth off"), std::string::npos) << keys;
+  auto [auth_rc, auth] = run({server, "--db", dir + "/map.db", "--auth", "maybe"});
+  EXPECT_EQ(auth_rc, 2);
+  EXPECT_NE(auth.find("--auth must be on or off"), std::string::npos) << auth;
 
   for (const char* command : {"send", "query", "status", "run"}) {
     auto [rc, text] = run({client, command, "--help"});
     EXPECT_EQ(rc, 0) << command;
     EXPECT_NE(text.find("--lcm-url"), std::string::npos) << command;
+    EXPECT_NE(text.find("--key-file"), std::string::npos) << command;
   }
   auto [usage_rc, usage] = run({client});
   EXPECT_EQ(usage_rc, 2);

@@ -18,6 +18,11 @@ void FlagParser::AddSwitch(const std::string& name, bool* field, const std::stri
   options_.add_options()(name.c_str(), po::bool_switch(field), help.c_str());
 }
 
+void FlagParser::AddRepeated(const std::string& name, std::vector<std::string>* field,
+                             const std::string& help) {
+  options_.add_options()(name.c_str(), po::value<std::vector<std::string>>(field), help.c_str());
+}
+
 void FlagParser::AddPositional(const std::string& name, std::vector<std::string>* field,
                                const std::string& help) {
   options_.add_options()(name.c_str(), po::value<std::vector<std::string>>(field), help.c_str());

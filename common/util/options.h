@@ -31,6 +31,10 @@ class FlagParser {
     options_.add_options()(name.c_str(), boost::program_options::value<T>(field)->required(),
                            help.c_str());
   }
+  // A flag that may be given more than once; each occurrence appends to *field. No default:
+  // an empty *field after parsing means the flag was not given.
+  void AddRepeated(const std::string& name, std::vector<std::string>* field,
+                   const std::string& help);
   // A switch: present means true.
   void AddSwitch(const std::string& name, bool* field, const std::string& help);
   // Remaining positional arguments (e.g. image paths) go into *field.

@@ -1,6 +1,7 @@
 #include <cstdio>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -103,6 +104,16 @@ TEST(FlagParserTest, ReportsUnknownFlagsAndHelp) {
   const char* with_help[] = {"prog", "--help"};
   ASSERT_TRUE(parser.Parse(2, with_help, 1, &help).ok());
   EXPECT_TRUE(help);
+}
+
+TEST(FlagParserTest, RepeatedFlagsCollectEveryOccurrence) {
+  std::vector<std::string> urls;
+  FlagParser parser("test");
+  parser.AddRepeated("url", &urls, "url");
+  const char* argv[] = {"prog", "--url", "udpm://a", "--url", "tcpq://127.0.0.1:7700"};
+  bool help = false;
+  ASSERT_TRUE(parser.Parse(5, argv, 1, &help).ok());
+  EXPECT_EQ(urls, (std::vector<std::string>{"udpm://a", "tcpq://127.0.0.1:7700"}));
 }
 
 TEST(CommandLineTest, DropsTheDirectoryAndQuotesWhatAShellWouldSplit) {

@@ -49,6 +49,12 @@ std::vector<uint8_t> Frame(int8_t encoding, int width, int height, std::vector<u
   frame.width = width;
   frame.height = height;
   frame.robot = "robot-1";
+  // Protocol 4: seeds are signed-looking (a key id, counter, time and signature bytes), so the
+  // fuzzer starts with every length the decoder checks in place.
+  frame.key_id = "robot-1";
+  frame.auth_counter = 1700000000000001;
+  frame.auth_utime = 1700000000000001;
+  for (int i = 0; i < 32; ++i) frame.signature[i] = static_cast<uint8_t>(0x5a ^ i);
   frame.size = static_cast<int32_t>(data.size());
   frame.data = std::move(data);
   std::vector<uint8_t> bytes(static_cast<size_t>(frame.getEncodedSize()));

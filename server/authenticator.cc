@@ -1,0 +1,154 @@
+#include "server/authenticator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <utility>
+
+namespace placerec {
+namespace {
+
+// Counters remembered per key at most; beyond, the smallest are forgotten (the floor rises), so a
+// flood under one key costs bounded memory (100,000 frames a window is over 3,000 per second).
+constexpr size_t kMaxRememberedCounters = 100000;
+
+const char kUnsignedAdvice[] =
+    "unsigned frame: this server accepts only frames signed with a key from its keys file; give "
+    "the client a key file (placerec-client --key-file FILE, keys from the server's operator: "
+    "scripts/make-key.sh, server/README.md \"Keys\"), or run the server with --auth off on a lab "
+    "LAN";
+
+}  // namespace
+
+bool AuthOptions::Check(std::string* error) const {
+  if (!(window_s > 0) || window_s > 3600) {
+    *error = "--auth-window must be positive and at most 3600 seconds";
+    return false;
+  }
+  return true;
+}
+
+std::string MissingKeysAdvice() {
+  return "authentication is on and no keys file was given: give --keys FILE (one line per robot "
+         "or device: 'ID insert|query|both KEY'; scripts/make-key.sh ID PERMISSION >> FILE makes "
+         "a key; server/README.md \"Keys\"), or start with --auth off on a lab LAN only";
+}
+
+StatusOr<Authenticator> Authenticator::Create(const AuthOptions& options, int64_t start_utime) {
+  std::string error;
+  if (!options.Check(&error)) return Status::InvalidArgument(error);
+  if (options.enabled && options.keys_file.empty()) {
+    return Status::InvalidArgument(MissingKeysAdvice());
+  }
+  Authenticator auth(options, start_utime);
+  if (options.enabled) PLACEREC_RETURN_IF_ERROR(auth.Reload());
+  return auth;
+}
+
+Status Authenticator::Reload() {
+  std::string warning;
+  StatusOr<std::vector<SigningKey>> keys = ReadKeysFile(options_.keys_file, &warning);
+  if (!keys.ok()) return keys.status();
+  if (keys->empty()) {
+    return Status::InvalidArgument("the keys file " + options_.keys_file +
+                                   " holds no key; add one (scripts/make-key.sh ID PERMISSION >> " +
+                                   options_.keys_file + ")");
+  }
+  std::map<std::string, ReplayState> replay;
+  for (const SigningKey& key : *keys) {
+    const SigningKey* old = FindKey(keys_, key.id);
+    auto it = replay_.find(key.id);
+    if (old != nullptr && old->secret == key.secret && it != replay_.end()) {
+      replay.emplace(key.id, std::move(it->second));
+    }
+  }
+  keys_ = std::move(*keys);
+  replay_ = std::move(replay);
+  warning_ = warning;
+  return Status::Ok();
+}
+
+void Authenticator::Forget(ReplayState* state, int64_t now_utime) const {
+  const int64_t oldest = now_utime - static_cast<int64_t>(options_.window_s * 1e6);
+  for (auto it = state->counters.begin(); it != state->counters.end();) {
+    if (it->second < oldest || state->counters.size() > kMaxRememberedCounters) {
+      state->floor = std::max(state->floor, it->first);
+      it = state->counters.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+Authenticator::Verdict Authenticator::Check(const frame_t& frame, int64_t now_utime,
+                                            const void* received, size_t size) {
+  Verdict verdict;
+  if (!options_.enabled) {
+    verdict.ok = true;
+    return verdict;
+  }
+  if (FrameIsUnsigned(frame)) {
+    verdict.message = kUnsignedAdvice;
+    return verdict;
+  }
+  const SigningKey* key = FindKey(keys_, frame.key_id);
+  if (frame.key_id.empty() || key == nullptr) {
+    verdict.message = "unknown key id '" + frame.key_id.substr(0, kMaxKeyIdLength) +
+                      "': the server's keys file has no such key; ask its operator to add "
+                      "yours (then SIGHUP reloads it), or use a key it has";
+    return verdict;
+  }
+  if (!FrameSignatureValid(frame, key->secret, received, size)) {
+    verdict.message = "the signature does not match key '" + key->id +
+                      "': the frame was signed with another key or changed on the way; sign it "
+                      "with the key the server has under that id";
+    return verdict;
+  }
+  verdict.key = *key;  // from here on the sender is known: its answer is signed
+  const int64_t window_us = static_cast<int64_t>(options_.window_s * 1e6);
+  if (std::llabs(frame.auth_utime - now_utime) > window_us) {
+    verdict.message =
+        "the frame was signed " + std::to_string((now_utime - frame.auth_utime) / 1000000) +
+        " s from the server's clock, outside its window of " + std::to_string(window_us / 1000000) +
+        " s: a replay, or the clocks differ; synchronise the clocks (NTP) and send "
+        "it again";
+    return verdict;
+  }
+  if (frame.auth_utime < start_utime_) {
+    verdict.message =
+        "the frame was signed before the server started (counters of earlier runs are not "
+        "remembered, so it may be a replay); send it again, signed now";
+    return verdict;
+  }
+  ReplayState& state = replay_[key->id];
+  Forget(&state, now_utime);
+  if (frame.auth_counter <= state.floor || state.counters.count(frame.auth_counter) > 0) {
+    verdict.message = "replayed frame: key '" + key->id + "' already used counter " +
+                      std::to_string(frame.auth_counter) +
+                      "; every frame needs a new, increasing counter (send it again signed "
+                      "anew; placerec's client does this itself)";
+    return verdict;
+  }
+  if (frame.insert && !key->may_insert) {
+    verdict.message = "key '" + key->id +
+                      "' may only query: send the frame as a query (insert false), or ask the "
+                      "server's operator for a key that may insert";
+    return verdict;
+  }
+  if (!frame.insert && !key->may_query) {
+    verdict.message =
+        "key '" + key->id + "' may only insert: ask the server's operator for a key that may query";
+    return verdict;
+  }
+  state.counters.emplace(frame.auth_counter, frame.auth_utime);
+  verdict.ok = true;
+  return verdict;
+}
+
+std::vector<std::string> Authenticator::KeyIds() const {
+  std::vector<std::string> ids;
+  for (const SigningKey& key : keys_) ids.push_back(key.id);
+  return ids;
+}
+
+}  // namespace placerec
