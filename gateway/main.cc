@@ -19,7 +19,7 @@ void OnStopSignal(int) {
 }
 
 constexpr char kUsage[] =
-    "placerec-gateway --cert CERT.pem --key KEY.pem --tokens FILE [--lcm-url URL] [options]\n\n"
+    "placerec-gateway --cert CERT.pem --key KEY.pem --tokens FILE --key-file KEYS [options]\n\n"
     "\"Where am I?\" over HTTPS for devices without LCM, and a web page for people in the field\n"
     "(https://HOST:PORT/). Endpoints, each with 'Authorization: Bearer TOKEN':\n"
     "  POST /v1/query                   a JPEG or PNG photo (the body, or the form field 'image')\n"
@@ -51,6 +51,10 @@ int Main(int argc, char** argv) {
              "seconds to wait for the server's answer (then 504)");
   parser.Add("lcm-url", &options.client.lcm_url,
              "LCM URL of the placerec server's network (empty: LCM's default)");
+  parser.Add("key-file", &options.client.key_file,
+             "keys file holding the gateway's key: its queries are signed with it (a key with "
+             "permission 'query' only; scripts/make-key.sh gateway query)");
+  parser.Add("key-id", &options.client.key_id, "which key of --key-file (empty: its first)");
   parser.Add("retry-after", &options.client.retry_after_s,
              "seconds after which an unanswered query is sent again (same request id)");
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 1, "placerec-gateway")) {

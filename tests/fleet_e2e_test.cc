@@ -32,19 +32,39 @@ TEST(FleetTest, ThreeRobotsAtHalfAHertzAreAllAnswered) {
     GTEST_SKIP() << "needs " << data << " (the shared data; set PLACEREC_DATA)";
   }
   const std::string dir = MakeTempDir("placerec_fleet_");
+  const std::string keys = testing_service::WriteTestKeys(dir + "/keys", {{"robots", "both"}});
   ClientOptions options;
   options.lcm_url = TestLcmUrl();
+  options.key_file = keys;
   StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(options);
   ASSERT_TRUE(client.ok());
   StatusOr<std::unique_ptr<ChildProcess>> server =
-      StartServer(dir + "/map.db", {}, dir + "/server.log", client->get());
+      StartServer(dir + "/map.db", {"--keys", keys}, dir + "/server.log", client->get());
   ASSERT_TRUE(server.ok()) << server.status().ToString();
 
-  StatusOr<std::unique_ptr<ChildProcess>> fleet = ChildProcess::Start(
-      {BinaryPath("placerec-client"), "fleet", "--robots", "3", "--rate", "0.5", "--duration", "8",
-       "--query-share", "0.25", "--dataset", data, "--run", "corridor_loop", "--out",
-       dir + "/fleet", "--lcm-url", TestLcmUrl(), "--quiet"},
-      dir + "/fleet.log");
+  StatusOr<std::unique_ptr<ChildProcess>> fleet =
+      ChildProcess::Start({BinaryPath("placerec-client"),
+                           "fleet",
+                           "--robots",
+                           "3",
+                           "--rate",
+                           "0.5",
+                           "--duration",
+                           "8",
+                           "--query-share",
+                           "0.25",
+                           "--dataset",
+                           data,
+                           "--run",
+                           "corridor_loop",
+                           "--out",
+                           dir + "/fleet",
+                           "--lcm-url",
+                           TestLcmUrl(),
+                           "--key-file",
+                           keys,
+                           "--quiet"},
+                          dir + "/fleet.log");
   ASSERT_TRUE(fleet.ok());
   StatusOr<int> code = (*fleet)->Wait(300);
   ASSERT_TRUE(code.ok());

@@ -70,14 +70,19 @@ class GatewayTest : public ::testing::Test {
                                     << kOtherToken << " phone-2\n"
                                     << kExpiredToken << " phone-3 expires=2020-01-01T00:00:00Z\n";
 
+    // The robots may insert; the gateway only query (it never inserts).
+    keys_ =
+        testing_service::WriteTestKeys(dir_ + "/keys", {{"robots", "both"}, {"gateway", "query"}});
     ClientOptions options;
     options.lcm_url = TestLcmUrl();
+    options.key_file = keys_;
+    options.key_id = "robots";
     options.timeout_s = 120;
     StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(options);
     ASSERT_TRUE(client.ok()) << client.status().ToString();
     client_ = std::move(*client);
     StatusOr<std::unique_ptr<ChildProcess>> server =
-        StartServer(dir_ + "/map.db", {}, dir_ + "/server.log", client_.get());
+        StartServer(dir_ + "/map.db", {"--keys", keys_}, dir_ + "/server.log", client_.get());
     ASSERT_TRUE(server.ok()) << server.status().ToString();
     server_ = std::move(*server);
     for (int f = 0; f < kMapped; ++f) {
@@ -87,8 +92,9 @@ class GatewayTest : public ::testing::Test {
 
     StatusOr<std::unique_ptr<ChildProcess>> gateway = ChildProcess::Start(
         {BinaryPath("placerec-gateway"), "--cert", dir_ + "/cert.pem", "--key", dir_ + "/key.pem",
-         "--tokens", dir_ + "/tokens", "--port", std::to_string(kPort), "--lcm-url", TestLcmUrl(),
-         "--max-upload-bytes", "2000000", "--burst", std::to_string(kBurst)},
+         "--tokens", dir_ + "/tokens", "--key-file", keys_, "--key-id", "gateway", "--port",
+         std::to_string(kPort), "--lcm-url", TestLcmUrl(), "--max-upload-bytes", "2000000",
+         "--burst", std::to_string(kBurst)},
         dir_ + "/gateway.log");
     ASSERT_TRUE(gateway.ok()) << gateway.status().ToString();
     gateway_ = std::move(*gateway);
@@ -154,6 +160,7 @@ class GatewayTest : public ::testing::Test {
 
   placerec::Run run_;
   std::string dir_;
+  std::string keys_;
   std::unique_ptr<PlacerecClient> client_;
   std::unique_ptr<ChildProcess> server_;
   std::unique_ptr<ChildProcess> gateway_;

@@ -7,6 +7,7 @@
 #include <signal.h>
 #include <sys/prctl.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -18,6 +19,7 @@
 #include <deque>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <sstream>
 #include <thread>
 
@@ -69,6 +71,21 @@ std::string TestLcmUrl() {
 }
 
 std::string HubLcmUrl(int port) { return "tcpq://127.0.0.1:" + std::to_string(port); }
+
+std::string WriteTestKeys(const std::string& path,
+                          const std::vector<std::pair<std::string, std::string>>& keys) {
+  std::random_device device;
+  std::ofstream out(path, std::ios::trunc);
+  out << "# placerec keys: id permission key\n";
+  for (const auto& [id, permission] : keys) {
+    std::string hex;
+    for (int i = 0; i < 64; ++i) hex += "0123456789abcdef"[device() % 16];
+    out << id << " " << permission << " " << hex << "\n";
+  }
+  out.close();
+  chmod(path.c_str(), 0600);
+  return path;
+}
 
 std::string BinaryPath(const std::string& name) {
   return std::string(PLACEREC_BINARY_DIR) + "/bin/" + name;

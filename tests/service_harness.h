@@ -27,6 +27,11 @@ std::string TestLcmUrl();
 // The LCM URL of a TCP hub on this machine's loopback (tcpq, for remote devices).
 std::string HubLcmUrl(int port);
 
+// Writes a keys file (mode 600, proto/auth/signing.h format) with a new random key for each
+// (id, permission), permission being insert, query or both; returns `path`.
+std::string WriteTestKeys(const std::string& path,
+                          const std::vector<std::pair<std::string, std::string>>& keys);
+
 // PLACEREC_BINARY_DIR/bin/<name>.
 std::string BinaryPath(const std::string& name);
 

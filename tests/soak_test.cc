@@ -243,8 +243,10 @@ TEST_F(SoakTest, EightRobotsWithARestartAndAFullDisk) {
   const double duration_s = SoakSeconds();
   const double disk_full_s = std::max(10.0, kDiskFullFor * duration_s);
 
+  const std::string keys = testing_service::WriteTestKeys(dir_ + "/keys", {{"robots", "both"}});
   ClientOptions options;
   options.lcm_url = TestLcmUrl();
+  options.key_file = keys;
   options.timeout_s = 180;
   options.retry_after_s = 5;
   StatusOr<std::unique_ptr<PlacerecClient>> connected = PlacerecClient::Connect(options);
@@ -254,7 +256,7 @@ TEST_F(SoakTest, EightRobotsWithARestartAndAFullDisk) {
   ASSERT_TRUE(counter.good());
 
   StatusOr<std::unique_ptr<ChildProcess>> started =
-      StartServer(db_, {}, dir_ + "/server.log", client);
+      StartServer(db_, {"--keys", keys}, dir_ + "/server.log", client);
   ASSERT_TRUE(started.ok()) << started.status().ToString();
   server_ = std::move(*started);
   std::atomic<pid_t> server_pid{server_->pid()};
@@ -346,7 +348,7 @@ TEST_F(SoakTest, EightRobotsWithARestartAndAFullDisk) {
   ASSERT_TRUE(killed.ok());
   EXPECT_EQ(*killed, 128 + SIGKILL);
   server_.reset();
-  started = StartServer(db_, {}, dir_ + "/server2.log", client);
+  started = StartServer(db_, {"--keys", keys}, dir_ + "/server2.log", client);
   ASSERT_TRUE(started.ok()) << started.status().ToString();
   server_ = std::move(*started);
   server_pid = server_->pid();
