@@ -36,6 +36,17 @@ bool ChangeOptions::Check(std::string* error) const {
   }
   if (!(max_match_density >= 0.0)) return fail("change max match density must be >= 0");
   if (!(texture_weight >= 0.0)) return fail("change texture weight must be >= 0");
+  if (!(support_radius >= 0.0 && support_radius <= 1.0)) {
+    return fail("change support radius must be in [0, 1] of the frame width");
+  }
+  if (!(noise_spread >= 0.0)) return fail("change noise spread must be >= 0");
+  if (!(grow_fraction > 0.0 && grow_fraction <= 1.0)) {
+    return fail("change grow fraction must be in (0, 1]");
+  }
+  if (!(edge_band >= 0.0 && edge_band < 0.5)) return fail("change edge band must be in [0, 0.5)");
+  if (!(max_edge_share > 0.0 && max_edge_share <= 1.0)) {
+    return fail("change max edge share must be in (0, 1]");
+  }
   if (!(texture_window > 0.0 && texture_window < 0.5)) {
     return fail("change texture window must be in (0, 0.5) of the frame width");
   }
@@ -233,6 +244,19 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
           valid, valid,
           cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * margin + 1, 2 * margin + 1)));
     }
+    // Only where the homography holds: near points that fit it. Elsewhere (near walls, doors
+    // that the robot passes) the parallax of the scene's depth makes differences of its own.
+    if (options.support_radius > 0) {
+      cv::Mat support = cv::Mat::zeros(height, width, CV_8U);
+      for (const cv::Point2f& p : fitted.frame_points) {
+        const cv::Point at(static_cast<int>(p.x * to_thumb), static_cast<int>(p.y * to_thumb));
+        if (at.x >= 0 && at.y >= 0 && at.x < width && at.y < height) support.at<uint8_t>(at) = 255;
+      }
+      const int r = std::max(1, static_cast<int>(std::lround(options.support_radius * width)));
+      cv::dilate(support, support,
+                 cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * r + 1, 2 * r + 1)));
+      valid &= support;
+    }
     if (cv::countNonZero(valid) < options.min_area * width * height) {
       if (result.why_not.empty()) result.why_not = "the views share too little";
       continue;
@@ -279,14 +303,40 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
   difference.setTo(0, shared == 0);
   result.difference = difference;
 
-  // Regions that differ beyond the threshold.
-  const double threshold = options.Threshold();
-  cv::Mat changed = (difference > threshold) & shared;
+  // Regions that differ beyond the threshold: the sensitivity's, or more in a frame whose shared
+  // view differs throughout (a poor alignment, a changed light): the median difference plus
+  // noise_spread robust deviations. Seeds above it grow through pixels above grow_fraction of it.
+  std::vector<float> values;
+  values.reserve(static_cast<size_t>(shared_pixels));
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      if (shared.at<uint8_t>(y, x) != 0) values.push_back(difference.at<float>(y, x));
+    }
+  }
+  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+  const double median = values[values.size() / 2];
+  for (float& v : values) v = static_cast<float>(std::abs(v - median));
+  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+  const double spread = 1.4826 * values[values.size() / 2];
+  const double threshold = std::max(options.Threshold(), median + options.noise_spread * spread);
+  result.threshold = threshold;
   const cv::Mat small = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(3, 3));
-  cv::morphologyEx(changed, changed, cv::MORPH_OPEN, small);
-  cv::morphologyEx(changed, changed, cv::MORPH_CLOSE, small, cv::Point(-1, -1), 2);
+  cv::Mat seeds = (difference > threshold) & shared;
+  cv::morphologyEx(seeds, seeds, cv::MORPH_OPEN, small);
+  cv::Mat grown = (difference > options.grow_fraction * threshold) & shared;
+  cv::morphologyEx(grown, grown, cv::MORPH_CLOSE, small, cv::Point(-1, -1), 2);
   cv::Mat labels, stats, centroids;
-  const int count = cv::connectedComponentsWithStats(changed, labels, stats, centroids, 8, CV_32S);
+  const int count = cv::connectedComponentsWithStats(grown, labels, stats, centroids, 8, CV_32S);
+  std::vector<bool> seeded(static_cast<size_t>(count), false);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      if (seeds.at<uint8_t>(y, x) != 0) seeded[labels.at<int>(y, x)] = true;
+    }
+  }
+  // Distance of each shared pixel to the edge of the shared view (pixels).
+  cv::Mat to_edge;
+  cv::distanceTransform(shared, to_edge, cv::DIST_L2, 3);
+  const double edge_band = std::max(1.0, options.edge_band * width);
   // Verified points per pixel of the shared view: the density a seen region has.
   const double density =
       shared_pixels > 0 ? static_cast<double>(matched_points.size()) / shared_pixels : 0.0;
@@ -295,8 +345,16 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
     const int area = stats.at<int>(c, cv::CC_STAT_AREA);
     const cv::Rect box(stats.at<int>(c, cv::CC_STAT_LEFT), stats.at<int>(c, cv::CC_STAT_TOP),
                        stats.at<int>(c, cv::CC_STAT_WIDTH), stats.at<int>(c, cv::CC_STAT_HEIGHT));
-    if (area < options.min_area * frame_area || box.area() > options.max_area * frame_area)
+    if (!seeded[c] || area < options.min_area * frame_area ||
+        box.area() > options.max_area * frame_area) {
       continue;
+    }
+    // Along the edge of the shared view: what the motion brought into view, or the parallax of
+    // near objects there.
+    const cv::Mat in_component = labels == c;
+    if (cv::countNonZero(in_component & (to_edge < edge_band)) > options.max_edge_share * area) {
+      continue;
+    }
     // Matched content inside: what is there was seen at the place.
     int inside = 0;
     for (const cv::Point2f& p : matched_points) {
@@ -304,7 +362,7 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
       if (x >= 0 && y >= 0 && x < width && y < height && labels.at<int>(y, x) == c) ++inside;
     }
     if (inside > 0 && inside >= options.max_match_density * density * area) continue;
-    const double mean = cv::mean(difference, labels == c)[0];
+    const double mean = cv::mean(difference, in_component)[0];
     // Confidence: how far beyond the threshold the region differs, and how large it is.
     const double strength = std::clamp((mean - threshold) / threshold, 0.0, 1.0);
     const double size = std::clamp(area / (0.02 * frame_area), 0.0, 1.0);

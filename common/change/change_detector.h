@@ -36,6 +36,9 @@ struct ChangeOptions {
   // The shared view is trimmed by this fraction of the frame width at its edges, where the
   // robot's motion brings new scene into view.
   double edge_margin = 0.05;
+  // The shared view is where the homography holds: within this fraction of the frame width of a
+  // verified point that fits it (0: the whole mapped view).
+  double support_radius = 0.15;
   // Misalignment tolerated when comparing (fraction of the frame width): a pixel differs only by
   // what lies outside the range of the stored values around it.
   double alignment_tolerance = 0.02;
@@ -43,6 +46,16 @@ struct ChangeOptions {
   // texture_window of the frame width) times texture_weight is a difference in Lab units.
   double texture_weight = 1.5;
   double texture_window = 0.05;
+  // In a frame whose shared view differs throughout (a poor alignment, a changed light) a change
+  // must also differ by the median difference plus this many robust standard deviations.
+  double noise_spread = 4.0;
+  // A change grows from pixels above the threshold through neighbours above this fraction of it.
+  double grow_fraction = 0.6;
+  // A region with more than max_edge_share of its pixels within edge_band (fraction of the frame
+  // width) of the shared view's edge is explained by the motion: new scene entering the view, or
+  // the parallax of near objects that the homography does not model.
+  double edge_band = 0.05;
+  double max_edge_share = 0.5;
   // A change covers at least min_area and at most max_area of the frame (fractions of its area);
   // larger differences are a changed view, not an object.
   double min_area = 0.004;
@@ -89,6 +102,7 @@ struct ChangeResult {
   bool checked = false;              // a shared view was found and compared
   std::string why_not;               // when not checked: why
   double shared_view = 0;            // share of the frame compared
+  double threshold = 0;              // the Lab difference changes needed in this frame
   int references = 0;                // places compared against
   std::vector<SceneChange> changes;  // most confident first
   cv::Mat difference;  // CV_32F per pixel of the frame's thumbnail (Lab units; 0 outside)

@@ -61,6 +61,12 @@ class PlaceMap {
   // place joins the scene sets of place->seen_landmarks. On error nothing changes.
   Status Insert(Place* place, std::vector<Landmark>* landmarks);
 
+  // A place's thumbnail (JPEG bytes, LandmarkStore::LoadThumbnail); empty when it has none.
+  StatusOr<std::vector<uint8_t>> LoadThumbnail(PlaceId place) const;
+  // A place's stored landmarks with ids, boxes and classes only (descriptors left out); empty for
+  // an unknown place.
+  std::vector<Landmark> LandmarkOutlines(PlaceId place) const;
+
   MapCounts Counts() const;
   // Calls `visit` for every place in the map (in no particular order), under the map's read lock:
   // `visit` must not call back into the map.
