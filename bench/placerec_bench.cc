@@ -272,9 +272,11 @@ SigningFixture& Signing() {
 // step alone (load and decode the place's thumbnail, fit the homography, compare the views), for
 // the ratio to SIFT on the same frame.
 void BM_ChangeDetection(benchmark::State& state) {
-  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(":memory:", SqliteStoreOptions());
+  StatusOr<std::unique_ptr<LandmarkStore>> store =
+      OpenSqliteStore(":memory:", SqliteStoreOptions());
   CHECK(store.ok());
-  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), LandmarkIndexOptions());
+  StatusOr<std::unique_ptr<PlaceMap>> map =
+      PlaceMap::Open(std::move(*store), LandmarkIndexOptions());
   CHECK(map.ok());
   RecognizerOptions options;
   Recognizer recognizer(options, map->get());
@@ -665,12 +667,12 @@ int main(int argc, char** argv) {
     std::printf(
         "\nRatios to OpenCV SIFT in this run (stages: frame Image120; pipeline: the same "
         "40 frames as the SIFT reference):\n");
-    for (const char* name : {"BM_StageFeatures", "BM_StageSegmentation", "BM_StageAnalyze",
-                             "BM_StageLandmarks", "BM_Pipeline", "BM_ChangeDetection",
-                             "BM_OrgSuperpixels",
-                             "BM_OrgFilterBank", "BM_OrgTextons", "BM_OrgClassifiers",
-                             "BM_OrgBoundary", "BM_OrgLearnedMerge", "BM_OrgPerceptualOrganization",
-                             "BM_OrgWholeSegmentation", "BM_OrgWholeSegmentationSeed"}) {
+    for (const char* name :
+         {"BM_StageFeatures", "BM_StageSegmentation", "BM_StageAnalyze", "BM_StageLandmarks",
+          "BM_Pipeline", "BM_ChangeDetection", "BM_OrgSuperpixels", "BM_OrgFilterBank",
+          "BM_OrgTextons", "BM_OrgClassifiers", "BM_OrgBoundary", "BM_OrgLearnedMerge",
+          "BM_OrgPerceptualOrganization", "BM_OrgWholeSegmentation",
+          "BM_OrgWholeSegmentationSeed"}) {
       const auto it = t.find(name);
       if (it != t.end()) std::printf("  %-30s %6.2f\n", name, it->second / sift->second);
     }
