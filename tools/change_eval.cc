@@ -237,7 +237,8 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
           tally.ious.push_back(best);
           kind = pictures_hit++ < eval.pictures ? "hit" : "";
         } else {
-          kind = pictures_miss++ < eval.pictures ? "miss" : "";
+          // Pictures of the misses that were compared: those say why the detector missed.
+          if (report.checked) kind = pictures_miss++ < eval.pictures ? "miss" : "";
         }
       }
       {

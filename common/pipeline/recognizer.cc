@@ -253,10 +253,7 @@ ChangeReport Recognizer::DetectSceneChanges(const FrameObservation& observation,
   report.why_not = found.why_not;
   report.changes = std::move(found.changes);
   report.difference = found.difference;
-  if (report.changes.empty()) {
-    report.place_picture.clear();
-    return report;
-  }
+  if (report.changes.empty()) return report;
   // The class of an object that appeared: the frame's object that covers it best.
   if (labeler_) {
     for (SceneChange& change : report.changes) {
