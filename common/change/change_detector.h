@@ -49,8 +49,9 @@ struct ChangeOptions {
   // In a frame whose shared view differs throughout (a poor alignment, a changed light) a change
   // must also differ by the median difference plus this many robust standard deviations.
   double noise_spread = 4.0;
-  // A change grows from pixels above the threshold through neighbours above this fraction of it.
-  double grow_fraction = 0.6;
+  // A change grows from pixels above the threshold through neighbours above this fraction of it
+  // (whole objects rather than their most different parts).
+  double grow_fraction = 0.4;
   // A region with more than max_edge_share of its pixels within edge_band (fraction of the frame
   // width) of the shared view's edge is explained by the motion: new scene entering the view, or
   // the parallax of near objects that the homography does not model.

@@ -260,6 +260,9 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add("change-noise-spread", &o->change.noise_spread,
          "a change must also differ by the frame's median difference plus this many robust "
          "standard deviations");
+  p->Add("change-grow-fraction", &o->change.grow_fraction,
+         "a change grows from pixels above the threshold through neighbours above this fraction "
+         "of it");
   p->Add("change-edge-band", &o->change.edge_band,
          "regions lying mostly within this share of the frame width of the shared view's edge "
          "are the robot's motion, not changes");
