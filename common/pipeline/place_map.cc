@@ -73,6 +73,18 @@ Status PlaceMap::Insert(Place* place, std::vector<Landmark>* landmarks) {
   return Status::Ok();
 }
 
+bool PlaceMap::AddCommitted(const Place& place, std::vector<Landmark>&& landmarks) {
+  std::unique_lock lock(mutex_);
+  // Insert holds the lock from its commit until the place is indexed, so a place committed
+  // through this map is already here when its committed row can be read.
+  if (places_.count(place.id) > 0) return false;
+  places_[place.id] = place;
+  index_.AddPlace(place);
+  for (const Landmark& landmark : landmarks) index_.Add(landmark);
+  for (const LandmarkId seen : place.seen_landmarks) seen_at_[seen].push_back(place.id);
+  return true;
+}
+
 MapLookupResult PlaceMap::LookupSeed(const MapLookup& lookup, const SeedLoopOptions& options,
                                      int max_matches, bool* loop) const {
   std::shared_lock lock(mutex_);

@@ -61,6 +61,11 @@ class PlaceMap {
   // place joins the scene sets of place->seen_landmarks. On error nothing changes.
   Status Insert(Place* place, std::vector<Landmark>* landmarks);
 
+  // Indexes a place (with its landmarks) that is already committed to the store, e.g. by another
+  // server on the same PostgreSQL map; a place the map holds already is left alone. Whether the
+  // place was new to the map.
+  bool AddCommitted(const Place& place, std::vector<Landmark>&& landmarks);
+
   MapCounts Counts() const;
   // Calls `visit` for every place in the map (in no particular order), under the map's read lock:
   // `visit` must not call back into the map.
