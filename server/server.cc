@@ -21,6 +21,10 @@
 namespace placerec {
 namespace {
 
+// How long an insert waits for its place to come back through the map follower before indexing
+// it itself (PlaceMap::IndexThroughFollower).
+constexpr std::chrono::milliseconds kFollowerIndexTimeout(2000);
+
 // Frames LCM may hold for the receive loop (see Run); bounds memory at this many messages.
 constexpr int kLcmFrameQueue = 1024;
 
@@ -135,6 +139,8 @@ StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
     server->follower_ = std::make_unique<MapFollower>(
         options.db_path, options.postgres, options.follower, server->map_.get(), last,
         [raw](const Place& place) { raw->processor_.NoteStored(place); });
+    // Every server indexes every place in id order, its own ones included (PlaceMap).
+    server->map_->IndexThroughFollower(kFollowerIndexTimeout);
     server->follower_->Start();
   }
   for (const std::unique_ptr<Network>& network : server->networks_) {

@@ -127,6 +127,13 @@ class PostgresServiceTest : public ::testing::Test {
     return frame;
   }
 
+  // The answer to frame f sent query-only as `robot`.
+  FrameResult Query(int f, const std::string& robot) {
+    const FrameResult r = client_->Send(FrameOf(f, robot, f, /*insert=*/false));
+    EXPECT_TRUE(r.ok()) << robot << " " << f << ": " << DescribeResult(r) << Logs();
+    return r;
+  }
+
   // Whether the query of frame f by the device (served by the second server) lists `place`;
   // `latency_ms` receives the time from publishing the query to its answer.
   bool QueryFinds(int f, int64_t place, double* latency_ms = nullptr) {
@@ -167,9 +174,11 @@ class PostgresServiceTest : public ::testing::Test {
 
 // Robot A inserts through server 1. After each acknowledgement, server 2's heartbeats (every
 // 50 ms) must count the new place within 1 s, and a device served by server 2 that queries the
-// same image finds it. The two servers' heartbeats are told apart by their worker counts.
+// same image finds it. The two servers' heartbeats are told apart by their worker counts. At the
+// end the same queries through server 1, server 2 and a server started on the finished map get
+// the same answers (every server indexes the places in id order).
 TEST_F(PostgresServiceTest, APlaceInsertedThroughOneServerIsFoundThroughAnotherWithinASecond) {
-  ASSERT_NE(StartServer("one", "robotA", /*workers=*/1), nullptr);
+  ASSERT_NE(StartServer("one", "robotA,probe1", /*workers=*/1), nullptr);
   ASSERT_NE(StartServer("two", "device", /*workers=*/2), nullptr);
   constexpr int kFrames = 14;
   int places = 0;
@@ -205,6 +214,24 @@ TEST_F(PostgresServiceTest, APlaceInsertedThroughOneServerIsFoundThroughAnotherW
   RecordProperty("max_delay_ms", std::to_string(delays_ms.back()));
   // Both servers' maps equal the database's.
   EXPECT_EQ(static_cast<int64_t>(MapPlaces().size()), places);
+  // The same answers through every server, and through one that loads the map now.
+  ASSERT_NE(StartServer("three", "probe3"), nullptr);
+  int compared = 0;
+  for (int f = 1; f < kFrames; f += 3) {
+    const FrameResult two = Query(f, "device");
+    for (const char* robot : {"probe1", "probe3"}) {
+      const FrameResult other = Query(f, robot);
+      ASSERT_EQ(other.matches.size(), two.matches.size()) << robot << " frame " << f;
+      for (size_t i = 0; i < two.matches.size(); ++i) {
+        EXPECT_EQ(other.matches[i].place_id, two.matches[i].place_id) << robot << " " << f;
+        EXPECT_EQ(other.matches[i].score, two.matches[i].score) << robot << " " << f;
+        EXPECT_EQ(other.matches[i].matched_landmarks, two.matches[i].matched_landmarks);
+      }
+      EXPECT_EQ(other.loop_closure, two.loop_closure) << robot << " " << f;
+      compared += static_cast<int>(two.matches.size());
+    }
+  }
+  EXPECT_GT(compared, 0);
   for (auto& [name, server] : servers_) {
     server->Signal(SIGTERM);
     StatusOr<int> code = server->Wait(60);
