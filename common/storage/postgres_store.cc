@@ -318,6 +318,16 @@ class Connection {
     return Status::Ok();
   }
 
+  // Starts a transaction (`sql`: BEGIN and its options). A connection found broken here (e.g. the
+  // database restarted since the last call) is opened again once, as nothing was sent yet.
+  Status Begin(const char* sql) {
+    PLACEREC_RETURN_IF_ERROR(Ensure());
+    Status begun = Command(sql, "cannot start a transaction");
+    if (begun.ok() || PQstatus(conn_) == CONNECTION_OK) return begun;
+    PLACEREC_RETURN_IF_ERROR(Ensure());
+    return Command(sql, "cannot start a transaction");
+  }
+
   // Runs `sql` with `params`, results in binary.
   Result Exec(const char* sql, const Params& params = Params()) {
     return Result(PQexecParams(conn_, sql, params.size(), nullptr, params.values(),
@@ -532,11 +542,10 @@ Status PostgresStore::AddPlace(Place* place, std::vector<Landmark>* landmarks) {
   PLACEREC_RETURN_IF_ERROR(ValidatePlaceAndLandmarks(*place, items));
 
   std::lock_guard<std::mutex> lock(mutex_);
-  PLACEREC_RETURN_IF_ERROR(db_->Ensure());
   int64_t place_id = 0;
   std::vector<int64_t> landmark_ids;
   landmark_ids.reserve(items.size());
-  PLACEREC_RETURN_IF_ERROR(db_->Command("BEGIN", "cannot start a write transaction"));
+  PLACEREC_RETURN_IF_ERROR(db_->Begin("BEGIN"));
   Status status = InsertRows(*place, items, &place_id, &landmark_ids);
   if (status.ok()) {
     Params notify;
@@ -635,9 +644,7 @@ Status PostgresStore::InsertRows(const Place& place, const std::vector<Landmark>
 
 Status PostgresStore::LoadPlaces(const std::function<void(const Place&)>& visit) const {
   std::lock_guard<std::mutex> lock(mutex_);
-  PLACEREC_RETURN_IF_ERROR(db_->Ensure());
-  PLACEREC_RETURN_IF_ERROR(db_->Command("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY",
-                                        "cannot start a read transaction"));
+  PLACEREC_RETURN_IF_ERROR(db_->Begin("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY"));
   int64_t last = 0;
   const Status status = ScanPlaces(db_.get(), 0, INT64_MAX, [&](Place&& place) {
     last = place.id.value();
@@ -674,10 +681,8 @@ StatusOr<StoreCounts> PostgresStore::Counts() const {
 
 StatusOr<uint64_t> PostgresStore::Checksum() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  PLACEREC_RETURN_IF_ERROR(db_->Ensure());
   // Places and landmarks from one snapshot even while other servers insert.
-  PLACEREC_RETURN_IF_ERROR(db_->Command("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY",
-                                        "cannot start a read transaction"));
+  PLACEREC_RETURN_IF_ERROR(db_->Begin("BEGIN ISOLATION LEVEL REPEATABLE READ READ ONLY"));
   Fnv1a64 hash;
   Status status =
       ScanPlaces(db_.get(), 0, INT64_MAX, [&hash](Place&& place) { HashPlace(place, &hash); });

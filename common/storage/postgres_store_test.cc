@@ -458,6 +458,15 @@ TEST_F(PostgresStoreTest, ALostConnectionIsAnIoErrorAndTheStoreReconnects) {
   ASSERT_TRUE(store->AddPlace(&lost, &lost_landmarks).ok());
   EXPECT_LT(place.id, lost.id);
   ExpectCounts(*store, 2, 3, 2 + 3 + 4);
+
+  // A restart between two calls: the connection looks fine until used; the next insert opens it
+  // again and succeeds at once.
+  ASSERT_TRUE(cluster_->Down());
+  ASSERT_TRUE(cluster_->Up());
+  Place after_restart = MakePlace("r", 3);
+  const Status stored = store->AddPlace(&after_restart, nullptr);
+  EXPECT_TRUE(stored.ok()) << stored.ToString();
+  ExpectCounts(*store, 3, 3, 2 + 3 + 4);
 }
 
 }  // namespace
