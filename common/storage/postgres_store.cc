@@ -387,14 +387,23 @@ class Connection {
     }
     return Status::IoError(Describe() + ": " + what + ": " + message);
   }
-  // The URL without a password (postgresql://user:secret@host/... -> postgresql://user@host/...).
+  // The URL without its passwords (postgresql://user:secret@host/... becomes
+  // postgresql://user@host/..., and a password=... parameter password=***).
   std::string Redacted() const {
-    const size_t scheme = url_.find("://");
-    const size_t at = url_.find('@');
-    if (scheme == std::string::npos || at == std::string::npos) return url_;
-    const size_t colon = url_.find(':', scheme + 3);
-    if (colon == std::string::npos || colon > at) return url_;
-    return url_.substr(0, colon) + url_.substr(at);
+    std::string url = url_;
+    const size_t scheme = url.find("://");
+    const size_t at = url.find('@');
+    if (scheme != std::string::npos && at != std::string::npos) {
+      const size_t colon = url.find(':', scheme + 3);
+      if (colon != std::string::npos && colon < at) url = url.substr(0, colon) + url.substr(at);
+    }
+    for (size_t p = url.find("password="); p != std::string::npos;
+         p = url.find("password=", p + 1)) {
+      if (p == 0 || (url[p - 1] != '?' && url[p - 1] != '&')) continue;
+      const size_t end = url.find('&', p);
+      url = url.substr(0, p) + "password=***" + (end == std::string::npos ? "" : url.substr(end));
+    }
+    return url;
   }
 
   const std::string url_;

@@ -152,6 +152,15 @@ TEST(PostgresStoreOpenTest, AnUnreachableDatabaseIsAnIoError) {
   ASSERT_FALSE(store.ok());
   EXPECT_EQ(store.status().code(), StatusCode::kIoError);
   EXPECT_TRUE(Contains(store.status().message(), "cannot connect")) << store.status().message();
+  // Messages never show a password.
+  store = OpenPostgresStore(
+      "postgresql://placerec:topsecret@/placerec?host=/nonexistent-placerec&password=othersecret",
+      PostgresStoreOptions());
+  ASSERT_FALSE(store.ok());
+  EXPECT_FALSE(Contains(store.status().message(), "topsecret")) << store.status().message();
+  EXPECT_FALSE(Contains(store.status().message(), "othersecret")) << store.status().message();
+  EXPECT_TRUE(Contains(store.status().message(), "postgresql://placerec@/placerec?"))
+      << store.status().message();
 }
 
 TEST_F(PostgresStoreTest, WritesAndReadsBackAfterReopenWithTheSqliteDigest) {
