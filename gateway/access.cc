@@ -9,6 +9,7 @@
 #include <set>
 #include <sstream>
 
+#include "proto/auth/signing.h"
 #include "proto/channels.h"
 
 namespace placerec {
@@ -49,7 +50,7 @@ StatusOr<TokenTable> TokenTable::Parse(const std::string& text) {
     if (!(fields >> entry.device)) {
       return Status::InvalidArgument(where +
                                      "no device id after the token (TOKEN DEVICE "
-                                     "[expires=YYYY-MM-DDTHH:MM:SSZ])");
+                                     "[key=KEY_ID] [expires=YYYY-MM-DDTHH:MM:SSZ])");
     }
     std::string why;
     if (!IsValidWireRobotId(entry.device, &why)) {
@@ -57,9 +58,17 @@ StatusOr<TokenTable> TokenTable::Parse(const std::string& text) {
     }
     std::string option;
     while (fields >> option) {
-      if (option.rfind("expires=", 0) != 0 || !ParseUtc(option.substr(8), &entry.expires_unix)) {
+      if (option.rfind("key=", 0) == 0) {
+        entry.key_id = option.substr(4);
+        if (!IsValidKeyId(entry.key_id)) {
+          return Status::InvalidArgument(where + "'" + option +
+                                         "': a key id is 1 to 64 ASCII letters, digits, '_', "
+                                         "'-' or '.'");
+        }
+      } else if (option.rfind("expires=", 0) != 0 ||
+                 !ParseUtc(option.substr(8), &entry.expires_unix)) {
         return Status::InvalidArgument(where + "'" + option +
-                                       "' is not expires=YYYY-MM-DDTHH:MM:SSZ");
+                                       "' is neither key=KEY_ID nor expires=YYYY-MM-DDTHH:MM:SSZ");
       }
     }
     if (!seen.insert(entry.token).second) {
@@ -79,7 +88,7 @@ StatusOr<TokenTable> TokenTable::Load(const std::string& path) {
   return table;
 }
 
-StatusOr<std::string> TokenTable::Authenticate(const std::string& token, int64_t now_unix) const {
+StatusOr<DeviceToken> TokenTable::Authenticate(const std::string& token, int64_t now_unix) const {
   const DeviceToken* found = nullptr;
   for (const DeviceToken& entry : tokens_) {
     // Every entry is compared, each in constant time, so the time taken tells nothing.
@@ -92,7 +101,13 @@ StatusOr<std::string> TokenTable::Authenticate(const std::string& token, int64_t
     return Status::InvalidArgument("the token of device '" + found->device +
                                    "' has expired; ask the site's operator for a new one");
   }
-  return found->device;
+  return *found;
+}
+
+std::set<std::string> TokenTable::KeyIds() const {
+  std::set<std::string> ids;
+  for (const DeviceToken& entry : tokens_) ids.insert(entry.key_id);
+  return ids;
 }
 
 bool RateLimiter::Allow(const std::string& key, Clock::time_point now, double* retry_after_s) {

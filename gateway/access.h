@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdint>
 #include <mutex>
+#include <set>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -15,25 +16,31 @@ namespace placerec {
 
 // A device allowed to query through the gateway.
 struct DeviceToken {
-  std::string token;         // the bearer token, at least 16 printable ASCII characters
-  std::string device;        // the device's id: its frames' robot id (proto/README.md rule)
+  std::string token;   // the bearer token, at least 16 printable ASCII characters
+  std::string device;  // the device's id: its frames' robot id (proto/README.md rule)
+  // The key of the gateway's keys file that signs this device's queries (server/README.md
+  // "Keys"); empty: the gateway's own key (--key-id). A key per device lets the server's keys
+  // file revoke one device alone.
+  std::string key_id;
   int64_t expires_unix = 0;  // seconds since the epoch after which the token is refused; 0 never
 };
 
-// The tokens file: one device per line, `TOKEN DEVICE [expires=YYYY-MM-DDTHH:MM:SSZ]`; blank
-// lines and lines starting with '#' are ignored.
+// The tokens file: one device per line, `TOKEN DEVICE [key=KEY_ID] [expires=YYYY-MM-DDTHH:MM:SSZ]`;
+// blank lines and lines starting with '#' are ignored.
 class TokenTable {
  public:
   // InvalidArgument naming the line and what to fix: a short token, a device id that cannot be
-  // a robot id, a malformed expiry, a token listed twice.
+  // a robot id, a malformed key id or expiry, a token listed twice.
   static StatusOr<TokenTable> Parse(const std::string& text);
   static StatusOr<TokenTable> Load(const std::string& path);
 
   // The device of `token` at `now_unix`; InvalidArgument saying whether it is unknown or expired
   // (the gateway answers 401 with the message). Tokens are compared in constant time.
-  StatusOr<std::string> Authenticate(const std::string& token, int64_t now_unix) const;
+  StatusOr<DeviceToken> Authenticate(const std::string& token, int64_t now_unix) const;
 
   size_t size() const { return tokens_.size(); }
+  // The distinct key ids the devices name ("" for devices signed with the gateway's own key).
+  std::set<std::string> KeyIds() const;
 
  private:
   std::vector<DeviceToken> tokens_;

@@ -98,7 +98,7 @@ bool GatewayOptions::Check(std::string* error) const {
     return false;
   }
   if (tokens_file.empty()) {
-    *error = "--tokens is required: a file of `TOKEN DEVICE [expires=...]` lines";
+    *error = "--tokens is required: a file of `TOKEN DEVICE [key=KEY_ID] [expires=...]` lines";
     return false;
   }
   if (port < 0 || port > 65535) {
@@ -137,9 +137,24 @@ StatusOr<std::unique_ptr<Gateway>> Gateway::Create(const GatewayOptions& options
                                    " lists no device: nobody could use the gateway");
   }
   std::unique_ptr<Gateway> gateway(new Gateway(options, std::move(*tokens)));
-  StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(options.client);
-  if (!client.ok()) return client.status();
-  gateway->client_ = std::move(*client);
+  for (const std::string& key_id : gateway->tokens_.KeyIds()) {
+    ClientOptions client_options = options.client;
+    if (!key_id.empty()) {
+      if (options.client.key_file.empty()) {
+        return Status::InvalidArgument(options.tokens_file + " names key '" + key_id +
+                                       "' for a device: give --key-file with that key");
+      }
+      client_options.key_id = key_id;
+    }
+    StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(client_options);
+    if (!client.ok()) {
+      return Status(
+          client.status().code(),
+          (key_id.empty() ? "the gateway's key" : "the key of a device, '" + key_id + "'") +
+              std::string(": ") + client.status().message());
+    }
+    gateway->clients_[key_id] = std::move(*client);
+  }
   StatusOr<std::unique_ptr<SiteWatcher>> watcher =
       SiteWatcher::Start(options.client.lcm_url, options.recent_loop_closures);
   if (!watcher.ok()) return watcher.status();
@@ -162,13 +177,13 @@ Gateway::Gateway(const GatewayOptions& options, TokenTable tokens)
 
 Gateway::~Gateway() { Stop(); }
 
-bool Gateway::Admit(const std::string& authorization, std::string* device, HttpReply* refusal) {
+bool Gateway::Admit(const std::string& authorization, DeviceToken* device, HttpReply* refusal) {
   const std::string token = BearerToken(authorization);
   if (token.empty()) {
     *refusal = ErrorReply(401, "send the device's token as 'Authorization: Bearer TOKEN'");
     return false;
   }
-  StatusOr<std::string> who = tokens_.Authenticate(token, NowUnix());
+  StatusOr<DeviceToken> who = tokens_.Authenticate(token, NowUnix());
   if (!who.ok()) {
     *refusal = ErrorReply(401, who.status().message());
     return false;
@@ -187,7 +202,7 @@ bool Gateway::Admit(const std::string& authorization, std::string* device, HttpR
 }
 
 HttpReply Gateway::Query(const std::string& authorization, const std::string& image) {
-  std::string device;
+  DeviceToken device;
   HttpReply refusal;
   if (!Admit(authorization, &device, &refusal)) return refusal;
   if (static_cast<int64_t>(image.size()) > options_.max_upload_bytes) {
@@ -202,31 +217,38 @@ HttpReply Gateway::Query(const std::string& authorization, const std::string& im
                       "'image')");
   }
   frame.image.bytes.assign(image.begin(), image.end());
-  frame.robot = device;
+  frame.robot = device.device;
   frame.sequence = next_sequence_++;
   frame.utime = NowMicros();
   frame.insert = false;  // the gateway never changes the map
-  StatusOr<PendingFrame> pending = client_->Publish(frame);
+  PlacerecClient& client = *clients_.at(device.key_id);
+  StatusOr<PendingFrame> pending = client.Publish(frame);
   if (!pending.ok())
     return ErrorReply(502, "cannot reach the server: " + pending.status().message());
-  const FrameResult result = client_->Wait(*pending, options_.query_timeout_s);
+  const FrameResult result = client.Wait(*pending, options_.query_timeout_s);
   if (!result.ok()) {
-    const std::string why = result.code == AnswerCode::kTimeout
-                                ? "no answer from the placerec server within " +
-                                      std::to_string(static_cast<int>(options_.query_timeout_s)) +
-                                      " s; is it running on the gateway's LCM network?"
-                                : std::string(AnswerCodeName(result.code)) + ": " + result.message;
+    std::string why = result.code == AnswerCode::kTimeout
+                          ? "no answer from the placerec server within " +
+                                std::to_string(static_cast<int>(options_.query_timeout_s)) +
+                                " s; is it running on the gateway's LCM network?"
+                          : std::string(AnswerCodeName(result.code)) + ": " + result.message;
+    // An answer the client ignored (not signed with the device's key, e.g. the server no
+    // longer knows the key) says why the device got none.
+    const size_t ignored = result.message.find("; an answer not signed");
+    if (result.code == AnswerCode::kTimeout && ignored != std::string::npos) {
+      why += result.message.substr(ignored);
+    }
     return ErrorReply(HttpStatusOf(result.code), why);
   }
   nlohmann::json body = AnswerJson(result);
-  body["device"] = device;
+  body["device"] = device.device;
   HttpReply reply;
   reply.body = body.dump();
   return reply;
 }
 
 HttpReply Gateway::ServerStatus(const std::string& authorization) {
-  std::string device;
+  DeviceToken device;
   HttpReply refusal;
   if (!Admit(authorization, &device, &refusal)) return refusal;
   const nlohmann::json status = watcher_->LastStatus();
@@ -241,7 +263,7 @@ HttpReply Gateway::ServerStatus(const std::string& authorization) {
 }
 
 HttpReply Gateway::Site(const std::string& authorization) {
-  std::string device;
+  DeviceToken device;
   HttpReply refusal;
   if (!Admit(authorization, &device, &refusal)) return refusal;
   HttpReply reply;
@@ -250,7 +272,7 @@ HttpReply Gateway::Site(const std::string& authorization) {
 }
 
 HttpReply Gateway::Thumbnail(const std::string& authorization, const std::string& place_id) {
-  std::string device;
+  DeviceToken device;
   HttpReply refusal;
   if (!Admit(authorization, &device, &refusal)) return refusal;
   return ErrorReply(404,

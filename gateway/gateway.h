@@ -7,6 +7,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <string>
 
@@ -70,12 +71,14 @@ class Gateway {
  private:
   Gateway(const GatewayOptions& options, TokenTable tokens);
   // The device of a valid token within its rate; otherwise *refusal is the answer to send.
-  bool Admit(const std::string& authorization, std::string* device, HttpReply* refusal);
+  bool Admit(const std::string& authorization, DeviceToken* device, HttpReply* refusal);
 
   GatewayOptions options_;
   TokenTable tokens_;
   RateLimiter limiter_;
-  std::unique_ptr<PlacerecClient> client_;
+  // One LCM client per key the devices' queries are signed with (DeviceToken::key_id; "" is the
+  // gateway's own key, ClientOptions::key_id).
+  std::map<std::string, std::unique_ptr<PlacerecClient>> clients_;
   std::unique_ptr<SiteWatcher> watcher_;
   std::unique_ptr<httplib::SSLServer> http_;
   std::atomic<int64_t> next_sequence_{0};

@@ -30,8 +30,10 @@ constexpr char kUsage[] =
     "  GET  /v1/places/ID/thumbnail     the stored picture of a place\n"
     "Errors are JSON {\"error\": \"...\"} with the HTTP status. The tokens file has one device "
     "per\n"
-    "line: TOKEN DEVICE [expires=YYYY-MM-DDTHH:MM:SSZ] (DEVICE names the device's frames like a\n"
-    "robot id). scripts/make-cert.sh DIR makes a self-signed certificate for tests and demos.";
+    "line: TOKEN DEVICE [key=KEY_ID] [expires=YYYY-MM-DDTHH:MM:SSZ]. DEVICE names the device's\n"
+    "frames like a robot id; KEY_ID, a query key of --key-file, signs its queries (default: the\n"
+    "gateway's --key-id), so the server's keys file can revoke that device alone.\n"
+    "scripts/make-cert.sh DIR makes a self-signed certificate for tests and demos.";
 
 int Main(int argc, char** argv) {
   GatewayOptions options;

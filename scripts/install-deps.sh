@@ -10,6 +10,7 @@ packages=(
   liblcm-dev liblcm-bin libglib2.0-dev
   libflann-dev liblz4-dev
   libsqlite3-dev sqlite3
+  libpq-dev postgresql-15
   libgoogle-glog-dev libboost-program-options-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev clang-format
   clang-15 libfuzzer-15-dev

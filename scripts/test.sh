@@ -4,6 +4,8 @@
 # fuzz target for FUZZ_SECONDS seconds (default 60; 0 skips them; scripts/fuzz.sh).
 # Tests that need ../shared/data skip with a message when it is absent (set PLACEREC_DATA to
 # point elsewhere).
+# The PostgreSQL tests (label postgres) start their own throw-away clusters with scripts/pg.sh;
+# install-deps installs postgresql-15 for them.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build_dir=${BUILD_DIR:-$root/build}

@@ -37,6 +37,10 @@ class FrameProcessor {
 
   PlaceMap& map() { return *map_; }
 
+  // A place another server stored in the shared map: the sequence rule learns it as it learns the
+  // places loaded at start. Thread-safe.
+  void NoteStored(const Place& place) { gate_.AddStored(place.robot, place.sequence); }
+
  private:
   result_t ProcessOrThrow(const frame_t& frame, std::vector<change_t>* alarms);
   // The stored place of an insert sent again: the map holds a place of the frame's robot and

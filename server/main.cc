@@ -26,11 +26,14 @@ void OnReloadSignal(int) {
 }
 
 constexpr char kUsage[] =
-    "placerec-server [--db FILE] [--lcm-url URL]... [options]\n\n"
+    "placerec-server [--db FILE|postgresql://...] [--robots ID,ID...] [--lcm-url URL]... "
+    "[options]\n\n"
     "Serves place recognition over LCM: frames (placerec.frame_t) on PLACEREC_FRAME, one answer\n"
     "(placerec.result_t) per frame on PLACEREC_RESULT_<robot>, a heartbeat (placerec.status_t) on\n"
-    "PLACEREC_STATUS every second. The landmark map lives in the SQLite file --db; it is reloaded\n"
-    "at start-up, and each frame's landmarks are committed before its answer is published.\n"
+    "PLACEREC_STATUS every second. The landmark map lives in the SQLite file --db, or in a\n"
+    "PostgreSQL database several servers share (--db postgresql://...; each server follows the\n"
+    "others' inserts, and --robots splits the robots between them); it is reloaded at start-up,\n"
+    "and each frame's landmarks are committed before its answer is published.\n"
     "Frames must be signed with a key of the --keys file (proto/README.md \"Signed frames\");\n"
     "SIGHUP reloads it. Stops cleanly on SIGINT or SIGTERM.";
 
@@ -39,7 +42,17 @@ int Main(int argc, char** argv) {
   bool sqlite_normal = false;
   std::string auth = "on";
   FlagParser parser(kUsage);
-  parser.Add("db", &options.db_path, "SQLite map file (created when missing)");
+  std::string robots;
+  parser.Add("db", &options.db_path,
+             "the map: a SQLite file (created when missing), or a PostgreSQL URL such as "
+             "postgresql://user@host/placerec or postgresql:///placerec?host=/run/pg (a unix "
+             "socket folder) for one map shared by several servers (scripts/pg.sh starts a "
+             "throw-away cluster)");
+  parser.Add("robots", &robots,
+             "comma-separated robot (and device) ids this server answers; frames of other ids are "
+             "left to other servers on the same network and map (default: every id)");
+  parser.Add("pg-connect-timeout", &options.postgres.connect_timeout_s,
+             "seconds a connection to a PostgreSQL map may take before it counts as lost");
   parser.AddRepeated(
       "lcm-url", &options.lcm_urls,
       "LCM URL of a network to serve; give it once per network, e.g. --lcm-url "
@@ -85,6 +98,13 @@ int Main(int argc, char** argv) {
     return *exit;
   }
   options.store.synchronous_full = !sqlite_normal;
+  for (size_t begin = 0; begin < robots.size();) {
+    size_t end = robots.find(',', begin);
+    if (end == std::string::npos) end = robots.size();
+    options.robots.push_back(robots.substr(begin, end - begin));
+    begin = end + 1;
+    if (end + 1 == robots.size()) options.robots.push_back("");  // a trailing comma: refused
+  }
   if (auth != "on" && auth != "off") {
     std::fprintf(stderr, "placerec-server: --auth must be on or off\n");
     return 2;

@@ -19,7 +19,8 @@ void SequenceGate::AddStored(const std::string& robot, int64_t sequence) {
   auto [it, added] = robots_.try_emplace(robot);
   Robot& r = it->second;
   if (added || sequence > r.last) r.last = sequence;
-  r.last_accepted = start_;
+  // A robot's own inserts keep their time; a place stored elsewhere does not make it recent.
+  if (added) r.last_accepted = start_;
   r.stored.insert(sequence);
 }
 

@@ -46,7 +46,9 @@ class SequenceGate {
   explicit SequenceGate(const SequenceRuleOptions& options, Clock::time_point start = Clock::now())
       : options_(options), start_(start) {}
 
-  // A place the map holds (loaded at start): raises the robot's last sequence to it.
+  // A place the map holds (loaded at start, or stored since by another server on a shared map):
+  // raises the robot's last sequence to it. A robot first seen this way counts as last accepted
+  // at start-up; a known robot keeps the time of its last accepted insert.
   void AddStored(const std::string& robot, int64_t sequence);
 
   // Whether an insert of `robot` with `sequence` arriving at `now` may go ahead; an

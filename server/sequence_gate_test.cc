@@ -108,5 +108,24 @@ TEST(SequenceGateTest, AMapsPlacesSetTheLastSequenceAtStartUp) {
             std::string::npos);
 }
 
+// A place of an active robot that arrives from the shared map (PostgreSQL: another server, or this
+// server's own insert coming back through its follower) does not make the robot look silent
+// since start-up: the restart gap still counts from its last accepted insert.
+TEST(SequenceGateTest, APlaceFromTheSharedMapKeepsAnActiveRobotsTime) {
+  const Clock::time_point start = Clock::now();
+  SequenceGate gate(Gap(5), start);
+  const Clock::time_point t = start + std::chrono::seconds(60);
+  ASSERT_TRUE(gate.Admit("r", 10, t).ok());
+  gate.Accepted("r", 10, /*stored=*/true, t);
+  gate.AddStored("r", 10);
+  gate.AddStored("r", 11);
+  EXPECT_NE(Refusal(gate, "r", 3, t + std::chrono::seconds(1)).find("is not after 11"),
+            std::string::npos);
+  EXPECT_EQ(*gate.Admit("r", 12, t + std::chrono::seconds(1)), SequenceGate::Admission::kSameRun);
+  // A robot first heard of through the map counts as accepted at start-up.
+  gate.AddStored("q", 4);
+  EXPECT_EQ(*gate.Admit("q", 1, t), SequenceGate::Admission::kNewRun);
+}
+
 }  // namespace
 }  // namespace placerec

@@ -21,6 +21,10 @@
 namespace placerec {
 namespace {
 
+// How long an insert waits for its place to come back through the map follower before indexing
+// it itself (PlaceMap::IndexThroughFollower).
+constexpr std::chrono::milliseconds kFollowerIndexTimeout(2000);
+
 // Frames LCM may hold for the receive loop (see Run); bounds memory at this many messages.
 constexpr int kLcmFrameQueue = 1024;
 
@@ -71,8 +75,19 @@ bool ServerOptions::Check(std::string* error) const {
     *error = "--status-period must be positive and at most 3600 seconds";
     return false;
   }
-  return auth.Check(error) && store.Check(error) && decode.Check(error) &&
-         sequence_rule.Check(error) && recognizer.Check(error);
+  for (const std::string& robot : robots) {
+    if (robot.empty()) {
+      *error = "--robots must not name an empty robot id";
+      return false;
+    }
+  }
+  if (repair && IsPostgresUrl(db_path)) {
+    *error = "--repair repairs SQLite map files; a PostgreSQL map is restored with its own tools";
+    return false;
+  }
+  return auth.Check(error) && store.Check(error) && postgres.Check(error) &&
+         follower.Check(error) && decode.Check(error) && sequence_rule.Check(error) &&
+         recognizer.Check(error);
 }
 
 StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
@@ -104,13 +119,30 @@ StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
                 << " places); nothing to repair";
     }
   }
-  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(options.db_path, options.store);
+  const bool postgres = IsPostgresUrl(options.db_path);
+  StatusOr<std::unique_ptr<LandmarkStore>> store =
+      postgres ? OpenPostgresStore(options.db_path, options.postgres)
+               : OpenSqliteStore(options.db_path, options.store);
   if (!store.ok()) return store.status();
   StatusOr<std::unique_ptr<PlaceMap>> map =
       PlaceMap::Open(std::move(*store), options.recognizer.index);
   if (!map.ok()) return map.status();
   std::unique_ptr<Server> server(new Server(options, std::move(*map), std::move(*segmenter),
                                             std::move(labeler), std::move(*auth)));
+  if (postgres) {
+    // From the last place loaded on: later ones, whoever inserts them, come through the feed.
+    PlaceId last;
+    server->map_->ForEachPlace([&last](const Place& place) {
+      if (last < place.id) last = place.id;
+    });
+    Server* raw = server.get();
+    server->follower_ = std::make_unique<MapFollower>(
+        options.db_path, options.postgres, options.follower, server->map_.get(), last,
+        [raw](const Place& place) { raw->processor_.NoteStored(place); });
+    // Every server indexes every place in id order, its own ones included (PlaceMap).
+    server->map_->IndexThroughFollower(kFollowerIndexTimeout);
+    server->follower_->Start();
+  }
   for (const std::unique_ptr<Network>& network : server->networks_) {
     // A tcpq URL whose hub does not answer leaves a "good" LCM without a connection.
     if (!network->lcm.good() || network->lcm.getFileno() < 0) {
@@ -139,6 +171,7 @@ Server::Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map,
 }
 
 Server::~Server() {
+  if (follower_) follower_->Stop();
   if (queue_) queue_->Shutdown();
 }
 
@@ -268,6 +301,16 @@ void Server::OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer,
     return;
   }
   job.frame = std::move(*frame);
+  if (!options_.robots.empty() && std::find(options_.robots.begin(), options_.robots.end(),
+                                            job.frame.robot) == options_.robots.end()) {
+    // Another server answers this robot (ServerOptions::robots).
+    if (not_ours_ == 0) {
+      LOG(INFO) << "frames of robot '" << job.frame.robot
+                << "' are left to the other servers (not in --robots)";
+    }
+    ++not_ours_;
+    return;
+  }
   std::string why;
   if (!IsValidWireRobotId(job.frame.robot, &why)) {
     // No lane and no channel of its own: answer at once on the shared error channel.

@@ -1,8 +1,9 @@
-// placerec-server (DESIGN.md "Architecture"): holds one site's landmark map (SQLite) and answers
-// frames from many robots over LCM. The receive loop decodes each message on PLACEREC_FRAME and
-// queues it in its robot's lane (server/work_queue.h); workers run the pipeline
-// (server/frame_processor.h), the map commits the frame's landmarks, and only then is the answer
-// published on PLACEREC_RESULT_<robot>. A heartbeat goes to PLACEREC_STATUS every second.
+// placerec-server (DESIGN.md "Architecture"): holds one site's landmark map (SQLite, or PostgreSQL
+// shared with other servers) and answers frames from many robots over LCM. The receive loop decodes
+// each message on PLACEREC_FRAME and queues it in its robot's lane (server/work_queue.h); workers
+// run the pipeline (server/frame_processor.h), the map commits the frame's landmarks, and only then
+// is the answer published on PLACEREC_RESULT_<robot>. A heartbeat goes to PLACEREC_STATUS every
+// second.
 #pragma once
 
 #include <atomic>
@@ -17,6 +18,7 @@
 #include "common/image/image.h"
 #include "common/pipeline/place_map.h"
 #include "common/pipeline/recognizer.h"
+#include "common/storage/postgres_store.h"
 #include "common/storage/sqlite_store.h"
 #include "common/util/status.h"
 #include "common/util/timer.h"
@@ -27,6 +29,7 @@
 #include "server/answer_record.h"
 #include "server/authenticator.h"
 #include "server/frame_processor.h"
+#include "server/map_follower.h"
 #include "server/sequence_gate.h"
 #include "server/server_stats.h"
 #include "server/work_queue.h"
@@ -34,8 +37,14 @@
 namespace placerec {
 
 struct ServerOptions {
-  // The SQLite map file; created when missing, reloaded when present.
+  // The map: a SQLite file (created when missing, reloaded when present), or a PostgreSQL URL
+  // (postgresql://... or postgres://..., IsPostgresUrl) of a map several servers share; each
+  // then follows the others' inserts (server/map_follower.h).
   std::string db_path = "placerec.db";
+  // The robots (and devices) this server answers; empty: every one. Servers sharing one LCM
+  // network and one PostgreSQL map split the robots between them with disjoint lists; frames of
+  // robots not listed are left to the other servers (no answer from this one).
+  std::vector<std::string> robots;
   // LCM URLs, one per network the server serves at once, e.g.
   // "udpm://239.255.76.67:7667?ttl=1" for the robot LAN and "tcpq://127.0.0.1:7700" for remote
   // devices through an LCM TCP hub (scripts/lcm-hub.sh). Each frame's answer goes back on the
@@ -55,6 +64,8 @@ struct ServerOptions {
   // Who may send frames (keys file, on by default; server/README.md "Keys").
   AuthOptions auth;
   SqliteStoreOptions store;
+  PostgresStoreOptions postgres;
+  MapFollowerOptions follower;
   DecodeOptions decode;
   SequenceRuleOptions sequence_rule;
   RecognizerOptions recognizer;
@@ -134,6 +145,8 @@ class Server {
   std::unique_ptr<PlaceMap> map_;
   FrameProcessor processor_;
   std::vector<std::unique_ptr<Network>> networks_;
+  // Follows the other servers' inserts into map_ (PostgreSQL maps only); stopped first.
+  std::unique_ptr<MapFollower> follower_;
   ServerStats stats_;
   // Frames in flight and recent answers per robot, so that a re-sent frame is not processed twice.
   AnswerRecord answers_;
@@ -142,6 +155,7 @@ class Server {
   // Used by the receive loop only.
   Authenticator auth_;
   int64_t dropped_logged_ = 0;
+  int64_t not_ours_ = 0;  // frames of robots other servers answer (ServerOptions::robots)
   int64_t unauthorised_logged_ = 0;
   // Last: its workers use everything above, so it is destroyed (joined) first.
   std::unique_ptr<LaneWorkQueue<Job>> queue_;

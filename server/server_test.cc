@@ -114,6 +114,16 @@ TEST(ServerOptionsTest, DefaultsPassAndBadValuesNameTheirFlag) {
       // The parts' own checks run too.
       {"--auth-window", [](ServerOptions* o) { o->auth.window_s = 0; }},
       {"max_image_width", [](ServerOptions* o) { o->recognizer.analyzer.max_image_width = 10; }},
+      {"connect_timeout_s", [](ServerOptions* o) { o->postgres.connect_timeout_s = 0; }},
+      {"--robots",
+       [](ServerOptions* o) {
+         o->robots = {"r1", ""};
+       }},
+      {"--repair",
+       [](ServerOptions* o) {
+         o->db_path = "postgresql:///placerec";
+         o->repair = true;
+       }},
   });
   // The edges are allowed.
   ServerOptions edges;
@@ -154,6 +164,14 @@ TEST(ServerTest, CreateSaysWhyItCannotServe) {
       << server.status().message();
   std::ifstream in(foreign);
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), text);
+
+  // A PostgreSQL map that cannot be reached: the error names the URL.
+  const std::string unreachable = "postgresql:///placerec?host=" + dir.File("no_socket_here");
+  server = Server::Create(TestOptions(unreachable));
+  ASSERT_FALSE(server.ok());
+  EXPECT_EQ(server.status().code(), StatusCode::kIoError);
+  EXPECT_NE(server.status().message().find(unreachable), std::string::npos)
+      << server.status().message();
 
   ServerOptions bad_url = TestOptions(dir.File("map.db"));
   bad_url.lcm_urls = {"nosuchprovider://x"};

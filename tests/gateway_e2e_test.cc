@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -16,6 +17,7 @@
 #include <memory>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -43,6 +45,7 @@ constexpr int kPort = 18443;
 constexpr char kToken[] = "field-device-token-0001";
 constexpr char kOtherToken[] = "field-device-token-0002";
 constexpr char kExpiredToken[] = "field-device-token-0003";
+constexpr char kOwnKeyToken[] = "field-device-token-0004";  // signed with its own key "phone-4"
 constexpr int kMapped = 40;  // corridor frames 0..39 go into the map; revisits begin at 40
 constexpr int kBurst = 30;
 
@@ -68,11 +71,15 @@ class GatewayTest : public ::testing::Test {
     std::ofstream(dir_ + "/tokens") << "# test devices\n"
                                     << kToken << " phone-1\n"
                                     << kOtherToken << " phone-2\n"
-                                    << kExpiredToken << " phone-3 expires=2020-01-01T00:00:00Z\n";
+                                    << kExpiredToken << " phone-3 expires=2020-01-01T00:00:00Z\n"
+                                    << kOwnKeyToken << " phone-4 key=phone-4\n";
 
-    // The robots may insert; the gateway only query (it never inserts).
-    keys_ =
-        testing_service::WriteTestKeys(dir_ + "/keys", {{"robots", "both"}, {"gateway", "query"}});
+    // The robots may insert; the gateway and phone-4 only query (the gateway never inserts).
+    // The gateway holds a copy of the keys: the server's file is changed by a test.
+    keys_ = testing_service::WriteTestKeys(
+        dir_ + "/keys", {{"robots", "both"}, {"gateway", "query"}, {"phone-4", "query"}});
+    const std::string gateway_keys = dir_ + "/gateway-keys";
+    std::filesystem::copy_file(keys_, gateway_keys);
     ClientOptions options;
     options.lcm_url = TestLcmUrl();
     options.key_file = keys_;
@@ -92,7 +99,7 @@ class GatewayTest : public ::testing::Test {
 
     StatusOr<std::unique_ptr<ChildProcess>> gateway = ChildProcess::Start(
         {BinaryPath("placerec-gateway"), "--cert", dir_ + "/cert.pem", "--key", dir_ + "/key.pem",
-         "--tokens", dir_ + "/tokens", "--key-file", keys_, "--key-id", "gateway", "--port",
+         "--tokens", dir_ + "/tokens", "--key-file", gateway_keys, "--key-id", "gateway", "--port",
          std::to_string(kPort), "--lcm-url", TestLcmUrl(), "--max-upload-bytes", "2000000",
          "--burst", std::to_string(kBurst)},
         dir_ + "/gateway.log");
@@ -264,6 +271,36 @@ TEST_F(GatewayTest, RefusalsAreJsonErrorsAndChangeNothing) {
   EXPECT_EQ(status_code, 200);
   EXPECT_EQ(status["map_places"].get<int64_t>(), places);
   EXPECT_EQ(MapPlaces(), places);
+}
+
+// A device whose token names its own key (key=phone-4) is signed with it, so the server's keys
+// file decides for that device alone: made insert-only there, its queries are refused (403)
+// while the other devices, signed with the gateway's key, are answered.
+TEST_F(GatewayTest, ADeviceWithItsOwnKeyCanBeRevokedAtTheServerAlone) {
+  const std::string photo = ReadBytes(run_.frames[kMapped].image);
+  const auto [before, before_body] =
+      Json(Https()->Post("/v1/query", Bearer(kOwnKeyToken), photo, "image/jpeg"));
+  ASSERT_EQ(before, 200) << before_body.dump() << Tail(server_->log_path());
+  EXPECT_EQ(before_body["device"], "phone-4");
+  {
+    std::string text = testing_service::ReadTextFile(keys_);
+    const size_t line = text.find("phone-4 query ");
+    ASSERT_NE(line, std::string::npos) << text;
+    text.replace(line, std::string("phone-4 query").size(), "phone-4 insert");
+    std::ofstream(keys_, std::ios::trunc) << text;
+  }
+  server_->Signal(SIGHUP);
+  int status = 200;
+  nlohmann::json body;
+  for (int attempt = 0; attempt < 20 && status == 200; ++attempt) {
+    std::tie(status, body) =
+        Json(Https()->Post("/v1/query", Bearer(kOwnKeyToken), photo, "image/jpeg"));
+  }
+  EXPECT_EQ(status, 403) << body.dump();
+  EXPECT_NE(body.dump().find("phone-4"), std::string::npos) << body.dump();
+  const auto [other, other_body] =
+      Json(Https()->Post("/v1/query", Bearer(kToken), photo, "image/jpeg"));
+  EXPECT_EQ(other, 200) << other_body.dump();
 }
 
 // Decodes base64 (the WebDriver screenshot) with OpenSSL.

@@ -4,7 +4,9 @@
 // - 8 robots, each sending its next frame as soon as the last one is answered, so the load is
 //   paced by the server's own capacity; two inserts to one query-only frame.
 // - One disk-full episode at 20 % of the time: the map's file system (a tmpfs of its own in a
-//   private mount namespace) is filled for 5 % of the time (at least 10 s), then freed.
+//   private mount namespace) is filled for 5 % of the time (at least 10 s), and longer until an
+//   insert has been refused (SQLite's write-ahead log may still hold a few inserts in pages it
+//   reuses; the episode ends before the kill at the latest), then freed.
 // - One SIGKILL and restart on the same map at 40 % of the time; the robots' clients send
 //   unanswered frames again (ClientOptions::retry_after_s) until the new server answers.
 // - The last 30 % of the time query-only frames on a map that no longer changes.
@@ -18,6 +20,7 @@
 #include <fcntl.h>
 #include <sched.h>
 #include <signal.h>
+#include <sqlite3.h>
 #include <sys/mount.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -215,6 +218,23 @@ class SoakTest : public ::testing::Test {
     return true;
   }
 
+  // Empties the map's write-ahead log (a TRUNCATE checkpoint through a connection of our own,
+  // as any SQLite process may make), so that the next insert after the disk fills must grow
+  // it: without this the log's reusable pages can take a few megabytes of inserts on a full
+  // disk. True when the log is empty afterwards.
+  bool TruncateWriteAheadLog() {
+    sqlite3* db = nullptr;
+    bool truncated = false;
+    if (sqlite3_open_v2(db_.c_str(), &db, SQLITE_OPEN_READWRITE, nullptr) == SQLITE_OK) {
+      sqlite3_busy_timeout(db, 5000);
+      truncated = sqlite3_exec(db, "PRAGMA wal_checkpoint(TRUNCATE)", nullptr, nullptr, nullptr) ==
+                  SQLITE_OK;
+    }
+    sqlite3_close(db);
+    struct stat wal = {};
+    return truncated && stat((db_ + "-wal").c_str(), &wal) == 0 && wal.st_size == 0;
+  }
+
   // Fills the map's file system: a file of zeros written until the disk is full.
   std::string FillDisk() {
     const std::string filler = map_dir_ + "/filler";
@@ -264,6 +284,7 @@ TEST_F(SoakTest, EightRobotsWithARestartAndAFullDisk) {
   const Clock::time_point start = Clock::now();
   std::atomic<int> phase{static_cast<int>(Phase::kMixed)};
   std::atomic<bool> stop{false};
+  std::atomic<int> storage_errors_seen{0};  // answers "storage error" so far
 
   // Memory, once a second.
   std::vector<MemorySample> memory;
@@ -319,6 +340,7 @@ TEST_F(SoakTest, EightRobotsWithARestartAndAFullDisk) {
           record.request_id = pending->request_id;
           record.result = client->Wait(*pending, options.timeout_s);
         }
+        if (record.result.code == AnswerCode::kStorageError) ++storage_errors_seen;
         std::lock_guard lock(sent_mutex);
         sent.push_back(std::move(record));
       }
@@ -332,8 +354,15 @@ TEST_F(SoakTest, EightRobotsWithARestartAndAFullDisk) {
   sleep_until(kDiskFullAt * duration_s);
   phase = static_cast<int>(Phase::kDiskFull);
   const double disk_full_begin = SecondsSince(start);
+  const bool wal_truncated = TruncateWriteAheadLog();
   const std::string filler = FillDisk();
+  struct stat wal_stat = {};
+  const int64_t wal_bytes_at_disk_full =
+      stat((db_ + "-wal").c_str(), &wal_stat) == 0 ? wal_stat.st_size : -1;
   sleep_until(disk_full_begin + disk_full_s);
+  while (storage_errors_seen == 0 && SecondsSince(start) < kKillAt * duration_s - 5) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
   ASSERT_EQ(unlink(filler.c_str()), 0);
   const double disk_full_end = SecondsSince(start);
   phase = static_cast<int>(Phase::kMixed);
@@ -487,6 +516,8 @@ TEST_F(SoakTest, EightRobotsWithARestartAndAFullDisk) {
   report["storage_errors_during_disk_full"] = storage_errors;
   report["other_failures"] = other_failures;
   report["disk_full_s"] = {disk_full_begin, disk_full_end};
+  report["wal_bytes_at_disk_full"] = wal_bytes_at_disk_full;
+  report["wal_truncated_before_disk_full"] = wal_truncated;
   report["kill_at_s"] = kill_at;
   report["restart_s"] = restart_s;
   report["acknowledged_places"] = acknowledged;

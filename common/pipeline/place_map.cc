@@ -64,14 +64,46 @@ MapLookupResult PlaceMap::Lookup(const MapLookup& lookup,
 }
 
 Status PlaceMap::Insert(Place* place, std::vector<Landmark>* landmarks) {
-  std::unique_lock lock(mutex_);
-  PLACEREC_RETURN_IF_ERROR(store_->AddPlace(place, landmarks));
+  std::unique_lock lock(mutex_, std::defer_lock);
+  const std::chrono::milliseconds timeout(follower_timeout_ms_.load());
+  if (timeout.count() > 0) {
+    // The store serialises its own calls; lookups go on while it commits.
+    PLACEREC_RETURN_IF_ERROR(store_->AddPlace(place, landmarks));
+    lock.lock();
+    if (indexed_.wait_for(lock, timeout, [&] { return places_.count(place->id) > 0; })) {
+      return Status::Ok();
+    }
+    LOG(WARNING) << "place " << place->id.value()
+                 << " did not come back through the map follower within " << timeout.count()
+                 << " ms; indexed out of id order";
+  } else {
+    lock.lock();
+    PLACEREC_RETURN_IF_ERROR(store_->AddPlace(place, landmarks));
+  }
   places_[place->id] = *place;
   places_[place->id].thumbnail.clear();  // in the store only: LoadThumbnail
   index_.AddPlace(*place);
   for (const Landmark& landmark : *landmarks) index_.Add(landmark);
   for (const LandmarkId seen : place->seen_landmarks) seen_at_[seen].push_back(place->id);
   return Status::Ok();
+}
+
+void PlaceMap::IndexThroughFollower(std::chrono::milliseconds timeout) {
+  follower_timeout_ms_.store(timeout.count());
+}
+
+bool PlaceMap::AddCommitted(const Place& place, std::vector<Landmark>&& landmarks) {
+  std::unique_lock lock(mutex_);
+  // Insert holds the lock from its commit until the place is indexed, so a place committed
+  // through this map is already here when its committed row can be read.
+  if (places_.count(place.id) > 0) return false;
+  places_[place.id] = place;
+  places_[place.id].thumbnail.clear();  // in the store only: LoadThumbnail
+  index_.AddPlace(place);
+  for (const Landmark& landmark : landmarks) index_.Add(landmark);
+  for (const LandmarkId seen : place.seen_landmarks) seen_at_[seen].push_back(place.id);
+  indexed_.notify_all();
+  return true;
 }
 
 MapLookupResult PlaceMap::LookupSeed(const MapLookup& lookup, const SeedLoopOptions& options,

@@ -3,6 +3,9 @@
 // concurrently, an insert waits for them and commits to the store before the index sees it.
 #pragma once
 
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -67,6 +70,17 @@ class PlaceMap {
   // an unknown place.
   std::vector<Landmark> LandmarkOutlines(PlaceId place) const;
 
+  // Indexes a place (with its landmarks) that is already committed to the store, e.g. by another
+  // server on the same PostgreSQL map; a place the map holds already is left alone. Whether the
+  // place was new to the map.
+  bool AddCommitted(const Place& place, std::vector<Landmark>&& landmarks);
+
+  // For a map several servers share: from now on Insert commits, then waits until the place comes
+  // back through AddCommitted (the server's follower reads every new place in id order), so that
+  // every server grows its index in the same order (id order, as a map loaded from the store) and
+  // answers alike. A place not back within `timeout` is indexed by Insert itself (out of order).
+  void IndexThroughFollower(std::chrono::milliseconds timeout);
+
   MapCounts Counts() const;
   // Calls `visit` for every place in the map (in no particular order), under the map's read lock:
   // `visit` must not call back into the map.
@@ -80,6 +94,11 @@ class PlaceMap {
   PlaceMap(std::unique_ptr<LandmarkStore> store, const LandmarkIndexOptions& index_options);
 
   mutable std::shared_mutex mutex_;
+  // Signalled by AddCommitted, for Insert's wait (IndexThroughFollower).
+  std::condition_variable_any indexed_;
+  // Zero: Insert indexes its place itself; otherwise how long it waits for the follower
+  // (milliseconds).
+  std::atomic<int64_t> follower_timeout_ms_{0};
   std::unique_ptr<LandmarkStore> store_;
   LandmarkIndex index_;
   std::unordered_map<PlaceId, Place> places_;

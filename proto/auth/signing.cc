@@ -13,15 +13,16 @@
 #include <sstream>
 
 namespace placerec {
-namespace {
 
-bool IsKeyIdText(const std::string& id) {
+bool IsValidKeyId(const std::string& id) {
   if (id.empty() || id.size() > kMaxKeyIdLength) return false;
   for (unsigned char c : id) {
     if (!std::isalnum(c) && c != '_' && c != '-' && c != '.') return false;
   }
   return true;
 }
+
+namespace {
 
 int HexValue(char c) {
   if (c >= '0' && c <= '9') return c - '0';
@@ -76,7 +77,7 @@ StatusOr<std::vector<SigningKey>> ReadKeysFile(const std::string& path, std::str
     }
     SigningKey key;
     key.id = id;
-    if (!IsKeyIdText(id)) {
+    if (!IsValidKeyId(id)) {
       return Status::InvalidArgument(where + "key id '" + id + "' must be 1 to " +
                                      std::to_string(kMaxKeyIdLength) +
                                      " ASCII letters, digits, '_', '-' or '.'");

@@ -26,6 +26,9 @@ inline constexpr size_t kMaxKeyIdLength = 64;
 
 using Signature = std::array<uint8_t, kSignatureBytes>;
 
+// 1 to kMaxKeyIdLength bytes, each an ASCII letter, digit, '_', '-' or '.'.
+bool IsValidKeyId(const std::string& id);
+
 // One line of a keys file: who may do what with which secret.
 struct SigningKey {
   std::string id;      // named in frame_t::key_id

@@ -1,0 +1,94 @@
+#!/usr/bin/env bash
+# Fleet figures for several servers on one PostgreSQL map (issue 24 items 4 and 5), on this
+# machine: a throw-away cluster (scripts/pg.sh), SERVERS placerec-servers on it, robot fleetNNN
+# answered by server NNN mod SERVERS (--robots), and `placerec-client fleet` replaying
+# rtabmap_indoor corridor_loop as ROBOTS robots at RATE frames/s each for DURATION seconds.
+# Afterwards the same probe frames are asked (query only) through every server and through one
+# more server started on the finished map, and their answers compared (OUT/probes.txt).
+#
+#   scripts/fleet-pg.sh SERVERS ROBOTS RATE DURATION OUT [WORKERS]
+#
+# WORKERS: worker threads per server (default 2). Runs as root in a private network namespace of
+# its own (unshare -n: LCM multicast on loopback only). Binaries from ${BUILD_DIR:-build}/bin.
+# Writes OUT/fleet.json (placerec-client fleet), OUT/server*.log, OUT/probe*.txt, OUT/probes.txt.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+
+if [ $# -lt 5 ] || [ "$1" = "--help" ] || [ "$1" = "-h" ]; then
+  sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'
+  [ $# -ge 1 ] && { [ "$1" = "--help" ] || [ "$1" = "-h" ]; } && exit 0
+  exit 2
+fi
+servers=$1 robots=$2 rate=$3 duration=$4 out=$5 workers=${6:-2}
+bin=${BUILD_DIR:-$root/build}/bin
+
+if [ -z "${PLACEREC_FLEET_NETNS:-}" ]; then
+  [ "$(id -u)" -eq 0 ] || { echo "fleet-pg: run as root (private network namespace)" >&2; exit 1; }
+  exec unshare -n env PLACEREC_FLEET_NETNS=1 bash "$0" "$@"
+fi
+ip link set lo up
+ip link set lo multicast on
+ip route add 224.0.0.0/4 dev lo
+lcm="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
+
+mkdir -p "$out"
+out=$(cd "$out" && pwd)
+pgdir=$(mktemp -d /tmp/placerec-pg-XXXXXX)
+pids=()
+cleanup() {
+  for pid in "${pids[@]}"; do kill "$pid" 2>/dev/null || true; done
+  for pid in "${pids[@]}"; do wait "$pid" 2>/dev/null || true; done
+  bash "$root/scripts/pg.sh" stop "$pgdir" || true
+}
+trap cleanup EXIT
+db=$(bash "$root/scripts/pg.sh" start "$pgdir")
+bash "$root/scripts/make-key.sh" fleet both >"$out/keys"
+chmod 600 "$out/keys"
+
+# Starts a server answering the ids in $2 (comma-separated), logging to $out/$1.log; waits until
+# it serves.
+start_server() {
+  local name=$1 ids=$2
+  "$bin/placerec-server" --db "$db" --lcm-url "$lcm" --keys "$out/keys" --robots "$ids" \
+    --workers "$workers" >"$out/$name.log" 2>&1 &
+  pids+=($!)
+  for _ in $(seq 1 600); do
+    grep -q '\] placerec-server ' "$out/$name.log" && return 0
+    sleep 0.1
+  done
+  echo "fleet-pg: $name did not start; its log:" >&2
+  tail -n 20 "$out/$name.log" >&2
+  exit 1
+}
+
+for ((k = 0; k < servers; k++)); do
+  ids="probe$k"
+  for ((i = k; i < robots; i += servers)); do ids+=$(printf ',fleet%03d' "$i"); done
+  start_server "server$k" "$ids"
+done
+
+"$bin/placerec-client" fleet --robots "$robots" --rate "$rate" --duration "$duration" \
+  --dataset rtabmap_indoor --run corridor_loop --out "$out" --lcm-url "$lcm" \
+  --key-file "$out/keys" --quiet >"$out/fleet.txt" 2>&1 || true
+cat "$out/fleet.txt"
+
+# Probes: every 8th frame of the run, asked through each server and a server started now.
+dataset=$(cd "$root/../shared/data/rtabmap_indoor" 2>/dev/null && pwd || echo "${PLACEREC_DATA:-}/rtabmap_indoor")
+images=()
+while IFS=, read -r frame _ image _; do
+  [ "$frame" = frame ] && continue
+  ((frame % 8 == 0)) && images+=("$dataset/$image")
+done <"$dataset/runs/corridor_loop.frames.csv"
+start_server late "probe$servers"
+for ((k = 0; k <= servers; k++)); do
+  "$bin/placerec-client" query --robot "probe$k" --lcm-url "$lcm" --key-file "$out/keys" \
+    "${images[@]}" 2>&1 | sed -E 's/[0-9.]+ ms//g; s/probe[0-9]+/probe/g' >"$out/probe$k.txt" || true
+done
+{
+  echo "probe answers of ${#images[@]} frames; server $servers started after the fleet"
+  for ((k = 1; k <= servers; k++)); do
+    same=$(paste -d '\n' "$out/probe0.txt" "$out/probe$k.txt" | paste - - -d '\t' |
+      awk -F'\t' '$1 == $2' | wc -l)
+    echo "server $k: $same of $(wc -l <"$out/probe0.txt") lines equal to server 0's"
+  done
+} | tee "$out/probes.txt"
