@@ -267,6 +267,52 @@ SigningFixture& Signing() {
 }
 
 // The client's cost per send: sign the frame (HMAC over its encoding) and encode it again.
+// Scene-change detection (seed §7.2.4) at a revisit, what it adds to a matched frame: robot a
+// maps frames 117-120, robot b revisits frame 120 with an object pasted in; timed is the change
+// step alone (load and decode the place's thumbnail, fit the homography, compare the views), for
+// the ratio to SIFT on the same frame.
+void BM_ChangeDetection(benchmark::State& state) {
+  StatusOr<std::unique_ptr<LandmarkStore>> store =
+      OpenSqliteStore(":memory:", SqliteStoreOptions());
+  CHECK(store.ok());
+  StatusOr<std::unique_ptr<PlaceMap>> map =
+      PlaceMap::Open(std::move(*store), LandmarkIndexOptions());
+  CHECK(map.ok());
+  RecognizerOptions options;
+  Recognizer recognizer(options, map->get());
+  std::vector<cv::Mat> frames = Data().previous;
+  frames.push_back(Data().frame);
+  for (size_t i = 0; i < frames.size(); ++i) {
+    recognizer.Process({"a", static_cast<int64_t>(i), static_cast<int64_t>(i) * 1000000, true},
+                       frames[i]);
+  }
+  cv::Mat changed = Data().frame.clone();
+  cv::rectangle(changed, cv::Rect(260, 200, 120, 100), cv::Scalar(30, 60, 200), cv::FILLED);
+  const FrameObservation observation = recognizer.Analyze(changed);
+  const RecognitionResult answer =
+      recognizer.Recognize({"b", 0, int64_t{3600} * 1000000, false}, observation);
+  if (answer.matches.empty()) {
+    state.SkipWithError("the revisit matched no place");
+    return;
+  }
+  const PlaceMatch& best = answer.matches.front();
+  size_t changes = 0;
+  for (auto _ : state) {
+    StatusOr<std::vector<uint8_t>> jpeg = (*map)->LoadThumbnail(best.place.id);
+    ChangeReference reference;
+    reference.thumbnail = cv::imdecode(*jpeg, cv::IMREAD_COLOR);
+    reference.image_width = best.place.image_width;
+    reference.point_pairs = best.point_pairs;
+    const ChangeResult found = DetectChanges(observation.thumbnail, observation.processed_size,
+                                             {reference}, options.change);
+    changes = found.changes.size();
+    benchmark::DoNotOptimize(changes);
+  }
+  state.counters["changes"] = static_cast<double>(changes);
+  state.counters["checked"] = answer.change.checked ? 1 : 0;
+}
+BENCHMARK(BM_ChangeDetection)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
 void BM_AuthSignFrame(benchmark::State& state) {
   frame_t frame = Signing().frame;
   int64_t counter = 1;
@@ -621,11 +667,12 @@ int main(int argc, char** argv) {
     std::printf(
         "\nRatios to OpenCV SIFT in this run (stages: frame Image120; pipeline: the same "
         "40 frames as the SIFT reference):\n");
-    for (const char* name : {"BM_StageFeatures", "BM_StageSegmentation", "BM_StageAnalyze",
-                             "BM_StageLandmarks", "BM_Pipeline", "BM_OrgSuperpixels",
-                             "BM_OrgFilterBank", "BM_OrgTextons", "BM_OrgClassifiers",
-                             "BM_OrgBoundary", "BM_OrgLearnedMerge", "BM_OrgPerceptualOrganization",
-                             "BM_OrgWholeSegmentation", "BM_OrgWholeSegmentationSeed"}) {
+    for (const char* name :
+         {"BM_StageFeatures", "BM_StageSegmentation", "BM_StageAnalyze", "BM_StageLandmarks",
+          "BM_Pipeline", "BM_ChangeDetection", "BM_OrgSuperpixels", "BM_OrgFilterBank",
+          "BM_OrgTextons", "BM_OrgClassifiers", "BM_OrgBoundary", "BM_OrgLearnedMerge",
+          "BM_OrgPerceptualOrganization", "BM_OrgWholeSegmentation",
+          "BM_OrgWholeSegmentationSeed"}) {
       const auto it = t.find(name);
       if (it != t.end()) std::printf("  %-30s %6.2f\n", name, it->second / sift->second);
     }

@@ -13,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "common/util/logging.h"
+#include "placerec/change_t.hpp"
 #include "placerec/frame_t.hpp"
 #include "placerec/result_t.hpp"
 #include "placerec/status_t.hpp"
@@ -90,6 +91,23 @@ FrameResult FromWire(const result_t& answer) {
     for (size_t i = 0; i < classes; ++i)
       place.classes.emplace_back(m.classes[i], m.class_counts[i]);
     r.matches.push_back(std::move(place));
+  }
+  r.change_checked = answer.change_checked;
+  const size_t changes = std::min({static_cast<size_t>(std::max(answer.num_changes, 0)),
+                                   answer.change_kinds.size(), answer.change_boxes.size(),
+                                   answer.change_classes.size(), answer.change_confidences.size()});
+  for (size_t i = 0; i < changes; ++i) {
+    ReportedChange change;
+    change.appeared = answer.change_kinds[i] == result_t::CHANGE_APPEARED;
+    if (answer.change_boxes[i].size() == 4) {
+      change.x = answer.change_boxes[i][0];
+      change.y = answer.change_boxes[i][1];
+      change.width = answer.change_boxes[i][2];
+      change.height = answer.change_boxes[i][3];
+    }
+    change.object_class = answer.change_classes[i];
+    change.confidence = answer.change_confidences[i];
+    r.changes.push_back(std::move(change));
   }
   r.keypoints = answer.keypoints;
   r.objects = answer.objects;
@@ -174,6 +192,9 @@ std::string DescribeResult(const FrameResult& r) {
     out << "; best place: robot " << best.robot << " #" << best.sequence << " (score " << score
         << ", " << best.matched_landmarks << " landmarks matched" << DescribeClasses(best.classes)
         << ")" << (r.loop_closure ? " -- loop closure" : "");
+  }
+  if (!r.changes.empty()) {
+    out << "; " << r.changes.size() << " scene change" << (r.changes.size() == 1 ? "" : "s");
   }
   return out.str();
 }
@@ -517,6 +538,63 @@ void PlacerecClient::OnStatus(const lcm::ReceiveBuffer* buffer, const std::strin
   last_status_ = s;
   ++statuses_;
   answered_.notify_all();
+}
+
+Status PlacerecClient::WatchAlarms(std::function<void(const SceneAlarm&)> callback) {
+  std::lock_guard lock(mutex_);
+  alarm_callback_ = std::move(callback);
+  if (alarms_subscribed_) return Status::Ok();
+  lcm::Subscription* subscription =
+      lcm_->subscribe(kChangeChannel, &PlacerecClient::OnChange, this);
+  if (subscription == nullptr) {
+    return Status::IoError(std::string("cannot subscribe to ") + kChangeChannel);
+  }
+  subscription->setQueueCapacity(kLcmAnswerQueue);
+  alarms_subscribed_ = true;
+  return Status::Ok();
+}
+
+void PlacerecClient::OnChange(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
+  change_t message;
+  int decoded = -1;
+  try {
+    decoded = message.decode(buffer->data, 0, static_cast<int>(buffer->data_size));
+  } catch (const std::exception&) {
+    decoded = -1;
+  }
+  if (decoded < 0) {
+    LOG(WARNING) << "dropped a " << buffer->data_size << "-byte message on " << channel
+                 << " that is not a placerec.change_t";
+    return;
+  }
+  SceneAlarm alarm;
+  alarm.robot = message.robot;
+  alarm.sequence = message.sequence;
+  alarm.request_id = message.request_id;
+  alarm.frame_utime = message.frame_utime;
+  alarm.place_id = message.place_id;
+  alarm.place_robot = message.place_robot;
+  alarm.place_sequence = message.place_sequence;
+  alarm.place_utime = message.place_utime;
+  alarm.change_index = message.change_index;
+  alarm.num_frame_changes = message.num_frame_changes;
+  alarm.change.appeared = message.kind == change_t::KIND_APPEARED;
+  alarm.change.x = message.box[0];
+  alarm.change.y = message.box[1];
+  alarm.change.width = message.box[2];
+  alarm.change.height = message.box[3];
+  alarm.change.object_class = message.object_class;
+  alarm.change.confidence = message.confidence;
+  alarm.frame_width = message.frame_width;
+  alarm.frame_height = message.frame_height;
+  alarm.frame_jpeg.assign(message.frame_jpeg.begin(), message.frame_jpeg.end());
+  alarm.place_jpeg.assign(message.place_jpeg.begin(), message.place_jpeg.end());
+  std::function<void(const SceneAlarm&)> callback;
+  {
+    std::lock_guard lock(mutex_);
+    callback = alarm_callback_;
+  }
+  if (callback) callback(alarm);
 }
 
 int PlacerecClient::PublishFrame(const std::vector<uint8_t>& message) {

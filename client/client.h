@@ -89,6 +89,32 @@ struct MatchedPlace {
   std::vector<std::pair<std::string, int>> classes;
 };
 
+// A scene change the server found at the matched place (protocol 5, seed §7.2.4).
+struct ReportedChange {
+  bool appeared = true;                     // false: a stored landmark disappeared
+  int x = 0, y = 0, width = 0, height = 0;  // box in pixels of the frame as sent
+  std::string object_class;                 // empty when unclassified
+  float confidence = 0;                     // in [0, 1]
+};
+
+// A scene-change alarm from PLACEREC_CHANGE (change_t): one change at a known place.
+struct SceneAlarm {
+  std::string robot;  // the robot whose frame shows the change
+  int64_t sequence = 0;
+  int64_t request_id = 0;
+  int64_t frame_utime = 0;
+  int64_t place_id = -1;  // the stored place, and its robot, sequence and capture time
+  std::string place_robot;
+  int64_t place_sequence = 0;
+  int64_t place_utime = 0;
+  int change_index = 0;  // this change among the frame's num_frame_changes
+  int num_frame_changes = 0;
+  ReportedChange change;
+  int frame_width = 0, frame_height = 0;  // the frame as sent, pixels
+  std::vector<uint8_t> frame_jpeg;        // the frame, small, boxes drawn
+  std::vector<uint8_t> place_jpeg;        // the stored place's thumbnail (may be empty)
+};
+
 // The answer to one frame.
 struct FrameResult {
   AnswerCode code = AnswerCode::kTimeout;
@@ -99,8 +125,10 @@ struct FrameResult {
   int64_t sequence = 0;
   int64_t request_id = 0;
   bool insert = true;
-  bool loop_closure = false;          // the best match scored at least the server's threshold
-  std::vector<MatchedPlace> matches;  // best first
+  bool loop_closure = false;            // the best match scored at least the server's threshold
+  std::vector<MatchedPlace> matches;    // best first
+  bool change_checked = false;          // compared with the best match's stored view
+  std::vector<ReportedChange> changes;  // scene changes there, most confident first
   int keypoints = 0;
   int objects = 0;
   int landmarks = 0;  // landmarks this frame stored
@@ -192,6 +220,10 @@ class PlacerecClient {
   // closures at once). Set it before publishing.
   void SetAnswerCallback(std::function<void(const FrameResult&)> callback);
 
+  // Subscribes to PLACEREC_CHANGE and calls `callback` on the receive thread with every
+  // scene-change alarm from then on.
+  Status WatchAlarms(std::function<void(const SceneAlarm&)> callback);
+
   // Waits for the next heartbeat published after this call.
   StatusOr<ServerStatus> WaitForStatus(double timeout_s);
 
@@ -202,6 +234,7 @@ class PlacerecClient {
   Status SubscribeFor(const std::string& robot);
   void OnResult(const lcm::ReceiveBuffer* buffer, const std::string& channel);
   void OnStatus(const lcm::ReceiveBuffer* buffer, const std::string& channel);
+  void OnChange(const lcm::ReceiveBuffer* buffer, const std::string& channel);
   void ReceiveLoop();
   // Signs (when a key is set) and publishes an encoded unsigned frame; LCM's return code.
   int PublishFrame(const std::vector<uint8_t>& message);
@@ -220,6 +253,8 @@ class PlacerecClient {
   bool wildcard_subscribed_ = false;
   int64_t next_request_id_ = 0;
   std::function<void(const FrameResult&)> callback_;
+  std::function<void(const SceneAlarm&)> alarm_callback_;
+  bool alarms_subscribed_ = false;
   ServerStatus last_status_;
   int64_t statuses_ = 0;
   bool stop_ = false;

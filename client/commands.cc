@@ -1,8 +1,10 @@
 #include "client/commands.h"
 
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
 #include <fstream>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -114,7 +116,8 @@ const char kClientUsage[] =
     "  query IMAGE...  ask where each image was taken (query only: the map does not change)\n"
     "  status          print the server's next heartbeat\n"
     "  run             feed a run (../shared/data layout) and write OUT/answers.csv\n"
-    "  fleet           N simulated robots replaying a run at a fixed rate: throughput, latency\n\n"
+    "  fleet           N simulated robots replaying a run at a fixed rate: throughput, latency\n"
+    "  watch           print scene-change alarms as they arrive and save their pictures\n\n"
     "'placerec-client COMMAND --help' lists the options of a command. Exit codes: 0 when every\n"
     "request got an answer with status ok, 1 when one timed out or carried an error, 2 for bad\n"
     "arguments.";
@@ -192,6 +195,83 @@ int StatusCommand(int argc, const char* const* argv) {
       static_cast<long long>(s.frames_overloaded), s.frames_per_second, s.robots,
       static_cast<long long>(s.messages_dropped));
   return kExitOk;
+}
+
+int WatchCommand(int argc, const char* const* argv) {
+  ClientOptions options;
+  std::string out;
+  double duration_s = 0;
+  int max_alarms = 0;
+  FlagParser parser(
+      "placerec-client watch [--out DIR] [options]\n\n"
+      "Prints every scene-change alarm (PLACEREC_CHANGE, seed §7.2.4) as it arrives: the robot\n"
+      "and frame, the known place and its earlier visit, what appeared or disappeared where, its\n"
+      "class and confidence. With --out, saves the frame with the boxes drawn as\n"
+      "DIR/<robot>_<sequence>_frame.jpg and the stored place as DIR/<robot>_<sequence>_place.jpg.\n"
+      "Runs until interrupted, --duration or --max-alarms.");
+  parser.Add("out", &out, "folder for the alarm pictures (created; empty: none saved)");
+  parser.Add("duration", &duration_s, "stop after this many seconds (0: run until interrupted)");
+  parser.Add("max-alarms", &max_alarms, "stop after this many alarms (0: no limit)");
+  AddConnectionFlags(&parser, &options);
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-client watch")) {
+    return *exit;
+  }
+  if (duration_s < 0 || max_alarms < 0) {
+    std::fprintf(stderr, "placerec-client watch: --duration and --max-alarms must be >= 0\n");
+    return kExitUsage;
+  }
+  if (!out.empty() && !MakeDirectories(out)) {
+    std::fprintf(stderr, "placerec-client watch: cannot create %s\n", out.c_str());
+    return kExitFailed;
+  }
+  StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "watch");
+  if (!client.ok()) return kExitFailed;
+  std::mutex mutex;
+  std::condition_variable done;
+  int alarms = 0;
+  bool write_failed = false;
+  const auto save = [](const std::string& path, const std::vector<uint8_t>& bytes) {
+    if (bytes.empty()) return true;
+    std::ofstream file(path, std::ios::binary);
+    file.write(reinterpret_cast<const char*>(bytes.data()),
+               static_cast<std::streamsize>(bytes.size()));
+    return static_cast<bool>(file.flush());
+  };
+  const Status watching = (*client)->WatchAlarms([&](const SceneAlarm& a) {
+    std::lock_guard lock(mutex);
+    std::printf(
+        "%s #%lld at place %lld (%s #%lld, %.1f s earlier): %s %s at %d,%d %dx%d of %dx%d, "
+        "confidence %.2f (%d of %d)\n",
+        a.robot.c_str(), static_cast<long long>(a.sequence), static_cast<long long>(a.place_id),
+        a.place_robot.c_str(), static_cast<long long>(a.place_sequence),
+        static_cast<double>(a.frame_utime - a.place_utime) / 1e6,
+        a.change.appeared ? "appeared" : "disappeared",
+        a.change.object_class.empty() ? "object" : a.change.object_class.c_str(), a.change.x,
+        a.change.y, a.change.width, a.change.height, a.frame_width, a.frame_height,
+        a.change.confidence, a.change_index + 1, a.num_frame_changes);
+    std::fflush(stdout);
+    if (!out.empty() && a.change_index == 0) {
+      const std::string stem = out + "/" + a.robot + "_" + std::to_string(a.sequence) + "_";
+      if (!save(stem + "frame.jpg", a.frame_jpeg) || !save(stem + "place.jpg", a.place_jpeg)) {
+        std::fprintf(stderr, "placerec-client watch: cannot write pictures to %s\n", out.c_str());
+        write_failed = true;
+      }
+    }
+    ++alarms;
+    done.notify_all();
+  });
+  if (!watching.ok()) {
+    std::fprintf(stderr, "placerec-client watch: %s\n", watching.ToString().c_str());
+    return kExitFailed;
+  }
+  std::unique_lock lock(mutex);
+  const auto stop = [&] { return (max_alarms > 0 && alarms >= max_alarms) || write_failed; };
+  if (duration_s > 0) {
+    done.wait_for(lock, std::chrono::duration<double>(duration_s), stop);
+  } else {
+    done.wait(lock, stop);
+  }
+  return write_failed ? kExitFailed : kExitOk;
 }
 
 int RunCommand(int argc, const char* const* argv, const std::string& data_default) {

@@ -1,5 +1,5 @@
-// The commands of placerec-client (send, query, status, run, fleet), each parsing its own flags
-// from argv[2..] and returning the process exit code.
+// The commands of placerec-client (send, query, status, run, fleet, watch), each parsing its own
+// flags from argv[2..] and returning the process exit code.
 #pragma once
 
 #include <string>
@@ -17,6 +17,8 @@ int QueryCommand(int argc, const char* const* argv);
 int StatusCommand(int argc, const char* const* argv);
 // `data_default` is where datasets given by name are looked for without PLACEREC_DATA.
 int RunCommand(int argc, const char* const* argv, const std::string& data_default);
+// Prints every scene-change alarm (PLACEREC_CHANGE) as it arrives and saves its pictures.
+int WatchCommand(int argc, const char* const* argv);
 int FleetCommand(int argc, const char* const* argv, const std::string& data_default);
 
 }  // namespace placerec

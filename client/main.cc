@@ -15,6 +15,7 @@ int main(int argc, char** argv) {
   if (std::strcmp(command, "send") == 0) return placerec::SendCommand(argc, argv);
   if (std::strcmp(command, "query") == 0) return placerec::QueryCommand(argc, argv);
   if (std::strcmp(command, "status") == 0) return placerec::StatusCommand(argc, argv);
+  if (std::strcmp(command, "watch") == 0) return placerec::WatchCommand(argc, argv);
   if (std::strcmp(command, "run") == 0) {
     return placerec::RunCommand(argc, argv, PLACEREC_DEFAULT_DATA_DIR);
   }

@@ -15,6 +15,8 @@ inline constexpr char kResultChannelPrefix[] = "PLACEREC_RESULT_";
 inline constexpr char kInvalidRobotResultChannel[] = "PLACEREC_RESULT";
 // The server's heartbeat (status_t), once a second.
 inline constexpr char kStatusChannel[] = "PLACEREC_STATUS";
+// Scene-change alarms for operators (change_t, protocol 5), one per change at a known place.
+inline constexpr char kChangeChannel[] = "PLACEREC_CHANGE";
 
 // LCM limits channel names to 63 bytes (LCM_MAX_CHANNEL_NAME_LENGTH), so a robot id that names
 // its answer channel has at most 63 - 16 = 47 bytes.

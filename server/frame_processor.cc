@@ -61,9 +61,9 @@ std::unique_ptr<Recognizer> FrameProcessor::NewRun() const {
                                       analyzer_.labeler());
 }
 
-result_t FrameProcessor::Process(const frame_t& frame) {
+result_t FrameProcessor::Process(const frame_t& frame, std::vector<change_t>* alarms) {
   try {
-    return ProcessOrThrow(frame);
+    return ProcessOrThrow(frame, alarms);
   } catch (const std::exception& e) {
     LOG(ERROR) << "frame " << frame.sequence << " of robot '" << frame.robot
                << "' failed: " << e.what();
@@ -74,7 +74,7 @@ result_t FrameProcessor::Process(const frame_t& frame) {
   }
 }
 
-result_t FrameProcessor::ProcessOrThrow(const frame_t& frame) {
+result_t FrameProcessor::ProcessOrThrow(const frame_t& frame, std::vector<change_t>* alarms) {
   result_t answer = AnswerTemplate(frame);
   auto fail = [&](int8_t status, const std::string& message) {
     const MapCounts counts = map_->Counts();
@@ -149,6 +149,7 @@ result_t FrameProcessor::ProcessOrThrow(const frame_t& frame) {
     }
   }
   FillAnswer(result, &answer);
+  if (alarms != nullptr) *alarms = AlarmMessages(result, frame, image->size());
   if (!result.status.ok()) {
     LOG(WARNING) << "frame " << frame.sequence << " of robot '" << frame.robot
                  << "': " << result.status.ToString();

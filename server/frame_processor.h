@@ -9,10 +9,12 @@
 #include <optional>
 #include <string>
 #include <unordered_map>
+#include <vector>
 
 #include "common/image/image.h"
 #include "common/pipeline/place_map.h"
 #include "common/pipeline/recognizer.h"
+#include "placerec/change_t.hpp"
 #include "placerec/frame_t.hpp"
 #include "placerec/result_t.hpp"
 #include "server/sequence_gate.h"
@@ -30,7 +32,8 @@ class FrameProcessor {
 
   // Frames of one robot must come one at a time and in order; frames of different robots may be
   // processed from different threads at once (Recognizer's contract).
-  result_t Process(const frame_t& frame);
+  // `alarms` (may be null) receives the frame's scene-change alarms (protocol.h AlarmMessages).
+  result_t Process(const frame_t& frame, std::vector<change_t>* alarms = nullptr);
 
   PlaceMap& map() { return *map_; }
 
@@ -39,7 +42,7 @@ class FrameProcessor {
   void NoteStored(const Place& place) { gate_.AddStored(place.robot, place.sequence); }
 
  private:
-  result_t ProcessOrThrow(const frame_t& frame);
+  result_t ProcessOrThrow(const frame_t& frame, std::vector<change_t>* alarms);
   // The stored place of an insert sent again: the map holds a place of the frame's robot and
   // sequence with the frame's capture time (a server killed between committing the frame and
   // answering it lost the answer; the robot sends the frame again to the restarted server).

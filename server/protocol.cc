@@ -1,5 +1,8 @@
 #include "server/protocol.h"
 
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <exception>
 
 #include "proto/auth/signing.h"
@@ -200,6 +203,27 @@ const char* WireStatusName(int8_t status) {
   }
 }
 
+namespace {
+
+// A box in processed pixels as x, y, width, height in pixels of the frame as sent.
+std::array<int32_t, 4> BoxInFrame(const cv::Rect& box, double image_scale) {
+  const double to_frame = image_scale > 0 ? 1.0 / image_scale : 1.0;
+  const int32_t x = static_cast<int32_t>(std::lround(box.x * to_frame));
+  const int32_t y = static_cast<int32_t>(std::lround(box.y * to_frame));
+  return {x, y, static_cast<int32_t>(std::lround(box.br().x * to_frame)) - x,
+          static_cast<int32_t>(std::lround(box.br().y * to_frame)) - y};
+}
+
+void ClearChanges(result_t* answer) {
+  answer->num_changes = 0;
+  answer->change_kinds.clear();
+  answer->change_boxes.clear();
+  answer->change_classes.clear();
+  answer->change_confidences.clear();
+}
+
+}  // namespace
+
 result_t AnswerTemplate(const frame_t& frame) {
   result_t answer;
   answer.utime = 0;
@@ -219,6 +243,9 @@ result_t AnswerTemplate(const frame_t& frame) {
   answer.map_places = 0;
   answer.map_landmarks = 0;
   answer.map_descriptors = 0;
+  answer.change_checked = false;
+  answer.change_place_id = PlaceId::kInvalidValue;
+  answer.num_changes = 0;
   answer.queue_ms = 0;
   answer.server_ms = 0;
   answer.num_timings = 0;
@@ -268,6 +295,58 @@ void FillAnswer(const RecognitionResult& result, result_t* answer) {
   answer->landmarks = result.landmarks;
   answer->stored_descriptors = result.stored_descriptors;
   answer->place_id = result.place.value();
+  answer->change_checked = result.change.checked;
+  answer->change_place_id = result.change.place.id.value();
+  ClearChanges(answer);
+  for (const SceneChange& change : result.change.changes) {
+    const std::array<int32_t, 4> box = BoxInFrame(change.box, result.image_scale);
+    // Copies of the constants: a conditional of the two would refer to them (ODR use).
+    const int8_t appeared = result_t::CHANGE_APPEARED;
+    const int8_t disappeared = result_t::CHANGE_DISAPPEARED;
+    answer->change_kinds.push_back(change.kind == SceneChange::Kind::kAppeared ? appeared
+                                                                               : disappeared);
+    answer->change_boxes.emplace_back(box.begin(), box.end());
+    answer->change_classes.push_back(change.object_class);
+    answer->change_confidences.push_back(change.confidence);
+  }
+  answer->num_changes = static_cast<int32_t>(answer->change_kinds.size());
+}
+
+std::vector<change_t> AlarmMessages(const RecognitionResult& result, const frame_t& frame,
+                                    const cv::Size& frame_size) {
+  std::vector<change_t> alarms;
+  if (!result.status.ok()) return alarms;
+  const std::vector<SceneChange>& changes = result.change.changes;
+  for (size_t i = 0; i < changes.size(); ++i) {
+    change_t alarm;
+    alarm.utime = 0;
+    alarm.robot = frame.robot;
+    alarm.sequence = frame.sequence;
+    alarm.request_id = frame.request_id;
+    alarm.frame_utime = frame.utime;
+    const Place& place = result.change.place;
+    alarm.place_id = place.id.value();
+    alarm.place_robot = place.robot;
+    alarm.place_sequence = place.sequence;
+    alarm.place_utime = place.utime;
+    alarm.change_index = static_cast<int32_t>(i);
+    alarm.num_frame_changes = static_cast<int32_t>(changes.size());
+    const int8_t appeared = change_t::KIND_APPEARED;
+    const int8_t disappeared = change_t::KIND_DISAPPEARED;
+    alarm.kind = changes[i].kind == SceneChange::Kind::kAppeared ? appeared : disappeared;
+    const std::array<int32_t, 4> box = BoxInFrame(changes[i].box, result.image_scale);
+    std::copy(box.begin(), box.end(), alarm.box);
+    alarm.object_class = changes[i].object_class;
+    alarm.confidence = changes[i].confidence;
+    alarm.frame_width = frame_size.width;
+    alarm.frame_height = frame_size.height;
+    alarm.frame_jpeg.assign(result.change.frame_picture.begin(), result.change.frame_picture.end());
+    alarm.frame_jpeg_size = static_cast<int32_t>(alarm.frame_jpeg.size());
+    alarm.place_jpeg.assign(result.change.place_picture.begin(), result.change.place_picture.end());
+    alarm.place_jpeg_size = static_cast<int32_t>(alarm.place_jpeg.size());
+    alarms.push_back(std::move(alarm));
+  }
+  return alarms;
 }
 
 void SetError(int8_t status, const std::string& message, result_t* answer) {
@@ -279,6 +358,9 @@ void SetError(int8_t status, const std::string& message, result_t* answer) {
   answer->landmarks = 0;
   answer->stored_descriptors = 0;
   answer->place_id = PlaceId::kInvalidValue;
+  answer->change_checked = false;
+  answer->change_place_id = PlaceId::kInvalidValue;
+  ClearChanges(answer);
 }
 
 }  // namespace placerec

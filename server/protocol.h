@@ -6,10 +6,12 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "common/image/image.h"
 #include "common/pipeline/recognizer.h"
 #include "common/util/status.h"
+#include "placerec/change_t.hpp"
 #include "placerec/frame_t.hpp"
 #include "placerec/result_t.hpp"
 #include "placerec/status_t.hpp"
@@ -46,6 +48,12 @@ result_t AnswerTemplate(const frame_t& frame);
 
 // Fills `answer` from what the recognizer returned (status, decision, matches, counts, timings).
 void FillAnswer(const RecognitionResult& result, result_t* answer);
+
+// The scene-change alarms (change_t, PLACEREC_CHANGE) of a processed frame: one per change in
+// result.change, boxes in pixels of the frame as sent (`frame_size`); utime is left 0 for the
+// publisher. None for a failed frame.
+std::vector<change_t> AlarmMessages(const RecognitionResult& result, const frame_t& frame,
+                                    const cv::Size& frame_size);
 
 // Turns `answer` into an error answer with `status` (a result_t::STATUS_* value) and `message`;
 // matches and what the frame stored are cleared; counts and timings are kept.

@@ -264,6 +264,78 @@ TEST(ProtocolTest, AnswersCarryTheResult) {
   EXPECT_STREQ(WireStatusName(failed.status), "storage error");
 }
 
+TEST(ProtocolTest, ScenesChangesGoIntoTheAnswerAndAlarmsUnderItsSignature) {
+  const frame_t frame = MakeFrame("right", 16);
+  RecognitionResult result;
+  result.loop_closure = true;
+  result.image_scale = 0.5;  // the frame was processed at half its size
+  result.change.checked = true;
+  result.change.place.id = PlaceId(3);
+  result.change.place.robot = "left";
+  result.change.place.sequence = 30;
+  result.change.place.utime = 5;
+  SceneChange appeared;
+  appeared.box = cv::Rect(10, 20, 30, 40);
+  appeared.object_class = "car";
+  appeared.confidence = 0.75f;
+  SceneChange gone;
+  gone.kind = SceneChange::Kind::kDisappeared;
+  gone.box = cv::Rect(100, 0, 8, 8);
+  gone.confidence = 0.5f;
+  result.change.changes = {appeared, gone};
+  result.change.frame_picture = {1, 2, 3};
+  result.change.place_picture = {4, 5};
+  result_t answer = AnswerTemplate(frame);
+  FillAnswer(result, &answer);
+  EXPECT_TRUE(answer.change_checked);
+  EXPECT_EQ(answer.change_place_id, 3);
+  ASSERT_EQ(answer.num_changes, 2);
+  EXPECT_EQ(answer.change_kinds, (std::vector<int8_t>{0, 1}));
+  EXPECT_EQ(answer.change_boxes[0], (std::vector<int32_t>{20, 40, 60, 80}));  // frame pixels
+  EXPECT_EQ(answer.change_classes, (std::vector<std::string>{"car", ""}));
+  EXPECT_EQ(answer.change_confidences, (std::vector<float>{0.75f, 0.5f}));
+
+  // Signed over the whole message: changing a change breaks the signature.
+  SigningKey key;
+  key.id = "k";
+  key.secret = std::string(32, 'a');
+  SignAnswer(key, &answer);
+  std::vector<uint8_t> bytes = EncodeAnswer(answer);
+  EXPECT_TRUE(AnswerSignatureValid(answer, key, bytes.data(), bytes.size()));
+  result_t tampered = answer;
+  tampered.change_confidences[1] = 0.0f;
+  EXPECT_FALSE(AnswerSignatureValid(tampered, key));
+
+  // One alarm per change, with the stored visit and both pictures.
+  const std::vector<change_t> alarms = AlarmMessages(result, frame, cv::Size(1280, 960));
+  ASSERT_EQ(alarms.size(), 2u);
+  EXPECT_EQ(alarms[0].robot, "right");
+  EXPECT_EQ(alarms[0].sequence, 7);
+  EXPECT_EQ(alarms[0].place_id, 3);
+  EXPECT_EQ(alarms[0].place_robot, "left");
+  EXPECT_EQ(alarms[0].place_sequence, 30);
+  EXPECT_EQ(alarms[0].place_utime, 5);
+  EXPECT_EQ(int{alarms[0].kind}, int{change_t::KIND_APPEARED});
+  EXPECT_EQ(int{alarms[1].kind}, int{change_t::KIND_DISAPPEARED});
+  EXPECT_EQ(alarms[0].box[2], 60);
+  EXPECT_EQ(alarms[0].object_class, "car");
+  EXPECT_EQ(alarms[1].change_index, 1);
+  EXPECT_EQ(alarms[1].num_frame_changes, 2);
+  EXPECT_EQ(alarms[0].frame_width, 1280);
+  EXPECT_EQ(alarms[0].frame_jpeg_size, 3);
+  EXPECT_EQ(alarms[0].place_jpeg, (std::vector<uint8_t>{4, 5}));
+  std::vector<uint8_t> alarm_bytes(alarms[0].getEncodedSize());
+  EXPECT_GT(alarms[0].encode(alarm_bytes.data(), 0, static_cast<int>(alarm_bytes.size())), 0);
+
+  // An error answer carries no changes and no alarms.
+  result.status = Status::IoError("disk full");
+  result_t failed = AnswerTemplate(frame);
+  FillAnswer(result, &failed);
+  EXPECT_EQ(failed.num_changes, 0);
+  EXPECT_TRUE(failed.change_kinds.empty());
+  EXPECT_TRUE(AlarmMessages(result, frame, cv::Size(1280, 960)).empty());
+}
+
 TEST(ProtocolTest, LongRobotIdsAreCutInTheEcho) {
   const frame_t frame = MakeFrame(std::string(5000, 'x'), 16);
   EXPECT_EQ(AnswerTemplate(frame).robot.size(), kMaxEchoedRobotIdLength);

@@ -398,7 +398,8 @@ void Server::RejectFrame(const frame_t& frame, const std::string& message, size_
 
 void Server::Work(Job& job) {
   const double queue_ms = job.received.ElapsedMs();
-  result_t answer = processor_.Process(job.frame);
+  std::vector<change_t> alarms;
+  result_t answer = processor_.Process(job.frame, &alarms);
   answer.queue_ms = queue_ms;
   answer.server_ms = job.received.ElapsedMs();
   if (answer.status == result_t::STATUS_OK) {
@@ -416,6 +417,25 @@ void Server::Work(Job& job) {
   }
   answers_.Finish(job.frame, answer);
   Publish(&answer, true, job.network, job.key ? &*job.key : nullptr);
+  for (change_t& alarm : alarms) PublishAlarm(&alarm);
+}
+
+void Server::PublishAlarm(change_t* alarm) {
+  alarm->utime = NowUtime();
+  LOG(INFO) << "scene change: " << alarm->robot << " #" << alarm->sequence << " at place "
+            << alarm->place_id << " (" << alarm->place_robot << " #" << alarm->place_sequence
+            << "): " << (alarm->kind == change_t::KIND_APPEARED ? "appeared" : "disappeared") << " "
+            << (alarm->object_class.empty() ? "object" : alarm->object_class) << " at "
+            << alarm->box[0] << "," << alarm->box[1] << " " << alarm->box[2] << "x" << alarm->box[3]
+            << ", confidence " << alarm->confidence;
+  // Operators may watch on any of the server's networks, like the heartbeat.
+  for (const std::unique_ptr<Network>& network : networks_) {
+    if (network->failed) continue;
+    std::lock_guard lock(network->publish_mutex);
+    if (network->lcm.publish(kChangeChannel, alarm) != 0) {
+      LOG(ERROR) << "could not publish a scene-change alarm on " << DescribeUrl(network->url);
+    }
+  }
 }
 
 void Server::Publish(result_t* answer, bool processed, size_t network, const SigningKey* key) {

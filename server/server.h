@@ -22,6 +22,7 @@
 #include "common/storage/sqlite_store.h"
 #include "common/util/status.h"
 #include "common/util/timer.h"
+#include "placerec/change_t.hpp"
 #include "placerec/frame_t.hpp"
 #include "placerec/result_t.hpp"
 #include "placerec/status_t.hpp"
@@ -129,6 +130,8 @@ class Server {
   // Publishes `answer` on its robot's channel of network `network`, signed with `key` (unsigned
   // when null); `processed` says whether a worker ran the frame.
   void Publish(result_t* answer, bool processed, size_t network, const SigningKey* key);
+  // Publishes a scene-change alarm on PLACEREC_CHANGE of every network.
+  void PublishAlarm(change_t* alarm);
   // Answers `frame` at once, unprocessed, with `status` (STATUS_BAD_REQUEST by default),
   // `message` and the map's size, signed with `key` when given.
   void RejectFrame(const frame_t& frame, const std::string& message, size_t network,

@@ -74,6 +74,9 @@ TEST(MapToolsEndToEndTest, CorridorLoopMapInfoCheckExportMergePrune) {
   ASSERT_TRUE(exported.ok()) << exported.status().ToString();
   EXPECT_EQ(exported->places, places);
   EXPECT_TRUE(PathExists(out + "/route.png"));
+  // Every place of a map built by the pipeline keeps its thumbnail (schema v3).
+  EXPECT_EQ(exported->thumbnails, places);
+  EXPECT_TRUE(PathExists(out + "/contact_sheet.jpg"));
 
   // The map merged with itself: twice the places, the second robot renamed, each half whole.
   StatusOr<MergeReport> merge = MergeMaps(map, map, merged, MergeOptions());

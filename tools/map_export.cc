@@ -1,4 +1,5 @@
-// `placerec-map export`: places.csv and route.png of a map (map_tools.h).
+// `placerec-map export`: places.csv, route.png, the place thumbnails and their contact sheet
+// (map_tools.h).
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
@@ -148,6 +149,43 @@ cv::Mat DrawRoute(const std::vector<PlaceSummary>& places) {
   return image;
 }
 
+// Contact sheet tiles: thumbnails scaled to kTileWidth pixels with a caption, kSheetColumns a row.
+constexpr int kTileWidth = 160;
+constexpr int kTileHeight = 120;
+constexpr int kCaption = 14;
+constexpr int kSheetColumns = 10;
+constexpr int64_t kSheetTiles = 120;
+
+cv::Mat Tile(const cv::Mat& image, const std::string& caption) {
+  cv::Mat tile(kTileHeight + kCaption, kTileWidth, CV_8UC3, cv::Scalar(255, 255, 255));
+  const double scale = std::min(static_cast<double>(kTileWidth) / image.cols,
+                                static_cast<double>(kTileHeight) / image.rows);
+  cv::Mat scaled;
+  cv::resize(image, scaled,
+             cv::Size(std::max(1, static_cast<int>(image.cols * scale)),
+                      std::max(1, static_cast<int>(image.rows * scale))),
+             0, 0, cv::INTER_AREA);
+  scaled.copyTo(tile(cv::Rect(0, 0, scaled.cols, scaled.rows)));
+  cv::putText(tile, caption, cv::Point(2, kTileHeight + kCaption - 3), cv::FONT_HERSHEY_SIMPLEX,
+              0.35, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  return tile;
+}
+
+cv::Mat ContactSheet(const std::vector<cv::Mat>& tiles) {
+  const int columns = std::min<int>(kSheetColumns, static_cast<int>(tiles.size()));
+  const int rows = (static_cast<int>(tiles.size()) + columns - 1) / columns;
+  const int tile_height = kTileHeight + kCaption;
+  cv::Mat sheet(rows * (tile_height + 2), columns * (kTileWidth + 2), CV_8UC3,
+                cv::Scalar(200, 200, 200));
+  for (size_t i = 0; i < tiles.size(); ++i) {
+    const int r = static_cast<int>(i) / columns;
+    const int c = static_cast<int>(i) % columns;
+    tiles[i].copyTo(
+        sheet(cv::Rect(c * (kTileWidth + 2), r * (tile_height + 2), kTileWidth, tile_height)));
+  }
+  return sheet;
+}
+
 }  // namespace
 
 StatusOr<ExportReport> ExportMap(const std::string& path, const std::string& out_dir) {
@@ -159,14 +197,55 @@ StatusOr<ExportReport> ExportMap(const std::string& path, const std::string& out
   ExportReport report;
   report.csv_path = out_dir + "/places.csv";
   report.picture_path = out_dir + "/route.png";
+  // Thumbnails: every one as a file, an even sample of them on the contact sheet.
+  std::map<int64_t, const PlaceSummary*> by_id;
+  int64_t with_thumbnail = 0;
+  for (const PlaceSummary& place : *places) {
+    by_id[place.id] = &place;
+    with_thumbnail += place.thumbnail ? 1 : 0;
+  }
+  const int64_t every = std::max<int64_t>(1, (with_thumbnail + kSheetTiles - 1) / kSheetTiles);
+  std::vector<cv::Mat> tiles;
+  int64_t seen = 0;
+  if (with_thumbnail > 0 && !MakeDirectories(out_dir + "/thumbnails")) {
+    return Status::IoError("cannot create " + out_dir + "/thumbnails");
+  }
+  Status written = Status::Ok();
+  PLACEREC_RETURN_IF_ERROR(
+      ForEachThumbnail(path, [&](int64_t id, const std::vector<uint8_t>& jpeg) {
+        if (!written.ok()) return;
+        const std::string file = out_dir + "/thumbnails/" + std::to_string(id) + ".jpg";
+        std::ofstream out(file, std::ios::binary);
+        out.write(reinterpret_cast<const char*>(jpeg.data()),
+                  static_cast<std::streamsize>(jpeg.size()));
+        if (!out.flush()) {
+          written = Status::IoError("cannot write " + file);
+          return;
+        }
+        ++report.thumbnails;
+        if (seen++ % every != 0) return;
+        const cv::Mat image = cv::imdecode(jpeg, cv::IMREAD_COLOR);
+        const auto place = by_id.find(id);
+        if (image.empty() || place == by_id.end()) return;
+        tiles.push_back(
+            Tile(image, place->second->robot + " #" + std::to_string(place->second->sequence)));
+      }));
+  PLACEREC_RETURN_IF_ERROR(written);
+  if (!tiles.empty()) {
+    report.contact_sheet_path = out_dir + "/contact_sheet.jpg";
+    if (!cv::imwrite(report.contact_sheet_path, ContactSheet(tiles))) {
+      return Status::IoError("cannot write " + report.contact_sheet_path);
+    }
+  }
   {
     std::ofstream csv(report.csv_path);
-    csv << "id,robot,sequence,utime,landmarks,descriptors,classes\n";
+    csv << "id,robot,sequence,utime,landmarks,descriptors,classes,thumbnail\n";
     std::map<std::string, int> robots;
     for (const PlaceSummary& place : *places) {
       csv << place.id << ',' << CsvField(place.robot) << ',' << place.sequence << ',' << place.utime
           << ',' << place.landmarks << ',' << place.descriptors << ','
-          << CsvField(FormatClassCounts(place.classes)) << '\n';
+          << CsvField(FormatClassCounts(place.classes)) << ','
+          << (place.thumbnail ? "thumbnails/" + std::to_string(place.id) + ".jpg" : "") << '\n';
       robots[place.robot] = 1;
     }
     report.robots = static_cast<int64_t>(robots.size());

@@ -268,7 +268,32 @@ StatusOr<std::vector<PlaceSummary>> ReadPlaceSummaries(const std::string& path) 
         place.descriptors += row.ColumnInt(3);
         place.classes[row.ColumnText(1)] += row.ColumnInt(2);
       }));
+  if (version >= 3) {
+    PLACEREC_RETURN_IF_ERROR(ForEachRow(c, "SELECT place_id FROM thumbnails", path,
+                                        "list thumbnails", nullptr,
+                                        [&](const SqliteStatement& row) {
+                                          const auto found = index.find(row.ColumnInt(0));
+                                          if (found != index.end()) {
+                                            places[found->second].thumbnail = true;
+                                          }
+                                        }));
+  }
   return places;
+}
+
+Status ForEachThumbnail(const std::string& path,
+                        const std::function<void(int64_t, const std::vector<uint8_t>&)>& visit) {
+  int version = 0;
+  StatusOr<SqliteConnection> db = OpenReadOnly(path, &version);
+  if (!db.ok()) return db.status();
+  if (version < 3) return Status::Ok();
+  std::vector<uint8_t> bytes;
+  return ForEachRow(db->get(), "SELECT place_id, jpeg FROM thumbnails ORDER BY place_id", path,
+                    "read thumbnails", nullptr, [&](const SqliteStatement& row) {
+                      const auto [data, size] = row.ColumnBlob(1);
+                      bytes.assign(data, data + size);
+                      visit(row.ColumnInt(0), bytes);
+                    });
 }
 
 std::string FormatClassCounts(const std::map<std::string, int64_t>& classes) {
@@ -438,10 +463,14 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
                  [&](const SqliteStatement& row) { report.sightings = row.ColumnInt(0); }));
 
   if (!options.dry_run && report.places > 0) {
-    // Sightings first, then landmarks, then places: the foreign keys hold at every step.
+    // Sightings and thumbnails first, then landmarks, then places: the foreign keys hold at
+    // every step.
     const auto noop = [](const SqliteStatement&) {};
     PLACEREC_RETURN_IF_ERROR(
         ForEachRow(c, "DELETE" + sightings_where, path, "delete sightings", bind, noop));
+    PLACEREC_RETURN_IF_ERROR(ForEachRow(c,
+                                        "DELETE FROM thumbnails WHERE place_id IN (" + doomed + ")",
+                                        path, "delete thumbnails", bind, noop));
     PLACEREC_RETURN_IF_ERROR(ForEachRow(c,
                                         "DELETE FROM landmarks WHERE place_id IN (" + doomed + ")",
                                         path, "delete landmarks", bind, noop));
@@ -504,9 +533,13 @@ namespace {
 // Copies every place of `from` (listed in `places`, id order) with its landmarks into `to`,
 // streaming the landmarks (id order, grouped by place as AddPlace writes them). Robots are
 // renamed by `rename`; sightings follow their landmarks' new ids.
-Status CopyMap(const LandmarkStore& from, const std::vector<Place>& places,
+Status CopyMap(const LandmarkStore& from, const std::string& from_path,
+               const std::vector<Place>& places,
                const std::unordered_map<std::string, std::string>& rename, LandmarkStore* to,
                MergeInput* input) {
+  int thumbnails_version = 0;
+  StatusOr<SqliteConnection> thumbnails = OpenReadOnly(from_path, &thumbnails_version);
+  if (!thumbnails.ok()) return thumbnails.status();
   std::unordered_map<int64_t, LandmarkId> new_ids;
   size_t next = 0;  // the first place not yet written
   bool have_current = false;
@@ -535,6 +568,18 @@ Status CopyMap(const LandmarkStore& from, const std::vector<Place>& places,
       seen.push_back(found->second);
     }
     std::sort(seen.begin(), seen.end());
+    // From a connection of its own: `from` is busy streaming the landmarks.
+    if (thumbnails_version >= 3) {
+      place.thumbnail.clear();
+      PLACEREC_RETURN_IF_ERROR(ForEachRow(
+          thumbnails->get(), "SELECT jpeg FROM thumbnails WHERE place_id = ?", from_path,
+          "read a thumbnail",
+          [&](SqliteStatement& select) { select.BindInt(1, places[i].id.value()); },
+          [&](const SqliteStatement& row) {
+            const auto [data, size] = row.ColumnBlob(0);
+            place.thumbnail.assign(data, data + size);
+          }));
+    }
     input->sightings += static_cast<int64_t>(seen.size());
     place.seen_landmarks = std::move(seen);
     std::vector<int64_t> old_ids;
@@ -650,8 +695,8 @@ StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, cons
     if (!merged.ok()) return merged.status();
     report.a.path = a;
     report.b.path = b;
-    Status copied = CopyMap(**store_a, places_a, {}, merged->get(), &report.a);
-    if (copied.ok()) copied = CopyMap(**store_b, places_b, rename, merged->get(), &report.b);
+    Status copied = CopyMap(**store_a, a, places_a, {}, merged->get(), &report.a);
+    if (copied.ok()) copied = CopyMap(**store_b, b, places_b, rename, merged->get(), &report.b);
     if (!copied.ok()) {
       merged->reset();
       RemoveMapFiles(temporary);

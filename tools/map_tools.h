@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <string>
 #include <utility>
@@ -66,7 +67,13 @@ struct PlaceSummary {
   int64_t landmarks = 0;
   int64_t descriptors = 0;
   std::map<std::string, int64_t> classes;  // object class -> landmarks; "" for unclassified
+  bool thumbnail = false;                  // the place keeps a thumbnail (schema v3)
 };
+
+// Calls `visit` with every stored place thumbnail (place id, JPEG bytes) in id order, read-only;
+// nothing for maps before schema v3.
+Status ForEachThumbnail(const std::string& path,
+                        const std::function<void(int64_t, const std::vector<uint8_t>&)>& visit);
 
 // Every place of the map, in id order (read-only, like ReadMapInfo).
 StatusOr<std::vector<PlaceSummary>> ReadPlaceSummaries(const std::string& path);
@@ -80,11 +87,16 @@ struct ExportReport {
   int64_t robots = 0;
   std::string csv_path;
   std::string picture_path;
+  int64_t thumbnails = 0;          // thumbnails written to out_dir/thumbnails/<id>.jpg
+  std::string contact_sheet_path;  // empty when the map has no thumbnails
 };
 
-// Writes out_dir/places.csv (id,robot,sequence,utime,landmarks,descriptors,classes) and
-// out_dir/route.png (per robot a timeline strip of its places coloured by landmark count, a strip
-// of their class shares, and the robot's class counts). Creates out_dir.
+// Writes out_dir/places.csv (id,robot,sequence,utime,landmarks,descriptors,classes,thumbnail:
+// the thumbnail's file relative to out_dir, empty without one), out_dir/route.png (per robot a
+// timeline strip of its places coloured by landmark count, a strip of their class shares, and the
+// robot's class counts), the place thumbnails as out_dir/thumbnails/<id>.jpg and, when there are
+// any, out_dir/contact_sheet.jpg (at most 120 of them, evenly spread over the route, in id order,
+// each labelled robot #sequence). Creates out_dir.
 StatusOr<ExportReport> ExportMap(const std::string& path, const std::string& out_dir);
 
 // ---- prune ----------------------------------------------------------------------------------

@@ -45,6 +45,10 @@ std::vector<Landmark> AddPlace(LandmarkStore* store, const std::string& robot, i
   place.utime = utime;
   place.image_width = 640;
   place.seen_landmarks = std::move(seen);
+  if (robot == "left") {  // left's camera keeps thumbnails, right's map predates them
+    const cv::Mat picture(12, 16, CV_8UC3, cv::Scalar(40, 80, 120 + sequence));
+    cv::imencode(".jpg", picture, place.thumbnail);
+  }
   std::vector<Landmark> landmarks;
   for (int i = 0; i < count; ++i) {
     Landmark landmark = ExplicitLandmark(i + static_cast<int>(sequence % 3));
@@ -94,7 +98,7 @@ TEST(MapToolsTest, InfoCountsByRobotAndClass) {
   BuildSite(map.path());
   StatusOr<MapInfo> info = ReadMapInfo(map.path());
   ASSERT_TRUE(info.ok()) << info.status().ToString();
-  EXPECT_EQ(info->schema_version, 2);
+  EXPECT_EQ(info->schema_version, kSqliteSchemaVersion);
   EXPECT_EQ(info->places, 5);
   EXPECT_EQ(info->landmarks, 8);
   EXPECT_EQ(info->sightings, 1);
@@ -135,14 +139,22 @@ TEST(MapToolsTest, ExportWritesPlacesCsvAndRoutePicture) {
   std::vector<std::string> lines;
   for (std::string line; std::getline(csv, line);) lines.push_back(line);
   ASSERT_EQ(lines.size(), 6u);
-  EXPECT_EQ(lines[0], "id,robot,sequence,utime,landmarks,descriptors,classes");
+  EXPECT_EQ(lines[0], "id,robot,sequence,utime,landmarks,descriptors,classes,thumbnail");
   EXPECT_EQ(lines[1].substr(0, 7), "1,left,");
   EXPECT_NE(lines[1].find(",2,"), std::string::npos);
-  EXPECT_EQ(lines[1].substr(lines[1].rfind(',') + 1), "building:1;sign:1");
-  EXPECT_EQ(lines[3].substr(lines[3].rfind(',') + 1), "unclassified:1");
+  EXPECT_NE(lines[1].find(",building:1;sign:1,thumbnails/1.jpg"), std::string::npos) << lines[1];
+  EXPECT_EQ(lines[3].substr(lines[3].size() - 16), ",unclassified:1,") << lines[3];
   const cv::Mat picture = cv::imread(out + "/route.png");
   EXPECT_FALSE(picture.empty());
   EXPECT_GT(picture.cols, 1000);
+  // Left's three places keep thumbnails, right's two do not.
+  EXPECT_EQ(report->thumbnails, 3);
+  const cv::Mat thumbnail = cv::imread(out + "/thumbnails/1.jpg");
+  EXPECT_EQ(thumbnail.cols, 16);
+  EXPECT_FALSE(std::filesystem::exists(out + "/thumbnails/3.jpg"));
+  EXPECT_EQ(report->contact_sheet_path, out + "/contact_sheet.jpg");
+  const cv::Mat sheet = cv::imread(report->contact_sheet_path);
+  EXPECT_EQ(sheet.cols, 3 * 162);
   std::filesystem::remove_all(out);
 }
 
@@ -165,6 +177,7 @@ TEST(MapToolsTest, PruneByRobotDropsItsPlacesLandmarksAndSightings) {
     EXPECT_TRUE(place.seen_landmarks.empty());
   }
   EXPECT_EQ(QuerySql(map.path(), "SELECT COUNT(*) FROM sightings"), "0");
+  EXPECT_EQ(QuerySql(map.path(), "SELECT COUNT(*) FROM thumbnails"), "0");  // left's went too
   StatusOr<CheckReport> check = CheckMap(map.path());
   ASSERT_TRUE(check.ok());
   EXPECT_TRUE(check->ok()) << check->problems.front();
@@ -311,6 +324,11 @@ TEST(MapToolsTest, MergeKeepsBothMapsContentsAndRobotsApart) {
     }
     ExpectSameLandmark(expected, lc[i]);
   }
+  // Thumbnails follow their places: A's left places 1..3 keep theirs.
+  EXPECT_EQ(QuerySql(c.path(), "SELECT group_concat(place_id) FROM thumbnails"), "1,2,5");
+  EXPECT_EQ(*Open(c.path())->LoadThumbnail(PlaceId(5)), *Open(a.path())->LoadThumbnail(PlaceId(5)));
+  EXPECT_TRUE(Open(c.path())->LoadThumbnail(PlaceId(3))->empty());
+
   // Which is what the checksums of the parts say: C less B's places is A.
   StatusOr<CheckReport> check = CheckMap(c.path());
   ASSERT_TRUE(check.ok());

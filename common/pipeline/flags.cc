@@ -238,6 +238,34 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add("max-matches", &o->loop.max_matches, "places returned per frame");
   p->Add("loop-min-score", &o->loop.min_score,
          "a frame is a loop closure when its best place scores at least this");
+  p->Add("thumbnail-width", &a.thumbnail_width,
+         "every stored place keeps a JPEG thumbnail this wide (pixels; 0: none), the stored view "
+         "alarms, tools and scene-change detection show and compare");
+  p->Add("change-detection", &o->change.enabled,
+         "at a loop closure, report objects that appeared or landmarks that disappeared in the "
+         "view the frame shares with the place (seed §7.2.4); alarms go to PLACEREC_CHANGE");
+  p->Add("change-sensitivity", &o->change.sensitivity,
+         "how readily a difference is a scene change, in (0, 1]: a region must differ by "
+         "change-max-difference - s * (change-max-difference - change-min-difference) CIE Lab "
+         "units");
+  p->Add("change-min-difference", &o->change.min_difference,
+         "Lab difference a change needs at sensitivity 1");
+  p->Add("change-max-difference", &o->change.max_difference,
+         "Lab difference a change needs at sensitivity 0");
+  p->Add("change-min-area", &o->change.min_area,
+         "smallest scene change reported, as a share of the frame's area");
+  p->Add("change-support-radius", &o->change.support_radius,
+         "compare only within this share of the frame width of a verified point that fits the "
+         "homography (0: the whole mapped view)");
+  p->Add("change-noise-spread", &o->change.noise_spread,
+         "a change must also differ by the frame's median difference plus this many robust "
+         "standard deviations");
+  p->Add("change-grow-fraction", &o->change.grow_fraction,
+         "a change grows from pixels above the threshold through neighbours above this fraction "
+         "of it");
+  p->Add("change-edge-band", &o->change.edge_band,
+         "regions lying mostly within this share of the frame width of the shared view's edge "
+         "are the robot's motion, not changes");
 }
 
 }  // namespace placerec

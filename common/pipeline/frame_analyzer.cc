@@ -1,6 +1,9 @@
 #include "common/pipeline/frame_analyzer.h"
 
+#include <algorithm>
 #include <cmath>
+
+#include <opencv2/imgproc.hpp>
 
 #include "common/organization/filter_bank.h"
 #include "common/util/logging.h"
@@ -27,6 +30,10 @@ bool AnalyzerOptions::Check(std::string* error) const {
   }
   if (min_frame_chroma < 0) {
     *error = "min_frame_chroma must be non-negative";
+    return false;
+  }
+  if (thumbnail_width < 0 || thumbnail_width > 1024 || preview_width < 0 || preview_width > 4096) {
+    *error = "thumbnail_width must be in [0, 1024] and preview_width in [0, 4096] pixels";
     return false;
   }
   return features.Check(error) && superpixels.Check(error) && organization.Check(error) &&
@@ -81,6 +88,16 @@ FrameObservation FrameAnalyzer::Analyze(const cv::Mat& bgr) const {
       FitWidth(bgr, bgr.cols < options_.small_frame_width ? options_.upscaled_width : 0,
                options_.max_image_width, &observation.scale);
   observation.processed_size = frame.size();
+  const auto scaled_to = [&frame](int width) {
+    cv::Mat small;
+    if (width <= 0) return small;
+    const int height = std::max(
+        1, static_cast<int>(std::lround(static_cast<double>(frame.rows) * width / frame.cols)));
+    cv::resize(frame, small, cv::Size(width, height), 0, 0, cv::INTER_AREA);
+    return small;
+  };
+  observation.thumbnail = scaled_to(options_.thumbnail_width);
+  observation.preview = scaled_to(options_.preview_width);
   observation.timings.emplace_back("resize", timer.ElapsedMs());
 
   timer.Restart();

@@ -109,6 +109,12 @@ struct AnalyzerOptions {
   // Keep the working image's filter bank in the observation (object classification reads it);
   // computed when the segmenter does not compute one (superpixels).
   bool keep_filter_bank = false;
+  // Width of the place thumbnail kept with every stored place (pixels; the stored view that
+  // alarms, matches, tools and scene-change detection use, seed §7.2.4). 0 keeps none (and
+  // turns scene-change detection off for the places stored meanwhile).
+  int thumbnail_width = 160;
+  // Width of the frame picture a scene-change alarm shows (pixels; 0: none).
+  int preview_width = 320;
 
   bool Check(std::string* error) const;
 };
@@ -124,6 +130,9 @@ struct FrameObservation {
   cv::Mat filter_bank;
   std::vector<SceneObject> objects;  // boxes in processed pixels
   bool colourless = false;
+  // The processed frame scaled to thumbnail_width and preview_width (BGR; empty when 0).
+  cv::Mat thumbnail;
+  cv::Mat preview;
   StageTimings timings;  // milliseconds per stage
 };
 

@@ -81,6 +81,7 @@ Status PlaceMap::Insert(Place* place, std::vector<Landmark>* landmarks) {
     PLACEREC_RETURN_IF_ERROR(store_->AddPlace(place, landmarks));
   }
   places_[place->id] = *place;
+  places_[place->id].thumbnail.clear();  // in the store only: LoadThumbnail
   index_.AddPlace(*place);
   for (const Landmark& landmark : *landmarks) index_.Add(landmark);
   for (const LandmarkId seen : place->seen_landmarks) seen_at_[seen].push_back(place->id);
@@ -97,6 +98,7 @@ bool PlaceMap::AddCommitted(const Place& place, std::vector<Landmark>&& landmark
   // through this map is already here when its committed row can be read.
   if (places_.count(place.id) > 0) return false;
   places_[place.id] = place;
+  places_[place.id].thumbnail.clear();  // in the store only: LoadThumbnail
   index_.AddPlace(place);
   for (const Landmark& landmark : landmarks) index_.Add(landmark);
   for (const LandmarkId seen : place.seen_landmarks) seen_at_[seen].push_back(place.id);
@@ -138,6 +140,27 @@ MapLookupResult PlaceMap::LookupSeed(const MapLookup& lookup, const SeedLoopOpti
   for (PlaceMatch& match : result.places) match.landmark_classes = MatchedClasses(match, index_);
   result.ranking_ms = timer.ElapsedMs();
   return result;
+}
+
+StatusOr<std::vector<uint8_t>> PlaceMap::LoadThumbnail(PlaceId place) const {
+  // The store serialises its own calls; no map lock needed.
+  return store_->LoadThumbnail(place);
+}
+
+std::vector<Landmark> PlaceMap::LandmarkOutlines(PlaceId place) const {
+  std::shared_lock lock(mutex_);
+  std::vector<Landmark> outlines;
+  for (const int32_t slot : index_.SlotsOfPlace(place)) {
+    const Landmark& stored = index_.landmark(slot);
+    Landmark outline;
+    outline.id = stored.id;
+    outline.place = stored.place;
+    outline.box = stored.box;
+    outline.object_class = stored.object_class;
+    outline.class_confidence = stored.class_confidence;
+    outlines.push_back(std::move(outline));
+  }
+  return outlines;
 }
 
 MapCounts PlaceMap::Counts() const {

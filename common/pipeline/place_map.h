@@ -64,6 +64,12 @@ class PlaceMap {
   // place joins the scene sets of place->seen_landmarks. On error nothing changes.
   Status Insert(Place* place, std::vector<Landmark>* landmarks);
 
+  // A place's thumbnail (JPEG bytes, LandmarkStore::LoadThumbnail); empty when it has none.
+  StatusOr<std::vector<uint8_t>> LoadThumbnail(PlaceId place) const;
+  // A place's stored landmarks with ids, boxes and classes only (descriptors left out); empty for
+  // an unknown place.
+  std::vector<Landmark> LandmarkOutlines(PlaceId place) const;
+
   // Indexes a place (with its landmarks) that is already committed to the store, e.g. by another
   // server on the same PostgreSQL map; a place the map holds already is left alone. Whether the
   // place was new to the map.

@@ -6,14 +6,42 @@
 #include <set>
 #include <tuple>
 
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
 #include "common/util/logging.h"
 
 namespace placerec {
 
+namespace {
+
+bool CheckJpegQuality(int quality, std::string* error) {
+  if (quality < 0 || quality > 100) {
+    *error = "jpeg_quality must be in [0, 100]";
+    return false;
+  }
+  return true;
+}
+
+std::vector<uint8_t> EncodeJpeg(const cv::Mat& image, int quality) {
+  std::vector<uint8_t> bytes;
+  if (!image.empty()) cv::imencode(".jpg", image, bytes, {cv::IMWRITE_JPEG_QUALITY, quality});
+  return bytes;
+}
+
+double Overlap(const cv::Rect& a, const cv::Rect& b) {
+  const double inter = (a & b).area();
+  const double uni = a.area() + b.area() - inter;
+  return uni > 0 ? inter / uni : 0.0;
+}
+
+}  // namespace
+
 bool RecognizerOptions::Check(std::string* error) const {
   return analyzer.Check(error) && landmarks.Check(error) && index.Check(error) &&
          loop.Check(error) && recent_past.Check(error) && sequence.Check(error) &&
-         classes.Check(error) && seed.Check(error);
+         classes.Check(error) && seed.Check(error) && change.Check(error) &&
+         CheckJpegQuality(jpeg_quality, error);
 }
 
 RecognizerOptions EffectiveOptions(const RecognizerOptions& options) {
@@ -29,6 +57,7 @@ RecognizerOptions EffectiveOptions(const RecognizerOptions& options) {
   o.min_descriptors_per_place = 0;
   o.analyzer.objects.include_background = false;
   o.classes.drop_movable = false;
+  o.change.enabled = false;  // the seed's decision keeps no verified point pairs
   return o;
 }
 
@@ -181,6 +210,74 @@ std::vector<Landmark> Recognizer::BuildLandmarks(const FrameObservation& observa
     landmarks.push_back(std::move(landmark));
   }
   return landmarks;
+}
+
+ChangeReport Recognizer::DetectSceneChanges(const FrameObservation& observation,
+                                            const std::vector<PlaceMatch>& matches) const {
+  ChangeReport report;
+  if (matches.empty()) return report;
+  const PlaceMatch& best = matches.front();
+  report.place = best.place;
+  // The best place, then its route neighbours among the matches.
+  const int64_t window_us = static_cast<int64_t>(options_.change.reference_window_seconds * 1e6);
+  std::vector<ChangeReference> references;
+  for (const PlaceMatch& match : matches) {
+    if (static_cast<int>(references.size()) >= options_.change.max_references) break;
+    if (&match != &best && (match.place.robot != best.place.robot ||
+                            std::llabs(match.place.utime - best.place.utime) > window_us)) {
+      continue;
+    }
+    ChangeReference reference;
+    StatusOr<std::vector<uint8_t>> jpeg = map_->LoadThumbnail(match.place.id);
+    if (!jpeg.ok()) {
+      LOG(WARNING) << "thumbnail of place " << match.place.id.value() << ": "
+                   << jpeg.status().message();
+      continue;
+    }
+    if (!jpeg->empty()) reference.thumbnail = cv::imdecode(*jpeg, cv::IMREAD_COLOR);
+    if (&match == &best) report.place_picture = std::move(*jpeg);
+    reference.image_width = match.place.image_width;
+    reference.point_pairs = match.point_pairs;
+    std::set<LandmarkId> matched(match.point_landmarks.begin(), match.point_landmarks.end());
+    for (const auto& pair : match.object_pairs) matched.insert(pair.second);
+    for (const Landmark& landmark : map_->LandmarkOutlines(match.place.id)) {
+      reference.landmark_boxes.push_back(landmark.box);
+      reference.landmark_classes.push_back(landmark.object_class);
+      reference.landmark_matched.push_back(matched.count(landmark.id) > 0);
+    }
+    references.push_back(std::move(reference));
+  }
+  ChangeResult found =
+      DetectChanges(observation.thumbnail, observation.processed_size, references, options_.change);
+  report.checked = found.checked;
+  report.why_not = found.why_not;
+  report.changes = std::move(found.changes);
+  report.difference = found.difference;
+  if (report.changes.empty()) return report;
+  // The class of an object that appeared: the frame's object that covers it best.
+  if (labeler_) {
+    for (SceneChange& change : report.changes) {
+      if (change.kind != SceneChange::Kind::kAppeared) continue;
+      const SceneObject* cover = nullptr;
+      double best_overlap = 0.3;
+      for (const SceneObject& object : observation.objects) {
+        const double overlap = Overlap(object.box, change.box);
+        if (overlap >= best_overlap) {
+          best_overlap = overlap;
+          cover = &object;
+        }
+      }
+      if (cover == nullptr) continue;
+      const ObjectLabel label = labeler_->Classify(observation.filter_bank, *cover);
+      change.object_class = label.name;
+    }
+  }
+  if (!observation.preview.empty()) {
+    report.frame_picture = EncodeJpeg(DrawChanges(observation.preview, observation.processed_size,
+                                                  report.changes, observation.preview.cols),
+                                      options_.jpeg_quality);
+  }
+  return report;
 }
 
 RecognitionResult Recognizer::Recognize(const FrameRequest& request,
@@ -343,6 +440,11 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
            : !result.matches.empty() && result.matches.front().score >= options_.loop.min_score;
   result.timings.emplace_back("index", found.index_ms);
   result.timings.emplace_back("decision", found.ranking_ms);
+  if (options_.change.enabled && result.loop_closure) {
+    timer.Restart();
+    result.change = DetectSceneChanges(observation, result.matches);
+    result.timings.emplace_back("change", timer.ElapsedMs());
+  }
 
   if (!request.insert) {
     result.map = map_->Counts();
@@ -397,6 +499,7 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
     place.utime = request.utime;
     place.image_width = observation.processed_size.width;
     place.seen_landmarks.assign(seen.begin(), seen.end());
+    place.thumbnail = EncodeJpeg(observation.thumbnail, options_.jpeg_quality);
     const Status inserted = map_->Insert(&place, &landmarks);
     if (!inserted.ok()) {
       result.status = inserted;

@@ -13,6 +13,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "common/change/change_detector.h"
 #include "common/pipeline/frame_analyzer.h"
 #include "common/pipeline/object_classes.h"
 #include "common/pipeline/place_map.h"
@@ -68,6 +69,11 @@ struct RecognizerOptions {
   int min_descriptors_per_place = 100;
   // The object classes of the stored landmarks (seed Ch. 4) and semantic landmarks (§7.2.3).
   ObjectClassOptions classes;
+  // Scene changes at a loop closure (seed §7.2.4, common/change): the frame against the best
+  // place's thumbnail and landmarks, and its route neighbours among the matches.
+  ChangeOptions change;
+  // JPEG quality of the place thumbnails and alarm pictures (0-100).
+  int jpeg_quality = 85;
 
   bool Check(std::string* error) const;
 };
@@ -84,6 +90,21 @@ struct FrameRequest {
   int64_t sequence = 0;  // increasing per robot for inserted frames
   int64_t utime = 0;     // capture time, microseconds since the epoch
   bool insert = true;    // false: query only, the map and the robot's state stay unchanged
+};
+
+// What scene-change detection found at a loop closure (seed §7.2.4).
+struct ChangeReport {
+  bool checked = false;  // the frame was compared with a stored place
+  std::string why_not;   // at a loop closure that was not checked: why
+  Place place;           // the place compared with (the best match); invalid id when none
+  std::vector<SceneChange> changes;  // boxes in processed pixels; classes where classified
+  // With changes: JPEG of the frame (AnalyzerOptions::preview_width) with the boxes drawn, and
+  // the place's stored thumbnail (empty when it has none).
+  std::vector<uint8_t> frame_picture;
+  std::vector<uint8_t> place_picture;
+  // Per pixel of the frame's thumbnail, how much it differs from the stored view (CIE Lab units,
+  // ChangeResult::difference), for pictures of the evaluation.
+  cv::Mat difference;
 };
 
 struct RecognitionResult {
@@ -104,6 +125,7 @@ struct RecognitionResult {
   // given again (matches without the per-object pairs and points, which belong to that frame).
   bool duplicate = false;
   bool repeated_answer = false;
+  ChangeReport change;       // scene changes at the best place (loop closures only)
   MapCounts map;             // map size after this frame
   double image_scale = 1.0;  // processed / original frame size (max_image_width)
   StageTimings timings;      // milliseconds
@@ -160,6 +182,10 @@ class Recognizer {
                                        const std::vector<ObjectLabel>& labels) const;
   // The classes of the selected landmarks (one per landmark; empty labels without a labeler),
   // and the selection without the landmarks the labeler leaves out.
+  // Scene changes between the frame and the best match (and its route neighbours among the
+  // matches); classes from the labeler for objects that appeared.
+  ChangeReport DetectSceneChanges(const FrameObservation& observation,
+                                  const std::vector<PlaceMatch>& matches) const;
   LandmarkSelection ClassifyLandmarks(const FrameObservation& observation,
                                       const LandmarkSelection& selection,
                                       std::vector<ObjectLabel>* labels) const;

@@ -15,6 +15,7 @@
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "common/organization/filter_bank.h"
 #include "common/pipeline/pipeline_test_util.h"
@@ -81,6 +82,48 @@ void RemoveMapFiles(const std::string& path) {
 
 // Robot "a" drives along the street; robot "b" drives it again 13 pixels to the side. Every frame
 // of "b" should be recognised as the frame of "a" taken at the nearest position.
+TEST(RecognizerTest, PlacesKeepThumbnailsAndARevisitIsComparedWithThem) {
+  const cv::Mat world = World(5);
+  const RecognizerOptions options = TestOptions();
+  std::unique_ptr<PlaceMap> map = OpenMap(":memory:", options);
+  Recognizer recognizer(options, map.get());
+  PlaceId stored;
+  for (int i = 0; i < 4; ++i) {
+    const RecognitionResult result =
+        recognizer.Process({"a", i, i * 1000000LL, true}, View(world, i * kStep));
+    ASSERT_TRUE(result.status.ok()) << result.status.ToString();
+    if (result.place.IsValid()) stored = result.place;
+  }
+  ASSERT_TRUE(stored.IsValid());
+  StatusOr<std::vector<uint8_t>> jpeg = map->LoadThumbnail(stored);
+  ASSERT_TRUE(jpeg.ok());
+  const cv::Mat thumbnail = cv::imdecode(*jpeg, cv::IMREAD_COLOR);
+  EXPECT_EQ(thumbnail.cols, options.analyzer.thumbnail_width);
+
+  // Another robot at the last place, much later: a loop closure compared with the stored view.
+  const RecognitionResult revisit =
+      recognizer.Process({"b", 0, 3600 * 1000000LL, false}, View(world, 3 * kStep));
+  ASSERT_TRUE(revisit.status.ok());
+  if (!revisit.loop_closure) GTEST_SKIP() << "the synthetic revisit is no loop closure";
+  EXPECT_TRUE(revisit.change.checked) << revisit.change.why_not;
+  EXPECT_TRUE(revisit.change.place.id.IsValid());
+
+  // Without thumbnails nothing is compared, and the report says why.
+  RecognizerOptions bare = options;
+  bare.analyzer.thumbnail_width = 0;
+  std::unique_ptr<PlaceMap> bare_map = OpenMap(":memory:", bare);
+  Recognizer bare_recognizer(bare, bare_map.get());
+  for (int i = 0; i < 4; ++i) {
+    bare_recognizer.Process({"a", i, i * 1000000LL, true}, View(world, i * kStep));
+  }
+  const RecognitionResult blind =
+      bare_recognizer.Process({"b", 0, 3600 * 1000000LL, false}, View(world, 3 * kStep));
+  if (blind.loop_closure) {
+    EXPECT_FALSE(blind.change.checked);
+    EXPECT_FALSE(blind.change.why_not.empty());
+  }
+}
+
 TEST(RecognizerTest, SecondRobotRecognisesThePlacesTheFirstMapped) {
   const cv::Mat world = World(3);
   const RecognizerOptions options = TestOptions();

@@ -68,6 +68,11 @@ int32_t LandmarkIndex::SlotOf(LandmarkId id) const {
   return slot_of_id_[id.value()];
 }
 
+std::vector<int32_t> LandmarkIndex::SlotsOfPlace(PlaceId place) const {
+  const auto found = slots_of_place_.find(place);
+  return found == slots_of_place_.end() ? std::vector<int32_t>() : found->second;
+}
+
 bool LandmarkIndex::CandidateByColour(const IndexQuery& object, int32_t slot) const {
   return !options_.use_colour_filter ||
          ColoursCompatible(object.colour, landmarks_[slot].colour, options_.colour);

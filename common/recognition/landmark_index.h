@@ -127,6 +127,8 @@ class LandmarkIndex {
   // The landmark stored in a slot, and the slot of a landmark id (-1 if absent).
   const Landmark& landmark(int32_t slot) const { return landmarks_[slot]; }
   int32_t SlotOf(LandmarkId id) const;
+  // Slots of a place's landmarks (empty for an unknown place or one without landmarks).
+  std::vector<int32_t> SlotsOfPlace(PlaceId place) const;
 
   size_t num_landmarks() const { return landmarks_.size(); }
   size_t num_descriptors() const { return num_descriptors_; }

@@ -18,6 +18,11 @@ Status Place::Validate() const {
   if (robot.find('\0') != std::string::npos) {
     return Status::InvalidArgument("robot id contains a NUL byte");
   }
+  if (thumbnail.size() > kMaxThumbnailBytes) {
+    return Status::InvalidArgument("place thumbnail is " + std::to_string(thumbnail.size()) +
+                                   " bytes, more than the limit of " +
+                                   std::to_string(kMaxThumbnailBytes));
+  }
   for (size_t i = 0; i < seen_landmarks.size(); ++i) {
     if (!seen_landmarks[i].IsValid() || (i > 0 && !(seen_landmarks[i - 1] < seen_landmarks[i]))) {
       return Status::InvalidArgument("seen landmarks must be valid ids, increasing");

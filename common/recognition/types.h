@@ -17,6 +17,8 @@ namespace placerec {
 
 // Longest robot id the map accepts (bytes).
 constexpr size_t kMaxRobotIdLength = 64;
+// Largest place thumbnail a store accepts (bytes of JPEG).
+constexpr size_t kMaxThumbnailBytes = 1 << 20;
 // Longest object class name a landmark keeps (bytes).
 constexpr size_t kMaxObjectClassLength = 32;
 
@@ -32,6 +34,12 @@ struct Place {
   // §5.7 step 5: a matched landmark's scene set gains the place instead of the landmark being
   // stored twice). Empty except in the seed's recognition mode. Increasing ids.
   std::vector<LandmarkId> seen_landmarks = {};
+  // A small JPEG of the frame (about 160 px wide, AnalyzerOptions::thumbnail_width) that alarms,
+  // matches and tools show as the stored view, and that scene-change detection compares with
+  // (seed §7.2.4). Written by LandmarkStore::AddPlace, read back only by
+  // LandmarkStore::LoadThumbnail (LoadPlaces leaves it empty); not part of operator==. Empty:
+  // none (maps written before schema v3, or thumbnails off). At most kMaxThumbnailBytes.
+  std::vector<uint8_t> thumbnail = {};
 
   bool operator==(const Place& other) const {
     return id == other.id && robot == other.robot && sequence == other.sequence &&
@@ -40,8 +48,8 @@ struct Place {
   }
 
   // What every landmark store requires of a place (LandmarkStore::AddPlace): a robot id of
-  // 1..kMaxRobotIdLength bytes without NUL bytes, image_width >= 0 and seen_landmarks valid
-  // ids, increasing. InvalidArgument otherwise.
+  // 1..kMaxRobotIdLength bytes without NUL bytes, image_width >= 0, seen_landmarks valid
+  // ids, increasing, and a thumbnail of at most kMaxThumbnailBytes. InvalidArgument otherwise.
   // The id and num_landmarks are the store's to set and are not checked.
   Status Validate() const;
 };

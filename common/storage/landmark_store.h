@@ -45,6 +45,14 @@ class LandmarkStore {
   // A landmark whose stored data is damaged stops the scan with an IoError naming its id.
   virtual Status LoadLandmarks(const std::function<void(Landmark&&)>& visit) const = 0;
 
+  // The thumbnail (JPEG bytes, Place::thumbnail) stored with a place; empty when the place has
+  // none (a map written before thumbnails, or a store that keeps none: the default) or is not in
+  // the map.
+  virtual StatusOr<std::vector<uint8_t>> LoadThumbnail(PlaceId place) const {
+    (void)place;
+    return std::vector<uint8_t>();
+  }
+
   virtual StatusOr<StoreCounts> Counts() const = 0;
 
   // A 64-bit digest of every stored place and landmark (ids, fields, descriptor and keypoint

@@ -34,7 +34,7 @@ constexpr int64_t kSchemaLockKey = 0x706c6163736368;    // "placsch"
 constexpr char kUniqueViolation[] = "23505";
 constexpr char kForeignKeyViolation[] = "23503";
 
-// Schema v2 (schema.h) in PostgreSQL types: every integer BIGINT, BLOBs BYTEA (stored
+// Schema v3 (schema.h) in PostgreSQL types: every integer BIGINT, BLOBs BYTEA (stored
 // uncompressed: descriptors do not compress), the class confidence DOUBLE PRECISION.
 constexpr char kCreateSchema[] = R"sql(
 CREATE TABLE meta(
@@ -70,7 +70,19 @@ CREATE TABLE sightings(
   place_id BIGINT NOT NULL REFERENCES places(id),
   landmark_id BIGINT NOT NULL REFERENCES landmarks(id),
   PRIMARY KEY(place_id, landmark_id));
+CREATE TABLE thumbnails(
+  place_id BIGINT PRIMARY KEY REFERENCES places(id),
+  jpeg BYTEA NOT NULL);
 )sql";
+// Schema v2 -> v3 (schema.h): the place thumbnails; places of a v2 map have none.
+constexpr char kMigrateV2ToV3[] = R"sql(
+CREATE TABLE IF NOT EXISTS thumbnails(
+  place_id BIGINT PRIMARY KEY REFERENCES places(id),
+  jpeg BYTEA NOT NULL);
+UPDATE meta SET value = '3' WHERE key = 'schema_version';
+)sql";
+constexpr char kInsertThumbnail[] = "INSERT INTO thumbnails(place_id, jpeg) VALUES($1, $2)";
+constexpr char kSelectThumbnail[] = "SELECT jpeg FROM thumbnails WHERE place_id = $1";
 
 // The columns of a place row, in the order ReadPlaceRow reads them.
 #define PLACEREC_PLACE_COLUMNS "id, robot, sequence, utime, num_landmarks, image_width"
@@ -464,7 +476,11 @@ Status PrepareSchema(Connection* db) {
                                 text + "'"));
   }
   if (value > kSqliteSchemaVersion) return fail(NewerSchemaVersionError(db->Describe(), value));
-  if (value < kSqliteSchemaVersion) {
+  if (value == 2) {
+    // A map of before the thumbnails: it gains their table, its places have none.
+    PLACEREC_RETURN_IF_ERROR(db->Command(kMigrateV2ToV3, "cannot upgrade the schema to v3"));
+    LOG(INFO) << "upgraded placerec map " << db->Describe() << " to schema version 3";
+  } else if (value < kSqliteSchemaVersion) {
     // PostgreSQL maps began at version 2; an older number was not written by placerec.
     return fail(Status::IoError(db->Describe() + " has schema version " + std::to_string(value) +
                                 ", which no placerec PostgreSQL map has"));
@@ -526,6 +542,7 @@ class PostgresStore final : public LandmarkStore {
   Status AddPlace(Place* place, std::vector<Landmark>* landmarks) override;
   Status LoadPlaces(const std::function<void(const Place&)>& visit) const override;
   Status LoadLandmarks(const std::function<void(Landmark&&)>& visit) const override;
+  StatusOr<std::vector<uint8_t>> LoadThumbnail(PlaceId place) const override;
   StatusOr<StoreCounts> Counts() const override;
   StatusOr<uint64_t> Checksum() const override;
   std::string Describe() const override { return db_->Describe(); }
@@ -611,6 +628,15 @@ Status PostgresStore::InsertRows(const Place& place, const std::vector<Landmark>
       return db_->Error("cannot insert place", inserted);
     }
   }
+  if (!place.thumbnail.empty()) {
+    Params row;
+    row.Int(*place_id);
+    row.Bytes(ByteView{place.thumbnail.data(), place.thumbnail.size()});
+    Result inserted = db_->Exec(kInsertThumbnail, row);
+    if (inserted.status() != PGRES_COMMAND_OK) {
+      return db_->Error("cannot insert thumbnail", inserted);
+    }
+  }
   for (const LandmarkId seen : place.seen_landmarks) {
     Params row;
     row.Int(*place_id);
@@ -669,6 +695,18 @@ Status PostgresStore::LoadLandmarks(const std::function<void(Landmark&&)>& visit
   PLACEREC_RETURN_IF_ERROR(db_->Ensure());
   return ScanLandmarks(db_.get(), 0, loaded_up_to_,
                        [&visit](const EncodedLandmark& row) { visit(DecodeLandmark(row)); });
+}
+
+StatusOr<std::vector<uint8_t>> PostgresStore::LoadThumbnail(PlaceId place) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  PLACEREC_RETURN_IF_ERROR(db_->Ensure());
+  Params id;
+  id.Int(place.value());
+  Result found = db_->Exec(kSelectThumbnail, id);
+  if (found.status() != PGRES_TUPLES_OK) return db_->Error("cannot read a thumbnail", found);
+  if (found.rows() == 0) return std::vector<uint8_t>();
+  const ByteView bytes = ReadBytes(found.get(), 0, 0);
+  return std::vector<uint8_t>(bytes.data, bytes.data + bytes.size);
 }
 
 StatusOr<StoreCounts> PostgresStore::Counts() const {

@@ -235,6 +235,25 @@ TEST_F(PostgresStoreTest, WritesAndReadsBackAfterReopenWithTheSqliteDigest) {
   EXPECT_NE(ChecksumOf(*store), before);
 }
 
+TEST_F(PostgresStoreTest, ThumbnailsRoundTripApartFromPlaces) {
+  std::unique_ptr<LandmarkStore> store = Open();
+  ASSERT_NE(store, nullptr);
+  Place with = MakePlace("r", 1);
+  with.thumbnail = {0xff, 0xd8, 0x00, 0x01, 0xfe};
+  ASSERT_TRUE(store->AddPlace(&with, nullptr).ok());
+  Place without = MakePlace("r", 2);
+  ASSERT_TRUE(store->AddPlace(&without, nullptr).ok());
+  store.reset();
+  std::unique_ptr<LandmarkStore> reopened = Open();
+  ASSERT_NE(reopened, nullptr);
+  EXPECT_EQ(*reopened->LoadThumbnail(with.id), with.thumbnail);
+  EXPECT_TRUE(reopened->LoadThumbnail(without.id)->empty());
+  std::vector<Place> places;
+  ASSERT_TRUE(reopened->LoadPlaces([&places](const Place& p) { places.push_back(p); }).ok());
+  ASSERT_EQ(places.size(), 2u);
+  EXPECT_TRUE(places[0].thumbnail.empty());
+}
+
 TEST_F(PostgresStoreTest, DuplicateAndInvalidInputAreRefusedAndChangeNothing) {
   std::unique_ptr<LandmarkStore> store = Open();
   ASSERT_NE(store, nullptr);

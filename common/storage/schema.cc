@@ -66,7 +66,21 @@ Status MigrateV1ToV2(sqlite3* db) {
   return Status::Ok();
 }
 
-constexpr SchemaMigration kMigrations[] = {&MigrateV0ToV1, &MigrateV1ToV2};
+// Version 2 -> 3: a small JPEG per place (Place::thumbnail), in its own table so that scanning
+// places never reads picture pages. Places of a v2 map have none.
+constexpr char kSchemaV3[] = R"sql(
+CREATE TABLE thumbnails(
+  place_id INTEGER PRIMARY KEY REFERENCES places(id),
+  jpeg BLOB NOT NULL);
+)sql";
+
+Status MigrateV2ToV3(sqlite3* db) {
+  const int rc = sqlite3_exec(db, kSchemaV3, nullptr, nullptr, nullptr);
+  if (rc != SQLITE_OK) return Status::IoError("upgrading to schema v3: " + SqliteMessage(db, rc));
+  return Status::Ok();
+}
+
+constexpr SchemaMigration kMigrations[] = {&MigrateV0ToV1, &MigrateV1ToV2, &MigrateV2ToV3};
 static_assert(std::size(kMigrations) == kSqliteSchemaVersion,
               "one migration step per schema version");
 

@@ -13,6 +13,10 @@
 // landmark_id), the stored landmarks a later place saw again (Place::seen_landmarks, the seed's
 // scene sets of §5.7 step 5). A v1 map is migrated by adding the two columns and the empty table;
 // its landmarks stay unclassified.
+//
+// Schema v3 adds thumbnails(place_id PRIMARY KEY, jpeg BLOB): a small JPEG of each place's frame
+// (Place::thumbnail) for alarms, matches, tools and scene-change detection (seed §7.2.4). A v2 map
+// is migrated by adding the empty table: its places have no thumbnails.
 #pragma once
 
 #include <string>
@@ -25,7 +29,7 @@ struct sqlite3;
 namespace placerec {
 
 // Version of the schema this build writes.
-constexpr int kSqliteSchemaVersion = 2;
+constexpr int kSqliteSchemaVersion = 3;
 
 // One migration step: turns a map of version v into one of version v + 1. It runs inside the
 // driver's transaction and does not touch meta.schema_version.

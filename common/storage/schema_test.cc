@@ -65,7 +65,7 @@ TEST(SchemaTest, NewDatabaseIsVersionZeroAndMigratesToCurrent) {
                   "SELECT group_concat(name, ',') FROM (SELECT name FROM sqlite_master "
                   "ORDER BY name)"),
             "landmarks,landmarks_place_id,meta,places,sightings,sqlite_autoindex_meta_1,"
-            "sqlite_autoindex_places_1");
+            "sqlite_autoindex_places_1,thumbnails");
   // Migrating a current map changes nothing.
   ASSERT_TRUE(MigrateSchemaToCurrent(db.get(), kPath).ok());
   EXPECT_EQ(Query(db.get(), "SELECT COUNT(*) FROM meta"), "1");
@@ -115,13 +115,13 @@ TEST(SchemaTest, FailedStepChangesNothing) {
 TEST(SchemaTest, NewerMapIsRefusedAndLeftAlone) {
   SqliteConnection db = NewDatabase();
   ASSERT_TRUE(MigrateSchemaToCurrent(db.get(), kPath).ok());
-  Exec(db.get(), "UPDATE meta SET value = '3' WHERE key = 'schema_version'");
+  Exec(db.get(), "UPDATE meta SET value = '4' WHERE key = 'schema_version'");
   const Status status = MigrateSchemaToCurrent(db.get(), kPath);
   EXPECT_EQ(status.code(), StatusCode::kIoError);
   EXPECT_EQ(status.message(),
-            "test.db has schema version 3 but this build of placerec reads versions up to 2; "
+            "test.db has schema version 4 but this build of placerec reads versions up to 3; "
             "upgrade placerec");
-  EXPECT_EQ(VersionOf(db.get()), 3);
+  EXPECT_EQ(VersionOf(db.get()), 4);
 }
 
 TEST(SchemaTest, ReadVersionRefusesWhatIsNotAPlacerecMap) {
@@ -208,14 +208,18 @@ TEST(SchemaTest, HandWrittenVersionOneMapOpensAndReads) {
   ASSERT_TRUE(checksum.ok());
   // FNV-1a 64 of the documented serialization (checksum.h), computed by hand.
   EXPECT_EQ(*checksum, 0x1dd3c408b7a94dbau) << std::hex << *checksum;
+  // The old place has no thumbnail (schema v3); a new one keeps its own.
+  EXPECT_TRUE(store->LoadThumbnail(PlaceId(1))->empty());
   Place place;
   place.robot = "r1";
   place.sequence = 6;
+  place.thumbnail = {0xff, 0xd8, 0x01, 0x02};
   std::vector<Landmark> classified(1);
   classified[0].object_class = "sign";
   classified[0].class_confidence = 0.625f;
   ASSERT_TRUE(store->AddPlace(&place, &classified).ok());
   EXPECT_EQ(place.id, PlaceId(2));
+  EXPECT_EQ(*store->LoadThumbnail(PlaceId(2)), place.thumbnail);
   store.reset();
   EXPECT_EQ(
       testing_storage::QuerySql(map.path(), "SELECT value FROM meta WHERE key = 'schema_version'"),

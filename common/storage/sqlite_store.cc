@@ -54,6 +54,8 @@ constexpr char kInsertPlace[] =
     "INSERT INTO places(robot, sequence, utime, num_landmarks, image_width) VALUES(?, ?, ?, ?, ?)";
 
 constexpr char kInsertSighting[] = "INSERT INTO sightings(place_id, landmark_id) VALUES(?, ?)";
+constexpr char kInsertThumbnail[] = "INSERT INTO thumbnails(place_id, jpeg) VALUES(?, ?)";
+constexpr char kSelectThumbnail[] = "SELECT jpeg FROM thumbnails WHERE place_id = ?";
 constexpr char kSelectSightings[] =
     "SELECT place_id, landmark_id FROM sightings ORDER BY place_id, landmark_id";
 constexpr char kInsertLandmark[] =
@@ -159,6 +161,7 @@ class SqliteStore final : public LandmarkStore {
   Status AddPlace(Place* place, std::vector<Landmark>* landmarks) override;
   Status LoadPlaces(const std::function<void(const Place&)>& visit) const override;
   Status LoadLandmarks(const std::function<void(Landmark&&)>& visit) const override;
+  StatusOr<std::vector<uint8_t>> LoadThumbnail(PlaceId place) const override;
   StatusOr<StoreCounts> Counts() const override;
   StatusOr<uint64_t> Checksum() const override;
   std::string Describe() const override { return "sqlite:" + path_; }
@@ -235,6 +238,16 @@ Status SqliteStore::InsertRows(const Place& place, const std::vector<Landmark>& 
     }
     if (rc != SQLITE_DONE) return Error("cannot insert place", rc);
     *place_id = sqlite3_last_insert_rowid(db);
+  }
+  if (!place.thumbnail.empty()) {
+    SqliteStatement insert;
+    int rc = SqliteStatement::Prepare(db, kInsertThumbnail, false, &insert);
+    if (rc == SQLITE_OK) {
+      insert.BindInt(1, *place_id);
+      insert.BindBlob(2, place.thumbnail.data(), place.thumbnail.size());
+      rc = insert.Step();
+    }
+    if (rc != SQLITE_DONE) return Error("cannot insert thumbnail", rc);
   }
   for (const LandmarkId seen : place.seen_landmarks) {
     SqliteStatement insert;
@@ -336,6 +349,25 @@ Status SqliteStore::LoadPlaces(const std::function<void(const Place&)>& visit) c
 Status SqliteStore::LoadLandmarks(const std::function<void(Landmark&&)>& visit) const {
   std::lock_guard<std::mutex> lock(mutex_);
   return ScanLandmarks([&visit](const EncodedLandmark& row) { visit(DecodeLandmark(row)); });
+}
+
+StatusOr<std::vector<uint8_t>> SqliteStore::LoadThumbnail(PlaceId place) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  SqliteStatement select;
+  int rc = SqliteStatement::Prepare(db_.get(), kSelectThumbnail, false, &select);
+  if (rc == SQLITE_OK) {
+    select.BindInt(1, place.value());
+    rc = select.Step();
+  }
+  if (rc == SQLITE_DONE) return std::vector<uint8_t>();
+  if (rc != SQLITE_ROW)
+    return Error("cannot read the thumbnail of place " + std::to_string(place.value()), rc);
+  if (select.ColumnType(0) != SQLITE_BLOB) {
+    return Status::IoError(Describe() + ": the thumbnail of place " +
+                           std::to_string(place.value()) + " is corrupt: not a BLOB");
+  }
+  const auto [bytes, size] = select.ColumnBlob(0);
+  return std::vector<uint8_t>(bytes, bytes + size);
 }
 
 StatusOr<StoreCounts> SqliteStore::Counts() const {

@@ -313,6 +313,37 @@ TEST(SqliteStoreTest, SightingsRoundTripAndNameStoredLandmarks) {
             (std::vector<LandmarkId>{landmarks[0].id, landmarks[2].id}));
 }
 
+TEST(SqliteStoreTest, ThumbnailsRoundTripApartFromPlaces) {
+  TempMap map("thumbnails");
+  std::vector<uint8_t> jpeg(3000);
+  for (size_t i = 0; i < jpeg.size(); ++i) jpeg[i] = static_cast<uint8_t>(i * 7);
+  {
+    std::unique_ptr<LandmarkStore> store = Open(map.path());
+    Place with;
+    with.robot = "r";
+    with.sequence = 1;
+    with.thumbnail = jpeg;
+    ASSERT_TRUE(store->AddPlace(&with, nullptr).ok());
+    Place without;
+    without.robot = "r";
+    without.sequence = 2;
+    ASSERT_TRUE(store->AddPlace(&without, nullptr).ok());
+    Place too_big;
+    too_big.robot = "r";
+    too_big.sequence = 3;
+    too_big.thumbnail.resize(kMaxThumbnailBytes + 1);
+    EXPECT_EQ(store->AddPlace(&too_big, nullptr).code(), StatusCode::kInvalidArgument);
+  }
+  std::unique_ptr<LandmarkStore> store = Open(map.path());
+  EXPECT_EQ(*store->LoadThumbnail(PlaceId(1)), jpeg);
+  EXPECT_TRUE(store->LoadThumbnail(PlaceId(2))->empty());
+  EXPECT_TRUE(store->LoadThumbnail(PlaceId(99))->empty());
+  std::vector<Place> places;
+  ASSERT_TRUE(store->LoadPlaces([&places](const Place& place) { places.push_back(place); }).ok());
+  ASSERT_EQ(places.size(), 2u);
+  EXPECT_TRUE(places[0].thumbnail.empty());  // LoadPlaces leaves pictures in the store
+}
+
 TEST(SqliteStoreTest, LandmarkWithoutDescriptorsRoundTrips) {
   std::unique_ptr<LandmarkStore> store = Open(":memory:");
   ASSERT_NE(store, nullptr);

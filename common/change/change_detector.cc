@@ -1,0 +1,416 @@
+#include "common/change/change_detector.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace placerec {
+
+bool ChangeOptions::Check(std::string* error) const {
+  auto fail = [error](const char* what) {
+    *error = what;
+    return false;
+  };
+  if (!(sensitivity > 0.0 && sensitivity <= 1.0))
+    return fail("change sensitivity must be in (0, 1]");
+  if (!(min_difference > 0.0 && max_difference >= min_difference)) {
+    return fail("change differences must satisfy 0 < min <= max");
+  }
+  if (min_points < 4) return fail("change min_points must be at least 4 (a homography)");
+  if (!(homography_threshold > 0.0 && homography_threshold < 0.5)) {
+    return fail("change homography threshold must be in (0, 0.5) of the frame width");
+  }
+  if (!(min_inlier_share >= 0.0 && min_inlier_share <= 1.0)) {
+    return fail("change min inlier share must be in [0, 1]");
+  }
+  if (!(edge_margin >= 0.0 && edge_margin < 0.5))
+    return fail("change edge margin must be in [0, 0.5)");
+  if (!(alignment_tolerance >= 0.0 && alignment_tolerance < 0.2)) {
+    return fail("change alignment tolerance must be in [0, 0.2)");
+  }
+  if (!(min_area > 0.0 && max_area > min_area && max_area <= 1.0)) {
+    return fail("change areas must satisfy 0 < min < max <= 1");
+  }
+  if (!(max_match_density >= 0.0)) return fail("change max match density must be >= 0");
+  if (!(texture_weight >= 0.0)) return fail("change texture weight must be >= 0");
+  if (!(support_radius >= 0.0 && support_radius <= 1.0)) {
+    return fail("change support radius must be in [0, 1] of the frame width");
+  }
+  if (!(noise_spread >= 0.0)) return fail("change noise spread must be >= 0");
+  if (!(grow_fraction > 0.0 && grow_fraction <= 1.0)) {
+    return fail("change grow fraction must be in (0, 1]");
+  }
+  if (!(edge_band >= 0.0 && edge_band < 0.5)) return fail("change edge band must be in [0, 0.5)");
+  if (!(max_edge_share > 0.0 && max_edge_share <= 1.0)) {
+    return fail("change max edge share must be in (0, 1]");
+  }
+  if (!(texture_window > 0.0 && texture_window < 0.5)) {
+    return fail("change texture window must be in (0, 0.5) of the frame width");
+  }
+  if (max_changes < 1) return fail("change max_changes must be at least 1");
+  if (max_references < 1) return fail("change max_references must be at least 1");
+  if (!(reference_window_seconds >= 0.0)) return fail("change reference window must be >= 0");
+  if (picture_width < 32 || picture_width > 4096) {
+    return fail("change picture width must be in [32, 4096] pixels");
+  }
+  return true;
+}
+
+double ChangeOptions::Threshold() const {
+  return max_difference - sensitivity * (max_difference - min_difference);
+}
+
+const char* ChangeKindName(SceneChange::Kind kind) {
+  return kind == SceneChange::Kind::kAppeared ? "appeared" : "disappeared";
+}
+
+namespace {
+
+// CIE Lab (L in [0, 100], a and b around 0), float, lightly smoothed against JPEG noise.
+cv::Mat ToLab(const cv::Mat& bgr) {
+  cv::Mat as_float;
+  bgr.convertTo(as_float, CV_32FC3, 1.0 / 255.0);
+  cv::Mat lab;
+  cv::cvtColor(as_float, lab, cv::COLOR_BGR2Lab);
+  cv::GaussianBlur(lab, lab, cv::Size(3, 3), 0.8);
+  return lab;
+}
+
+// The stored image's channels moved to the frame's mean and spread inside `mask` (a changed
+// exposure or white balance is not a change); gains are kept within [1/3, 3].
+cv::Mat MatchExposure(const cv::Mat& stored, const cv::Mat& frame, const cv::Mat& mask) {
+  cv::Scalar stored_mean, stored_std, frame_mean, frame_std;
+  cv::meanStdDev(stored, stored_mean, stored_std, mask);
+  cv::meanStdDev(frame, frame_mean, frame_std, mask);
+  std::vector<cv::Mat> channels;
+  cv::split(stored, channels);
+  for (int c = 0; c < 3; ++c) {
+    const double gain =
+        std::clamp(stored_std[c] > 1e-3 ? frame_std[c] / stored_std[c] : 1.0, 1.0 / 3.0, 3.0);
+    channels[c].convertTo(channels[c], CV_32F, gain, frame_mean[c] - gain * stored_mean[c]);
+  }
+  cv::Mat matched;
+  cv::merge(channels, matched);
+  return matched;
+}
+
+// Per pixel, how far the frame lies outside the range of the stored values within `radius`
+// pixels (Lab distance): misalignment of a few pixels and edges that moved do not count.
+cv::Mat OutsideRange(const cv::Mat& frame, const cv::Mat& stored, int radius) {
+  cv::Mat high, low;
+  if (radius > 0) {
+    const cv::Mat kernel =
+        cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * radius + 1, 2 * radius + 1));
+    cv::dilate(stored, high, kernel);
+    cv::erode(stored, low, kernel);
+  } else {
+    high = stored;
+    low = stored;
+  }
+  cv::Mat above = frame - high;
+  cv::Mat below = low - frame;
+  cv::Mat outside = cv::max(cv::max(above, below), 0.0);
+  std::vector<cv::Mat> channels;
+  cv::split(outside, channels);
+  cv::Mat distance =
+      channels[0].mul(channels[0]) + channels[1].mul(channels[1]) + channels[2].mul(channels[2]);
+  cv::sqrt(distance, distance);
+  return distance;
+}
+
+// Local contrast: the standard deviation of L in a window of `size` pixels (texture, seed §5.5
+// describes objects by their texture too): a plain patch pasted over a textured one, or the
+// reverse, changes it even where the colours stay within the stored range.
+cv::Mat LocalContrast(const cv::Mat& lab, int size) {
+  cv::Mat l;
+  cv::extractChannel(lab, l, 0);
+  cv::Mat mean, mean_sq;
+  cv::blur(l, mean, cv::Size(size, size));
+  cv::blur(l.mul(l), mean_sq, cv::Size(size, size));
+  cv::Mat variance = cv::max(mean_sq - mean.mul(mean), 0.0);
+  cv::Mat deviation;
+  cv::sqrt(variance, deviation);
+  return deviation;
+}
+
+struct Fitted {
+  cv::Mat homography;                     // place processed pixels -> frame processed pixels
+  std::vector<cv::Point2f> frame_points;  // the inliers, frame processed pixels
+};
+
+bool FitHomography(const ChangeReference& reference, int frame_width, const ChangeOptions& options,
+                   Fitted* fitted) {
+  if (static_cast<int>(reference.point_pairs.size()) < options.min_points) return false;
+  std::vector<cv::Point2f> frame_points, place_points;
+  for (const auto& [f, p] : reference.point_pairs) {
+    frame_points.push_back(f);
+    place_points.push_back(p);
+  }
+  std::vector<unsigned char> inliers;
+  cv::Mat h = cv::findHomography(place_points, frame_points, cv::RANSAC,
+                                 options.homography_threshold * frame_width, inliers, 500, 0.995);
+  if (h.empty()) return false;
+  int count = 0;
+  for (size_t i = 0; i < inliers.size(); ++i) {
+    if (inliers[i] == 0) continue;
+    ++count;
+    fitted->frame_points.push_back(frame_points[i]);
+  }
+  if (count < options.min_points ||
+      count < options.min_inlier_share * static_cast<double>(inliers.size())) {
+    return false;
+  }
+  // A plausible view change: no mirror image, scale within a factor of 4.
+  const double det =
+      h.at<double>(0, 0) * h.at<double>(1, 1) - h.at<double>(0, 1) * h.at<double>(1, 0);
+  if (!(det > 1.0 / 16.0 && det < 16.0)) return false;
+  fitted->homography = h;
+  return true;
+}
+
+cv::Rect Scaled(const cv::Rect& box, double scale) {
+  return cv::Rect(cv::Point(static_cast<int>(std::floor(box.x * scale)),
+                            static_cast<int>(std::floor(box.y * scale))),
+                  cv::Point(static_cast<int>(std::ceil(box.br().x * scale)),
+                            static_cast<int>(std::ceil(box.br().y * scale))));
+}
+
+double IoU(const cv::Rect& a, const cv::Rect& b) {
+  const double inter = (a & b).area();
+  const double uni = a.area() + b.area() - inter;
+  return uni > 0 ? inter / uni : 0.0;
+}
+
+}  // namespace
+
+ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame_size,
+                           const std::vector<ChangeReference>& references,
+                           const ChangeOptions& options) {
+  ChangeResult result;
+  if (frame_thumbnail.empty() || frame_thumbnail.type() != CV_8UC3 || frame_size.width <= 0 ||
+      frame_size.height <= 0) {
+    result.why_not = "no picture of the frame";
+    return result;
+  }
+  const int width = frame_thumbnail.cols;
+  const int height = frame_thumbnail.rows;
+  const double to_thumb = static_cast<double>(width) / frame_size.width;
+  const cv::Mat frame_lab = ToLab(frame_thumbnail);
+  const int radius =
+      static_cast<int>(std::lround(options.alignment_tolerance * static_cast<double>(width)));
+  const int margin =
+      static_cast<int>(std::lround(options.edge_margin * static_cast<double>(width)));
+  const int contrast_window =
+      std::max(3, static_cast<int>(std::lround(options.texture_window * width)) | 1);
+  const cv::Mat frame_contrast = LocalContrast(frame_lab, contrast_window);
+
+  cv::Mat difference(height, width, CV_32F, cv::Scalar(1e9));
+  cv::Mat shared = cv::Mat::zeros(height, width, CV_8U);
+  std::vector<cv::Point2f> matched_points;  // verified points of the frame, thumbnail pixels
+  // Stored landmarks mapped into the frame (thumbnail pixels) that the frame did not match.
+  std::vector<std::pair<cv::Rect, std::string>> unmatched_landmarks;
+  for (const ChangeReference& reference : references) {
+    if (static_cast<int>(result.references) >= options.max_references) break;
+    if (reference.thumbnail.empty() || reference.thumbnail.type() != CV_8UC3 ||
+        reference.image_width <= 0) {
+      if (result.why_not.empty()) result.why_not = "the place has no thumbnail";
+      continue;
+    }
+    Fitted fitted;
+    if (!FitHomography(reference, frame_size.width, options, &fitted)) {
+      if (result.why_not.empty()) result.why_not = "no homography between the views";
+      continue;
+    }
+    const double place_to_thumb =
+        static_cast<double>(reference.thumbnail.cols) / reference.image_width;
+    cv::Mat scale_place = cv::Mat::eye(3, 3, CV_64F);
+    scale_place.at<double>(0, 0) = scale_place.at<double>(1, 1) = 1.0 / place_to_thumb;
+    cv::Mat scale_frame = cv::Mat::eye(3, 3, CV_64F);
+    scale_frame.at<double>(0, 0) = scale_frame.at<double>(1, 1) = to_thumb;
+    const cv::Mat h = scale_frame * fitted.homography * scale_place;  // thumb -> thumb
+
+    cv::Mat warped, valid;
+    cv::warpPerspective(reference.thumbnail, warped, h, frame_thumbnail.size(), cv::INTER_LINEAR,
+                        cv::BORDER_CONSTANT);
+    cv::warpPerspective(cv::Mat(reference.thumbnail.size(), CV_8U, cv::Scalar(255)), valid, h,
+                        frame_thumbnail.size(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
+    // The edges of the shared view: the frame's and the place's.
+    cv::rectangle(valid, cv::Rect(0, 0, width, height), cv::Scalar(0), 1);
+    if (margin > 0) {
+      cv::erode(
+          valid, valid,
+          cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * margin + 1, 2 * margin + 1)));
+    }
+    // Only where the homography holds: near points that fit it. Elsewhere (near walls, doors
+    // that the robot passes) the parallax of the scene's depth makes differences of its own.
+    if (options.support_radius > 0) {
+      cv::Mat support = cv::Mat::zeros(height, width, CV_8U);
+      for (const cv::Point2f& p : fitted.frame_points) {
+        const cv::Point at(static_cast<int>(p.x * to_thumb), static_cast<int>(p.y * to_thumb));
+        if (at.x >= 0 && at.y >= 0 && at.x < width && at.y < height) support.at<uint8_t>(at) = 255;
+      }
+      const int r = std::max(1, static_cast<int>(std::lround(options.support_radius * width)));
+      cv::dilate(support, support,
+                 cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * r + 1, 2 * r + 1)));
+      valid &= support;
+    }
+    if (cv::countNonZero(valid) < options.min_area * width * height) {
+      if (result.why_not.empty()) result.why_not = "the views share too little";
+      continue;
+    }
+    const cv::Mat stored_lab = MatchExposure(ToLab(warped), frame_lab, valid);
+    cv::Mat outside = OutsideRange(frame_lab, stored_lab, radius);
+    if (options.texture_weight > 0) {
+      cv::Mat texture;
+      cv::absdiff(frame_contrast, LocalContrast(stored_lab, contrast_window), texture);
+      outside = cv::max(outside, texture * options.texture_weight);
+    }
+    // Per pixel the smallest difference among the references that see it.
+    cv::Mat inside_valid;
+    outside.copyTo(inside_valid);
+    inside_valid.setTo(1e9, valid == 0);
+    difference = cv::min(difference, inside_valid);
+    shared |= valid;
+    ++result.references;
+    for (const cv::Point2f& p : fitted.frame_points) {
+      matched_points.emplace_back(p.x * to_thumb, p.y * to_thumb);
+    }
+    // Stored landmarks the frame did not match, where the place would show them.
+    for (size_t i = 0; i < reference.landmark_boxes.size(); ++i) {
+      if (i < reference.landmark_matched.size() && reference.landmark_matched[i]) continue;
+      const cv::Rect& box = reference.landmark_boxes[i];
+      std::vector<cv::Point2f> corners = {cv::Point2f(box.x, box.y), cv::Point2f(box.br().x, box.y),
+                                          cv::Point2f(box.br().x, box.br().y),
+                                          cv::Point2f(box.x, box.br().y)};
+      std::vector<cv::Point2f> mapped;
+      cv::perspectiveTransform(corners, mapped, fitted.homography);
+      cv::Rect in_frame =
+          cv::boundingRect(mapped) & cv::Rect(0, 0, frame_size.width, frame_size.height);
+      if (in_frame.area() <= 0) continue;
+      unmatched_landmarks.emplace_back(
+          Scaled(in_frame, to_thumb),
+          i < reference.landmark_classes.size() ? reference.landmark_classes[i] : std::string());
+    }
+  }
+  if (result.references == 0) return result;
+  result.checked = true;
+  result.why_not.clear();
+  const int shared_pixels = cv::countNonZero(shared);
+  result.shared_view = static_cast<double>(shared_pixels) / (width * height);
+  difference.setTo(0, shared == 0);
+  result.difference = difference;
+
+  // Regions that differ beyond the threshold: the sensitivity's, or more in a frame whose shared
+  // view differs throughout (a poor alignment, a changed light): the median difference plus
+  // noise_spread robust deviations. Seeds above it grow through pixels above grow_fraction of it.
+  std::vector<float> values;
+  values.reserve(static_cast<size_t>(shared_pixels));
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      if (shared.at<uint8_t>(y, x) != 0) values.push_back(difference.at<float>(y, x));
+    }
+  }
+  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+  const double median = values[values.size() / 2];
+  for (float& v : values) v = static_cast<float>(std::abs(v - median));
+  std::nth_element(values.begin(), values.begin() + values.size() / 2, values.end());
+  const double spread = 1.4826 * values[values.size() / 2];
+  const double threshold = std::max(options.Threshold(), median + options.noise_spread * spread);
+  result.threshold = threshold;
+  const cv::Mat small = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(3, 3));
+  cv::Mat seeds = (difference > threshold) & shared;
+  cv::morphologyEx(seeds, seeds, cv::MORPH_OPEN, small);
+  cv::Mat grown = (difference > options.grow_fraction * threshold) & shared;
+  cv::morphologyEx(grown, grown, cv::MORPH_CLOSE, small, cv::Point(-1, -1), 2);
+  cv::Mat labels, stats, centroids;
+  const int count = cv::connectedComponentsWithStats(grown, labels, stats, centroids, 8, CV_32S);
+  std::vector<bool> seeded(static_cast<size_t>(count), false);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      if (seeds.at<uint8_t>(y, x) != 0) seeded[labels.at<int>(y, x)] = true;
+    }
+  }
+  // Distance of each shared pixel to the edge of the shared view (pixels).
+  cv::Mat to_edge;
+  cv::distanceTransform(shared, to_edge, cv::DIST_L2, 3);
+  const double edge_band = std::max(1.0, options.edge_band * width);
+  // Verified points per pixel of the shared view: the density a seen region has.
+  const double density =
+      shared_pixels > 0 ? static_cast<double>(matched_points.size()) / shared_pixels : 0.0;
+  const double frame_area = static_cast<double>(width) * height;
+  for (int c = 1; c < count; ++c) {
+    const int area = stats.at<int>(c, cv::CC_STAT_AREA);
+    const cv::Rect box(stats.at<int>(c, cv::CC_STAT_LEFT), stats.at<int>(c, cv::CC_STAT_TOP),
+                       stats.at<int>(c, cv::CC_STAT_WIDTH), stats.at<int>(c, cv::CC_STAT_HEIGHT));
+    if (!seeded[c] || area < options.min_area * frame_area ||
+        box.area() > options.max_area * frame_area) {
+      continue;
+    }
+    // Along the edge of the shared view: what the motion brought into view, or the parallax of
+    // near objects there.
+    const cv::Mat in_component = labels == c;
+    if (cv::countNonZero(in_component & (to_edge < edge_band)) > options.max_edge_share * area) {
+      continue;
+    }
+    // Matched content inside: what is there was seen at the place.
+    int inside = 0;
+    for (const cv::Point2f& p : matched_points) {
+      const int x = static_cast<int>(p.x), y = static_cast<int>(p.y);
+      if (x >= 0 && y >= 0 && x < width && y < height && labels.at<int>(y, x) == c) ++inside;
+    }
+    if (inside > 0 && inside >= options.max_match_density * density * area) continue;
+    const double mean = cv::mean(difference, in_component)[0];
+    // Confidence: how far beyond the threshold the region differs, and how large it is.
+    const double strength = std::clamp((mean - threshold) / threshold, 0.0, 1.0);
+    const double size = std::clamp(area / (0.02 * frame_area), 0.0, 1.0);
+    SceneChange change;
+    change.confidence = static_cast<float>(0.5 + 0.25 * strength + 0.25 * size);
+    change.box = Scaled(box, 1.0 / to_thumb) & cv::Rect(0, 0, frame_size.width, frame_size.height);
+    // A stored landmark that was not matched where the region lies: it disappeared.
+    double best = 0.3;
+    for (const auto& [landmark_box, name] : unmatched_landmarks) {
+      const double overlap = IoU(landmark_box, box);
+      if (overlap >= best) {
+        best = overlap;
+        change.kind = SceneChange::Kind::kDisappeared;
+        change.object_class = name;
+      }
+    }
+    result.changes.push_back(change);
+  }
+  std::sort(result.changes.begin(), result.changes.end(),
+            [](const SceneChange& a, const SceneChange& b) { return a.confidence > b.confidence; });
+  if (static_cast<int>(result.changes.size()) > options.max_changes) {
+    result.changes.resize(options.max_changes);
+  }
+  return result;
+}
+
+cv::Mat DrawChanges(const cv::Mat& frame, const cv::Size& frame_size,
+                    const std::vector<SceneChange>& changes, int width) {
+  if (frame.empty() || frame_size.width <= 0 || width <= 0) return cv::Mat();
+  cv::Mat picture;
+  const double scale = static_cast<double>(width) / frame.cols;
+  cv::resize(frame, picture,
+             cv::Size(width, std::max(1, static_cast<int>(std::lround(frame.rows * scale)))), 0, 0,
+             cv::INTER_AREA);
+  if (picture.channels() == 1) cv::cvtColor(picture, picture, cv::COLOR_GRAY2BGR);
+  const double to_picture = static_cast<double>(width) / frame_size.width;
+  for (const SceneChange& change : changes) {
+    const cv::Scalar colour = change.kind == SceneChange::Kind::kAppeared ? cv::Scalar(0, 0, 255)
+                                                                          : cv::Scalar(0, 220, 255);
+    const cv::Rect box = Scaled(change.box, to_picture);
+    cv::rectangle(picture, box, colour, 2, cv::LINE_AA);
+    char text[64];
+    std::snprintf(text, sizeof(text), "%s%s%.2f", change.object_class.c_str(),
+                  change.object_class.empty() ? "" : " ", change.confidence);
+    cv::putText(picture, text, cv::Point(box.x, std::max(10, box.y - 3)), cv::FONT_HERSHEY_SIMPLEX,
+                0.4, colour, 1, cv::LINE_AA);
+  }
+  return picture;
+}
+
+}  // namespace placerec

@@ -1,0 +1,127 @@
+// Scene changes at a revisit (pipeline step after 9, seed §7.2.4): when a frame is matched to a
+// stored place, the part of the view the two share is compared; what the frame shows there that
+// the place did not (an object that appeared) and what the place showed that the frame does not
+// (a landmark that disappeared) are the changes a patrol robot reports. The shared view comes from
+// the geometric verification (loop_decision.h): a homography fitted to its inlier keypoint pairs
+// maps the stored place's thumbnail into the frame. Regions whose appearance differs beyond the
+// sensitivity and that hold no verified match are changes; the robot's own motion (edges of the
+// shared view, parallax around edges, a changed exposure) and objects that did match are not.
+// The stored place's route neighbours that also matched serve as further references: a region is
+// a change only when it differs from every one of them.
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace placerec {
+
+struct ChangeOptions {
+  // Look for changes at every matched place (insert or query).
+  bool enabled = true;
+  // How readily a difference becomes an alarm, in (0, 1]: the appearance difference a region
+  // needs is max_difference - sensitivity * (max_difference - min_difference) CIE Lab units.
+  double sensitivity = 0.5;
+  double min_difference = 10.0;
+  double max_difference = 40.0;
+  // Verified point pairs the homography needs; fewer: the place is not checked.
+  int min_points = 12;
+  // RANSAC reprojection threshold of the homography, as a fraction of the frame's width.
+  double homography_threshold = 0.03;
+  // Share of the homography's fitted pairs that must be inliers (a view that a plane does not
+  // describe, a strong parallax, is not checked).
+  double min_inlier_share = 0.3;
+  // The shared view is trimmed by this fraction of the frame width at its edges, where the
+  // robot's motion brings new scene into view.
+  double edge_margin = 0.05;
+  // The shared view is where the homography holds: within this fraction of the frame width of a
+  // verified point that fits it (0: the whole mapped view).
+  double support_radius = 0.15;
+  // Misalignment tolerated when comparing (fraction of the frame width): a pixel differs only by
+  // what lies outside the range of the stored values around it.
+  double alignment_tolerance = 0.02;
+  // Texture counts too: the difference of local contrast (standard deviation of L in a window of
+  // texture_window of the frame width) times texture_weight is a difference in Lab units.
+  double texture_weight = 1.5;
+  double texture_window = 0.05;
+  // In a frame whose shared view differs throughout (a poor alignment, a changed light) a change
+  // must also differ by the median difference plus this many robust standard deviations.
+  double noise_spread = 4.0;
+  // A change grows from pixels above the threshold through neighbours above this fraction of it
+  // (whole objects rather than their most different parts).
+  double grow_fraction = 0.4;
+  // A region with more than max_edge_share of its pixels within edge_band (fraction of the frame
+  // width) of the shared view's edge is explained by the motion: new scene entering the view, or
+  // the parallax of near objects that the homography does not model.
+  double edge_band = 0.05;
+  double max_edge_share = 0.5;
+  // A change covers at least min_area and at most max_area of the frame (fractions of its area);
+  // larger differences are a changed view, not an object.
+  double min_area = 0.004;
+  double max_area = 0.25;
+  // A region holding at least this share of the shared view's verified points per unit area
+  // matched: what is there was seen before (an object that did match, or occludes nothing).
+  double max_match_density = 0.35;
+  // At most this many changes per frame, most confident first.
+  int max_changes = 5;
+  // Matched places of the best place's route (same robot, within this many seconds of it) that
+  // serve as further references, at most max_references of them in all.
+  int max_references = 3;
+  double reference_window_seconds = 3.0;
+  // Width of the alarm pictures (frame with boxes, stored place), pixels.
+  int picture_width = 320;
+
+  bool Check(std::string* error) const;
+  // The Lab difference a region needs (see sensitivity).
+  double Threshold() const;
+};
+
+// A stored place seen as a reference for the frame.
+struct ChangeReference {
+  cv::Mat thumbnail;    // BGR thumbnail of the place's frame
+  int image_width = 0;  // width of the processed frame its points and boxes refer to (pixels)
+  // Verified keypoint pairs (frame point, place point) in processed pixels of each frame.
+  std::vector<std::pair<cv::Point2f, cv::Point2f>> point_pairs;
+  // The place's stored landmarks (place pixels) and their classes ("" unclassified), with
+  // whether the frame matched them.
+  std::vector<cv::Rect> landmark_boxes;
+  std::vector<std::string> landmark_classes;
+  std::vector<bool> landmark_matched;
+};
+
+struct SceneChange {
+  enum class Kind { kAppeared = 0, kDisappeared = 1 };
+  Kind kind = Kind::kAppeared;
+  cv::Rect box;              // in the frame, processed pixels
+  std::string object_class;  // "" when not classified
+  float confidence = 0.0f;   // in [0, 1]
+};
+
+struct ChangeResult {
+  bool checked = false;              // a shared view was found and compared
+  std::string why_not;               // when not checked: why
+  double shared_view = 0;            // share of the frame compared
+  double threshold = 0;              // the Lab difference changes needed in this frame
+  int references = 0;                // places compared against
+  std::vector<SceneChange> changes;  // most confident first
+  cv::Mat difference;  // CV_32F per pixel of the frame's thumbnail (Lab units; 0 outside)
+};
+
+// Compares the frame (its thumbnail and the size of its processed frame) with the references,
+// the first being the matched place. Never throws for bad input: an unusable reference is
+// skipped and the result says why nothing was checked.
+ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame_size,
+                           const std::vector<ChangeReference>& references,
+                           const ChangeOptions& options);
+
+// "appeared" / "disappeared".
+const char* ChangeKindName(SceneChange::Kind kind);
+
+// The frame with the changes' boxes drawn (red appeared, yellow disappeared, with class and
+// confidence), `width` pixels wide; boxes are in processed pixels of a frame `frame_size`.
+cv::Mat DrawChanges(const cv::Mat& frame, const cv::Size& frame_size,
+                    const std::vector<SceneChange>& changes, int width);
+
+}  // namespace placerec

@@ -1,0 +1,176 @@
+#include "common/change/change_detector.h"
+
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+namespace placerec {
+namespace {
+
+constexpr int kWidth = 640;
+constexpr int kHeight = 480;
+constexpr int kThumbnailWidth = 160;
+
+// A textured scene larger than a frame (fixed seed): smooth colour blobs.
+cv::Mat Scene() {
+  cv::RNG rng(7);
+  cv::Mat coarse(48, 64, CV_8UC3);
+  rng.fill(coarse, cv::RNG::UNIFORM, cv::Scalar::all(40), cv::Scalar::all(220));
+  cv::Mat scene;
+  cv::resize(coarse, scene, cv::Size(kWidth + 128, kHeight + 96), 0, 0, cv::INTER_CUBIC);
+  cv::GaussianBlur(scene, scene, cv::Size(5, 5), 1.5);
+  return scene;
+}
+
+cv::Mat Thumbnail(const cv::Mat& frame) {
+  cv::Mat small;
+  cv::resize(frame, small, cv::Size(kThumbnailWidth, kThumbnailWidth * frame.rows / frame.cols), 0,
+             0, cv::INTER_AREA);
+  return small;
+}
+
+// The place sees the scene from (0, 0), the frame from `offset`: a frame point p is place point
+// p + offset. Point pairs on a grid, except inside `hidden` (frame pixels).
+ChangeReference Reference(const cv::Mat& scene, cv::Point offset, cv::Rect hidden = cv::Rect()) {
+  ChangeReference reference;
+  reference.thumbnail = Thumbnail(scene(cv::Rect(0, 0, kWidth, kHeight)));
+  reference.image_width = kWidth;
+  for (int y = 20; y < kHeight - offset.y; y += 40) {
+    for (int x = 20; x < kWidth - offset.x; x += 40) {
+      if (hidden.contains(cv::Point(x, y))) continue;
+      reference.point_pairs.emplace_back(cv::Point2f(x, y),
+                                         cv::Point2f(x + offset.x, y + offset.y));
+    }
+  }
+  return reference;
+}
+
+double IoU(const cv::Rect& a, const cv::Rect& b) {
+  const double inter = (a & b).area();
+  return inter / (a.area() + b.area() - inter);
+}
+
+const cv::Point kOffset(24, 16);
+
+TEST(ChangeOptionsTest, DefaultsPass) {
+  std::string error;
+  EXPECT_TRUE(ChangeOptions().Check(&error)) << error;
+  ChangeOptions bad;
+  bad.sensitivity = 0;
+  EXPECT_FALSE(bad.Check(&error));
+  EXPECT_NE(error.find("sensitivity"), std::string::npos);
+}
+
+TEST(ChangeDetectorTest, UnchangedSceneRaisesNothing) {
+  const cv::Mat scene = Scene();
+  const cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+  const ChangeResult result =
+      DetectChanges(Thumbnail(frame), frame.size(), {Reference(scene, kOffset)}, ChangeOptions());
+  EXPECT_TRUE(result.checked) << result.why_not;
+  EXPECT_EQ(result.references, 1);
+  EXPECT_GT(result.shared_view, 0.6);
+  EXPECT_TRUE(result.changes.empty());
+}
+
+TEST(ChangeDetectorTest, ExposureChangeIsNotAChange) {
+  const cv::Mat scene = Scene();
+  cv::Mat frame;
+  scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).convertTo(frame, -1, 0.5, 10);
+  const ChangeResult result =
+      DetectChanges(Thumbnail(frame), frame.size(), {Reference(scene, kOffset)}, ChangeOptions());
+  EXPECT_TRUE(result.checked);
+  EXPECT_TRUE(result.changes.empty());
+}
+
+TEST(ChangeDetectorTest, PastedObjectIsFoundWhereItIs) {
+  const cv::Mat scene = Scene();
+  cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+  const cv::Rect object(300, 200, 100, 120);  // 4 % of the frame
+  frame(object).setTo(cv::Scalar(20, 200, 30));
+  cv::circle(frame, object.tl() + cv::Point(50, 40), 25, cv::Scalar(250, 250, 250), -1);
+  const ChangeResult result = DetectChanges(Thumbnail(frame), frame.size(),
+                                            {Reference(scene, kOffset, object)}, ChangeOptions());
+  ASSERT_TRUE(result.checked);
+  ASSERT_EQ(result.changes.size(), 1u);
+  EXPECT_EQ(result.changes[0].kind, SceneChange::Kind::kAppeared);
+  EXPECT_GT(IoU(result.changes[0].box, object), 0.6) << result.changes[0].box;
+  EXPECT_GE(result.changes[0].confidence, 0.5f);
+  EXPECT_LE(result.changes[0].confidence, 1.0f);
+}
+
+TEST(ChangeDetectorTest, RegionWithVerifiedMatchesIsNotAChange) {
+  // The region differs but holds as many verified points as anywhere: it was seen before.
+  const cv::Mat scene = Scene();
+  cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+  const cv::Rect object(300, 200, 100, 120);
+  frame(object).setTo(cv::Scalar(20, 200, 30));
+  const ChangeResult result =
+      DetectChanges(Thumbnail(frame), frame.size(), {Reference(scene, kOffset)}, ChangeOptions());
+  EXPECT_TRUE(result.changes.empty());
+}
+
+TEST(ChangeDetectorTest, MissingLandmarkIsADisappearance) {
+  const cv::Mat scene = Scene();
+  cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+  const cv::Rect gone(200, 100, 120, 100);     // frame pixels
+  frame(gone).setTo(cv::Scalar(200, 60, 20));  // a plain wall where the sign was
+  ChangeReference reference = Reference(scene, kOffset, gone);
+  reference.landmark_boxes = {gone + kOffset, cv::Rect(0, 0, 50, 50)};
+  reference.landmark_classes = {"sign", "building"};
+  reference.landmark_matched = {false, true};
+  const ChangeResult result =
+      DetectChanges(Thumbnail(frame), frame.size(), {reference}, ChangeOptions());
+  ASSERT_EQ(result.changes.size(), 1u);
+  EXPECT_EQ(result.changes[0].kind, SceneChange::Kind::kDisappeared);
+  EXPECT_EQ(result.changes[0].object_class, "sign");
+  EXPECT_GT(IoU(result.changes[0].box, gone), 0.5);
+}
+
+TEST(ChangeDetectorTest, ObjectSeenFromANeighbourIsNotAChange) {
+  // The matched place does not show the object but its route neighbour does.
+  const cv::Mat scene = Scene();
+  cv::Mat changed_scene = scene.clone();
+  const cv::Rect object(300, 200, 100, 120);
+  changed_scene(object + kOffset).setTo(cv::Scalar(20, 200, 30));
+  const cv::Mat frame = changed_scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+  ChangeReference neighbour = Reference(changed_scene, kOffset, object);
+  ChangeReference place = Reference(scene, kOffset, object);
+  EXPECT_EQ(DetectChanges(Thumbnail(frame), frame.size(), {place}, ChangeOptions()).changes.size(),
+            1u);
+  const ChangeResult both =
+      DetectChanges(Thumbnail(frame), frame.size(), {place, neighbour}, ChangeOptions());
+  EXPECT_EQ(both.references, 2);
+  EXPECT_TRUE(both.changes.empty());
+}
+
+TEST(ChangeDetectorTest, TooFewPointsOrNoThumbnailIsNotChecked) {
+  const cv::Mat scene = Scene();
+  const cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+  ChangeReference few = Reference(scene, kOffset);
+  few.point_pairs.resize(5);
+  ChangeResult result = DetectChanges(Thumbnail(frame), frame.size(), {few}, ChangeOptions());
+  EXPECT_FALSE(result.checked);
+  EXPECT_FALSE(result.why_not.empty());
+  ChangeReference blank = Reference(scene, kOffset);
+  blank.thumbnail.release();
+  result = DetectChanges(Thumbnail(frame), frame.size(), {blank}, ChangeOptions());
+  EXPECT_FALSE(result.checked);
+  EXPECT_EQ(result.why_not, "the place has no thumbnail");
+  result = DetectChanges(cv::Mat(), frame.size(), {Reference(scene, kOffset)}, ChangeOptions());
+  EXPECT_FALSE(result.checked);
+}
+
+TEST(ChangeDetectorTest, DrawChangesScalesToTheWidth) {
+  const cv::Mat frame(480, 640, CV_8UC3, cv::Scalar(0, 0, 0));
+  SceneChange change;
+  change.box = cv::Rect(100, 100, 200, 100);
+  const cv::Mat picture = DrawChanges(frame, frame.size(), {change}, 320);
+  EXPECT_EQ(picture.cols, 320);
+  EXPECT_EQ(picture.rows, 240);
+  EXPECT_NE(cv::countNonZero(picture.reshape(1)), 0);  // the box is drawn
+}
+
+}  // namespace
+}  // namespace placerec

@@ -1,0 +1,129 @@
+// Scene-change alarms through the service (issue 22, seed §7.2.4): robot "a" maps the first
+// frames of the Gardens Point day walk; robot "b" passes the same place with a frame into which an
+// object was pasted. The answer lists the change where it was pasted, and `placerec-client watch`
+// receives the alarm on PLACEREC_CHANGE and saves both pictures; the same frame unchanged raises
+// nothing. In a private network namespace (tests/service_harness.h); skips when not root or
+// without ../shared/data.
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "client/client.h"
+#include "common/eval/run.h"
+#include "common/util/paths.h"
+#include "tests/service_harness.h"
+
+namespace placerec {
+namespace {
+
+using testing_service::BinaryPath;
+using testing_service::ChildProcess;
+using testing_service::TestLcmUrl;
+
+OutgoingFrame JpegFrame(const cv::Mat& image, const std::string& robot, int64_t sequence,
+                        int64_t utime, bool insert) {
+  OutgoingFrame frame;
+  frame.robot = robot;
+  frame.sequence = sequence;
+  frame.utime = utime;
+  frame.insert = insert;
+  frame.image.encoding = FrameEncoding::kJpeg;
+  cv::imencode(".jpg", image, frame.image.bytes, {cv::IMWRITE_JPEG_QUALITY, 95});
+  return frame;
+}
+
+// A textured, coloured object (a parcel left on the path): stripes and a disc.
+void PasteParcel(const cv::Rect& box, cv::Mat* image) {
+  cv::Mat parcel = (*image)(box);
+  parcel.setTo(cv::Scalar(30, 60, 200));
+  for (int x = 0; x < box.width; x += 12) {
+    cv::line(parcel, cv::Point(x, 0), cv::Point(x, box.height), cv::Scalar(20, 200, 240), 4);
+  }
+  cv::circle(parcel, cv::Point(box.width / 2, box.height / 2), box.height / 4,
+             cv::Scalar(240, 240, 240), -1);
+}
+
+TEST(ChangeServiceTest, APastedObjectRaisesAnAlarmThatWatchReceives) {
+  const Status network = testing_service::EnterPrivateNetwork();
+  if (!network.ok()) GTEST_SKIP() << "server/client tests skipped: " << network.message();
+  const std::string data = DataDir("", PLACEREC_DEFAULT_DATA_DIR) + "/gardens_point";
+  if (!PathExists(data + "/runs/day_left_then_day_right.frames.csv")) {
+    GTEST_SKIP() << "needs " << data << " (the shared evaluation data); set PLACEREC_DATA";
+  }
+  StatusOr<placerec::Run> run = LoadRun(data, "day_left_then_day_right");
+  ASSERT_TRUE(run.ok()) << run.status().ToString();
+  const std::string dir = testing_service::MakeTempDir("placerec_change_");
+  const std::string keys = testing_service::WriteTestKeys(dir + "/keys", {{"robots", "both"}});
+  ClientOptions options;
+  options.lcm_url = TestLcmUrl();
+  options.key_file = keys;
+  options.timeout_s = 120;
+  StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(options);
+  ASSERT_TRUE(client.ok()) << client.status().ToString();
+  StatusOr<std::unique_ptr<ChildProcess>> server = testing_service::StartServer(
+      dir + "/map.db", {"--keys", keys}, dir + "/server.log", client->get());
+  ASSERT_TRUE(server.ok()) << server.status().ToString();
+  StatusOr<std::unique_ptr<ChildProcess>> watch =
+      ChildProcess::Start({BinaryPath("placerec-client"), "watch", "--out", dir + "/alarms",
+                           "--max-alarms", "1", "--duration", "300", "--lcm-url", TestLcmUrl()},
+                          dir + "/watch.log");
+  ASSERT_TRUE(watch.ok());
+
+  // Robot a maps the start of the route.
+  constexpr int kMapped = 8;
+  constexpr int kRevisited = 5;
+  cv::Mat revisited;
+  for (int f = 0; f < kMapped; ++f) {
+    const cv::Mat image = cv::imread(run->frames[f].image, cv::IMREAD_COLOR);
+    ASSERT_FALSE(image.empty());
+    if (f == kRevisited) revisited = image;
+    const FrameResult r = (*client)->Send(JpegFrame(image, "a", f, run->frames[f].utime, true));
+    ASSERT_TRUE(r.ok()) << DescribeResult(r) << testing_service::Tail(dir + "/server.log");
+  }
+  const int64_t later = run->frames[kMapped - 1].utime + 3600LL * 1000000;
+
+  // Robot b passes the place as it was: a loop closure, compared, nothing changed.
+  const FrameResult same = (*client)->Send(JpegFrame(revisited, "b", 0, later, false));
+  ASSERT_TRUE(same.ok()) << DescribeResult(same);
+  ASSERT_TRUE(same.loop_closure) << DescribeResult(same);
+  EXPECT_TRUE(same.change_checked);
+  EXPECT_TRUE(same.changes.empty()) << same.changes.size() << " changes, first at "
+                                    << same.changes[0].x << "," << same.changes[0].y;
+
+  // ... and with a parcel left in the middle of the view (6 % of the frame).
+  cv::Mat changed = revisited.clone();
+  const cv::Rect parcel(revisited.cols * 2 / 5, revisited.rows * 2 / 5, revisited.cols / 5,
+                        revisited.rows * 3 / 10);
+  PasteParcel(parcel, &changed);
+  const FrameResult alarm = (*client)->Send(JpegFrame(changed, "b", 1, later + 1000000, false));
+  ASSERT_TRUE(alarm.ok()) << DescribeResult(alarm);
+  ASSERT_TRUE(alarm.loop_closure) << DescribeResult(alarm);
+  ASSERT_EQ(alarm.changes.size(), 1u) << testing_service::Tail(dir + "/server.log");
+  const ReportedChange& change = alarm.changes[0];
+  EXPECT_TRUE(change.appeared);
+  const cv::Rect found(change.x, change.y, change.width, change.height);
+  const double overlap = (found & parcel).area();
+  EXPECT_GT(overlap / (found.area() + parcel.area() - overlap), 0.5) << found << " vs " << parcel;
+  EXPECT_GE(change.confidence, 0.5f);
+
+  // The operator's watch printed it and saved the frame with its box and the stored place.
+  StatusOr<int> code = (*watch)->Wait(60);
+  ASSERT_TRUE(code.ok()) << code.status().ToString();
+  EXPECT_EQ(*code, 0);
+  const std::string log = testing_service::ReadTextFile(dir + "/watch.log");
+  EXPECT_NE(log.find("b #1 at place"), std::string::npos) << log;
+  EXPECT_NE(log.find("(a #"), std::string::npos) << log;
+  EXPECT_NE(log.find("appeared"), std::string::npos) << log;
+  const cv::Mat frame_picture = cv::imread(dir + "/alarms/b_1_frame.jpg");
+  const cv::Mat place_picture = cv::imread(dir + "/alarms/b_1_place.jpg");
+  EXPECT_EQ(frame_picture.cols, 320);
+  EXPECT_EQ(place_picture.cols, 160);
+  ASSERT_TRUE(testing_service::StopServer(server->get()).ok());
+  testing_service::RemoveTempDir(dir);
+}
+
+}  // namespace
+}  // namespace placerec

@@ -1,0 +1,303 @@
+#include "tools/change_eval.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <random>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "common/eval/stats.h"
+#include "common/image/image.h"
+#include "common/storage/sqlite_store.h"
+#include "common/util/paths.h"
+#include "common/util/progress.h"
+#include "common/util/timer.h"
+
+namespace placerec {
+namespace {
+
+// Size bands of the changes, as shares of the frame's area.
+struct Band {
+  const char* name;
+  double low, high;
+};
+constexpr Band kBands[] = {{"1-2%", 0.0, 0.02}, {"2-5%", 0.02, 0.05}, {"5-10%", 0.05, 1.0}};
+
+int BandOf(double share) {
+  for (int b = 0; b < 3; ++b) {
+    if (share < kBands[b].high) return b;
+  }
+  return 2;
+}
+
+struct Tally {
+  int cases = 0;
+  int hits = 0;
+  int checked = 0;  // compared with a stored place
+  int cases_band[3] = {0, 0, 0};
+  int hits_band[3] = {0, 0, 0};
+  std::vector<double> ious;  // of the hits
+};
+
+double Share(int hits, int cases) { return cases > 0 ? static_cast<double>(hits) / cases : 0.0; }
+
+nlohmann::json TallyJson(const Tally& t) {
+  nlohmann::json j;
+  j["cases"] = t.cases;
+  j["found"] = t.hits;
+  j["compared"] = t.checked;
+  j["detection_recall"] = Share(t.hits, t.cases);
+  int cases2 = 0, hits2 = 0;
+  for (int b = 0; b < 3; ++b) {
+    j["by_size"][kBands[b].name] = {{"cases", t.cases_band[b]},
+                                    {"found", t.hits_band[b]},
+                                    {"recall", Share(t.hits_band[b], t.cases_band[b])}};
+    if (b >= 1) {
+      cases2 += t.cases_band[b];
+      hits2 += t.hits_band[b];
+    }
+  }
+  j["detection_recall_2pct"] = Share(hits2, cases2);
+  j["localisation_iou_median"] = t.ious.empty() ? 0.0 : Percentile(t.ious, 50);
+  return j;
+}
+
+// Frame with the true box (green), the changes found (red / yellow) and the stored thumbnail.
+cv::Mat Picture(const cv::Mat& frame, const cv::Size& processed, double image_scale,
+                const cv::Rect& truth, const ChangeReport& report) {
+  const int width = 480;
+  const double s = static_cast<double>(width) / frame.cols;
+  cv::Mat left;
+  cv::resize(frame, left, cv::Size(width, static_cast<int>(frame.rows * s)), 0, 0, cv::INTER_AREA);
+  if (!truth.empty()) {
+    cv::rectangle(left, cv::Rect(cv::Point(truth.tl() * s), cv::Point(truth.br() * s)),
+                  cv::Scalar(0, 220, 0), 2);
+  }
+  const double to_left = s / image_scale;  // processed pixels -> picture
+  for (const SceneChange& change : report.changes) {
+    const cv::Rect box(cv::Point(change.box.tl() * to_left), cv::Point(change.box.br() * to_left));
+    cv::rectangle(left, box,
+                  change.kind == SceneChange::Kind::kAppeared ? cv::Scalar(0, 0, 255)
+                                                              : cv::Scalar(0, 220, 255),
+                  2);
+  }
+  (void)processed;
+  cv::Mat right(left.rows, 240, CV_8UC3, cv::Scalar(40, 40, 40));
+  if (!report.place_picture.empty()) {
+    cv::Mat place = cv::imdecode(report.place_picture, cv::IMREAD_COLOR);
+    if (!place.empty()) {
+      cv::resize(place, place, cv::Size(240, std::min(left.rows, 240 * place.rows / place.cols)));
+      place.copyTo(right(cv::Rect(0, 0, place.cols, place.rows)));
+    }
+  }
+  if (!report.difference.empty()) {
+    cv::Mat difference;
+    report.difference.convertTo(difference, CV_8U, 4.0);  // 64 Lab units is white
+    cv::cvtColor(difference, difference, cv::COLOR_GRAY2BGR);
+    cv::resize(difference, difference,
+               cv::Size(240, std::min(left.rows - 2 - right.rows / 2,
+                                      240 * difference.rows / difference.cols)));
+    const int top = left.rows - difference.rows;
+    if (top >= 0) difference.copyTo(right(cv::Rect(0, top, difference.cols, difference.rows)));
+  }
+  cv::Mat both;
+  cv::hconcat(left, right, both);
+  return both;
+}
+
+}  // namespace
+
+StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions& options,
+                                         const ChangeEvalOptions& eval) {
+  std::string error;
+  if (!options.Check(&error)) return Status::InvalidArgument(error);
+  if (!options.change.enabled) {
+    return Status::InvalidArgument("change detection is off (--change-detection false)");
+  }
+  if (eval.out_dir.empty() || !MakeDirectories(eval.out_dir + "/pictures")) {
+    return Status::IoError("cannot create " + eval.out_dir + "/pictures");
+  }
+  // The objects to paste.
+  std::vector<CutObject> objects;
+  for (const std::string& dataset : eval.object_datasets) {
+    StatusOr<std::vector<CutObject>> cut = CutTestObjects(dataset, eval.cut);
+    if (!cut.ok()) return cut.status();
+    for (CutObject& object : *cut) objects.push_back(std::move(object));
+  }
+  if (objects.empty()) return Status::NotFound("no objects to paste in the labelled datasets");
+
+  SqliteStoreOptions store_options;
+  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(":memory:", store_options);
+  if (!store.ok()) return store.status();
+  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
+  if (!map.ok()) return map.status();
+  StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.analyzer);
+  if (!segmenter.ok()) return segmenter.status();
+  std::unique_ptr<ObjectClassLabeler> labeler;
+  if (options.classes.enabled) {
+    StatusOr<std::unique_ptr<ObjectClassLabeler>> loaded =
+        ObjectClassLabeler::Load(options.classes);
+    if (!loaded.ok()) return loaded.status();
+    labeler = std::move(*loaded);
+  }
+  Recognizer recognizer(options, map->get(), std::move(*segmenter), std::move(labeler));
+
+  std::mt19937_64 rng(eval.seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const int frames = eval.max_frames > 0 ? std::min<int>(eval.max_frames, run.frames.size())
+                                         : static_cast<int>(run.frames.size());
+  Tally pasted, removed;
+  int unchanged = 0, unchanged_checked = 0, false_alarms = 0, loop_closures = 0;
+  int revisits = 0;
+  std::vector<double> change_ms, sift_ms;
+  int pictures_hit = 0, pictures_miss = 0, pictures_false = 0;
+  ProgressLine progress(static_cast<size_t>(frames), 50);
+  std::ofstream cases(eval.out_dir + "/revisits.csv");
+  cases << "frame,case,truth_x,truth_y,truth_w,truth_h,loop_closure,compared,why_not,changes,"
+           "best_iou,boxes\n";
+  for (int i = 0; i < frames; ++i) {
+    const RunFrame& frame = run.frames[i];
+    StatusOr<cv::Mat> image = ReadImageFile(frame.image);
+    if (!image.ok()) return image.status();
+    const FrameObservation observation = recognizer.Analyze(*image);
+    FrameRequest request{frame.robot, frame.frame, frame.utime, true};
+    if (run.is_revisit[i]) {
+      const int k = revisits++;
+      const bool changed = k % 2 == 1;
+      const bool removal = changed && eval.removal_every > 0 &&
+                           (k / 2) % eval.removal_every == eval.removal_every - 1;
+      cv::Mat query = *image;
+      cv::Rect truth;
+      std::string what;
+      if (changed && !removal) {
+        query = image->clone();
+        const CutObject& object = objects[static_cast<size_t>(unit(rng) * objects.size())];
+        const double share =
+            eval.min_area_share * std::pow(eval.max_area_share / eval.min_area_share, unit(rng));
+        const double x = unit(rng), y = unit(rng);
+        truth = PasteObject(object, share, x, y, &query);
+        what = object.class_name + " from " + object.source;
+      } else if (removal) {
+        // Paint over the frame's largest object of 1-10 % of the frame (a landmark gone).
+        const double frame_area = static_cast<double>(observation.processed_size.area());
+        const SceneObject* chosen = nullptr;
+        for (const SceneObject& object : observation.objects) {
+          const double share = object.box.area() / frame_area;
+          if (share < eval.min_area_share || share > eval.max_area_share) continue;
+          if (chosen == nullptr || object.sift_count() > chosen->sift_count()) chosen = &object;
+        }
+        if (chosen != nullptr) {
+          query = image->clone();
+          const double to_frame = 1.0 / observation.scale;
+          const cv::Rect box(cv::Point(chosen->box.tl() * to_frame),
+                             cv::Point(chosen->box.br() * to_frame));
+          truth = PaintOver(box, &query);
+          what = "painted over";
+        }
+      }
+      const FrameObservation asked = truth.empty() ? observation : recognizer.Analyze(query);
+      FrameRequest as_query = request;
+      as_query.insert = false;
+      const RecognitionResult answer = recognizer.Recognize(as_query, asked);
+      for (const auto& [stage, ms] : answer.timings) {
+        if (stage == "change") change_ms.push_back(ms);
+        if (stage == "sift") sift_ms.push_back(ms);
+      }
+      loop_closures += answer.loop_closure ? 1 : 0;
+      const ChangeReport& report = answer.change;
+      const cv::Size processed = asked.processed_size;
+      const double frame_area = static_cast<double>(query.cols) * query.rows;
+      std::string kind;
+      if (truth.empty()) {
+        ++unchanged;
+        unchanged_checked += report.checked ? 1 : 0;
+        if (!report.changes.empty()) {
+          ++false_alarms;
+          kind = pictures_false++ < eval.pictures ? "false_alarm" : "";
+        }
+      } else {
+        Tally& tally = removal ? removed : pasted;
+        const int band = BandOf(truth.area() / frame_area);
+        ++tally.cases;
+        ++tally.cases_band[band];
+        tally.checked += report.checked ? 1 : 0;
+        double best = 0;
+        for (const SceneChange& change : report.changes) {
+          const double to_frame = 1.0 / asked.scale;
+          const cv::Rect box(cv::Point(change.box.tl() * to_frame),
+                             cv::Point(change.box.br() * to_frame));
+          best = std::max(best, BoxIoU(box, truth));
+        }
+        if (best >= eval.min_iou) {
+          ++tally.hits;
+          ++tally.hits_band[band];
+          tally.ious.push_back(best);
+          kind = pictures_hit++ < eval.pictures ? "hit" : "";
+        } else {
+          // Pictures of the misses that were compared: those say why the detector missed.
+          if (report.checked) kind = pictures_miss++ < eval.pictures ? "miss" : "";
+        }
+      }
+      {
+        const char* what_case = truth.empty() ? "unchanged" : removal ? "removed" : "pasted";
+        double best = 0;
+        std::string boxes;
+        for (const SceneChange& change : report.changes) {
+          const double to_frame = 1.0 / asked.scale;
+          const cv::Rect box(cv::Point(change.box.tl() * to_frame),
+                             cv::Point(change.box.br() * to_frame));
+          best = std::max(best, BoxIoU(box, truth));
+          boxes += (boxes.empty() ? "" : ";") + std::to_string(box.x) + " " +
+                   std::to_string(box.y) + " " + std::to_string(box.width) + " " +
+                   std::to_string(box.height) + " " + std::to_string(change.confidence);
+        }
+        cases << frame.frame << ',' << what_case << ',' << truth.x << ',' << truth.y << ','
+              << truth.width << ',' << truth.height << ',' << answer.loop_closure << ','
+              << report.checked << ",\"" << report.why_not << "\"," << report.changes.size() << ','
+              << best << ",\"" << boxes << "\"\n";
+      }
+      if (!kind.empty()) {
+        char name[256];
+        std::snprintf(name, sizeof(name), "%s/pictures/%s_%04d.png", eval.out_dir.c_str(),
+                      kind.c_str(), frame.frame);
+        cv::imwrite(name, Picture(query, processed, asked.scale, truth, report));
+      }
+      (void)what;
+    }
+    const RecognitionResult inserted = recognizer.Recognize(request, observation);
+    if (!inserted.status.ok()) return inserted.status;
+    if (eval.progress && progress.Due(static_cast<size_t>(i + 1))) {
+      std::fprintf(stderr, "\r%d/%d frames, %d revisits", i + 1, frames, revisits);
+    }
+  }
+  if (eval.progress) std::fprintf(stderr, "\n");
+
+  nlohmann::json j;
+  j["dataset"] = run.dataset_dir.substr(run.dataset_dir.find_last_of('/') + 1);
+  j["run"] = run.name;
+  j["frames"] = frames;
+  j["revisits"] = revisits;
+  j["revisit_loop_closures"] = loop_closures;
+  j["seed"] = eval.seed;
+  j["change_options"] = {{"sensitivity", options.change.sensitivity},
+                         {"threshold_lab", options.change.Threshold()},
+                         {"min_area", options.change.min_area}};
+  j["appeared"] = TallyJson(pasted);
+  j["removed"] = TallyJson(removed);
+  j["detection_recall"] = j["appeared"]["detection_recall"];
+  j["detection_recall_2pct"] = j["appeared"]["detection_recall_2pct"];
+  j["localisation_iou"] = j["appeared"]["localisation_iou_median"];
+  j["unchanged"] = unchanged;
+  j["unchanged_compared"] = unchanged_checked;
+  j["false_alarms"] = false_alarms;
+  j["false_alarm_rate"] = Share(false_alarms, unchanged);
+  j["change_ms_median"] = change_ms.empty() ? 0.0 : Percentile(change_ms, 50);
+  j["sift_ms_median"] = sift_ms.empty() ? 0.0 : Percentile(sift_ms, 50);
+  std::ofstream(eval.out_dir + "/change.json") << j.dump(2) << "\n";
+  return j;
+}
+
+}  // namespace placerec
