@@ -1,6 +1,7 @@
 #include "server/authenticator.h"
 
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <string>
@@ -17,8 +18,14 @@ const char kRobotHex[] = "000102030405060708090a0b0c0d0e0f101112131415161718191a
 const char kPhoneHex[] = "ffeeddccbbaa99887766554433221100ffeeddccbbaa99887766554433221100";
 const char kLateHex[] = "0f0e0d0c0b0a09080706050403020100ffeeddccbbaa99887766554433221100";
 
+// Files of this process only: ctest runs the tests of this file in parallel processes, which
+// must not read each other's half-written files.
+std::string TempPath(const std::string& name) {
+  return ::testing::TempDir() + "/" + name + "_" + std::to_string(getpid());
+}
+
 std::string WriteKeys(const std::string& text) {
-  const std::string path = ::testing::TempDir() + "/authenticator_keys";
+  const std::string path = TempPath("authenticator_keys");
   std::ofstream(path, std::ios::trunc) << text;
   chmod(path.c_str(), 0600);
   return path;
@@ -26,7 +33,7 @@ std::string WriteKeys(const std::string& text) {
 
 SigningKey Key(const std::string& id, const std::string& hex) {
   std::string warning;
-  const std::string path = ::testing::TempDir() + "/authenticator_one_key";
+  const std::string path = TempPath("authenticator_one_key");
   std::ofstream(path, std::ios::trunc) << id << " both " << hex << "\n";
   return ReadKeysFile(path, &warning)->front();
 }

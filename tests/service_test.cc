@@ -1156,6 +1156,9 @@ TEST_F(ServiceTest, TheClientRejectsForgedAnswers) {
       a.map_places = a.map_landmarks = a.map_descriptors = 12345;
       a.queue_ms = a.server_ms = 0;
       a.num_timings = 0;
+      a.change_checked = false;
+      a.change_place_id = -1;
+      a.num_changes = 0;
       ClearAnswerSignature(&a);
       if (variant == 1) SignAnswer(made_up, &a);
       if (variant == 2) SignAnswer(field_key_, &a);

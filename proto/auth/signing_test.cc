@@ -14,8 +14,9 @@
 namespace placerec {
 namespace {
 
+// In files of this process only: ctest runs this file's tests in parallel processes.
 std::string WriteFile(const std::string& name, const std::string& text, mode_t mode) {
-  const std::string path = ::testing::TempDir() + "/" + name;
+  const std::string path = ::testing::TempDir() + "/" + name + "_" + std::to_string(getpid());
   std::ofstream(path) << text;
   chmod(path.c_str(), mode);
   return path;
@@ -167,6 +168,9 @@ TEST(SigningTest, AnAnswerSignatureNamesItsKey) {
   answer.map_places = answer.map_landmarks = answer.map_descriptors = 0;
   answer.queue_ms = answer.server_ms = 0;
   answer.num_timings = 0;
+  answer.change_checked = false;
+  answer.change_place_id = -1;
+  answer.num_changes = 0;
   ClearAnswerSignature(&answer);
   EXPECT_FALSE(AnswerSignatureValid(answer, key));  // unsigned
   SignAnswer(key, &answer);
