@@ -2,12 +2,15 @@
 
 #include <httplib.h>
 
+#include <charconv>
 #include <chrono>
 #include <string>
 #include <utility>
 
 #include <nlohmann/json.hpp>
 
+#include "common/storage/postgres_store.h"
+#include "common/storage/sqlite_store.h"
 #include "common/util/logging.h"
 
 namespace placerec {
@@ -73,10 +76,30 @@ nlohmann::json AnswerJson(const FrameResult& r) {
                        {"classes", classes},
                        {"thumbnail", "/v1/places/" + std::to_string(m.place_id) + "/thumbnail"}});
   }
-  return {{"status", "ok"},           {"loop_closure", r.loop_closure},
-          {"matches", matches},       {"keypoints", r.keypoints},
-          {"objects", r.objects},     {"map_places", r.map_places},
-          {"server_ms", r.server_ms}, {"latency_ms", r.latency_ms}};
+  nlohmann::json changes = nlohmann::json::array();
+  for (const ReportedChange& c : r.changes) {
+    changes.push_back({{"kind", c.appeared ? "appeared" : "disappeared"},
+                       {"box", {{"x", c.x}, {"y", c.y}, {"width", c.width}, {"height", c.height}}},
+                       {"class", c.object_class},
+                       {"confidence", c.confidence}});
+  }
+  return {{"status", "ok"},
+          {"loop_closure", r.loop_closure},
+          {"change_checked", r.change_checked},
+          {"changes", changes},
+          {"matches", matches},
+          {"keypoints", r.keypoints},
+          {"objects", r.objects},
+          {"map_places", r.map_places},
+          {"server_ms", r.server_ms},
+          {"latency_ms", r.latency_ms}};
+}
+
+// A whole decimal number (the ids of URL paths).
+bool ParseInt64(const std::string& text, int64_t* value) {
+  const char* end = text.data() + text.size();
+  const auto [next, error] = std::from_chars(text.data(), end, *value);
+  return error == std::errc() && next == end && !text.empty();
 }
 
 // "Bearer TOKEN" -> TOKEN; empty when the header is missing or of another scheme.
@@ -159,6 +182,20 @@ StatusOr<std::unique_ptr<Gateway>> Gateway::Create(const GatewayOptions& options
       SiteWatcher::Start(options.client.lcm_url, options.recent_loop_closures);
   if (!watcher.ok()) return watcher.status();
   gateway->watcher_ = std::move(*watcher);
+  if (!options.db.empty()) {
+    // The server's map, read only for pictures; it must exist (the server made it).
+    SqliteStoreOptions store;
+    store.must_exist = true;
+    store.quick_check = false;  // the server checks the map; this reads a few rows
+    StatusOr<std::unique_ptr<LandmarkStore>> map =
+        IsPostgresUrl(options.db) ? OpenPostgresStore(options.db, PostgresStoreOptions())
+                                  : OpenSqliteStore(options.db, store);
+    if (!map.ok()) {
+      return Status(map.status().code(),
+                    "--db: " + map.status().message() + " (give the map placerec-server serves)");
+    }
+    gateway->map_ = std::move(*map);
+  }
   gateway->http_ =
       std::make_unique<httplib::SSLServer>(options.cert_file.c_str(), options.key_file.c_str());
   if (!gateway->http_->is_valid()) {
@@ -275,8 +312,38 @@ HttpReply Gateway::Thumbnail(const std::string& authorization, const std::string
   DeviceToken device;
   HttpReply refusal;
   if (!Admit(authorization, &device, &refusal)) return refusal;
-  return ErrorReply(404,
-                    "no picture of place " + place_id + ": this map keeps no place thumbnails yet");
+  if (map_ == nullptr) {
+    return ErrorReply(404, "no place pictures here: the gateway was started without --db MAP");
+  }
+  int64_t id = 0;
+  if (!ParseInt64(place_id, &id)) return ErrorReply(404, "no place " + place_id);
+  StatusOr<std::vector<uint8_t>> jpeg = map_->LoadThumbnail(PlaceId(id));
+  if (!jpeg.ok()) return ErrorReply(502, "cannot read the map: " + jpeg.status().message());
+  if (jpeg->empty()) {
+    return ErrorReply(404, "no picture of place " + place_id +
+                               ": it is not in the map, or was stored before maps kept pictures");
+  }
+  HttpReply reply;
+  reply.content_type = "image/jpeg";
+  reply.body.assign(jpeg->begin(), jpeg->end());
+  return reply;
+}
+
+HttpReply Gateway::AlarmPicture(const std::string& authorization, const std::string& alarm_id,
+                                const std::string& which) {
+  DeviceToken device;
+  HttpReply refusal;
+  if (!Admit(authorization, &device, &refusal)) return refusal;
+  int64_t id = 0;
+  std::vector<uint8_t> jpeg;
+  if (!ParseInt64(alarm_id, &id) || !watcher_->AlarmPicture(id, which == "place", &jpeg)) {
+    return ErrorReply(404, "no alarm " + alarm_id + " among the recent ones");
+  }
+  if (jpeg.empty()) return ErrorReply(404, "alarm " + alarm_id + " has no " + which + " picture");
+  HttpReply reply;
+  reply.content_type = "image/jpeg";
+  reply.body.assign(jpeg.begin(), jpeg.end());
+  return reply;
 }
 
 Status Gateway::Serve() {
@@ -301,6 +368,10 @@ Status Gateway::Serve() {
   });
   http.Get("/v1/site", [&](const httplib::Request& req, httplib::Response& res) {
     send(Site(req.get_header_value("Authorization")), res);
+  });
+  http.Get(R"(/v1/alarms/(\d+)/(frame|place)\.jpg)", [&](const httplib::Request& req,
+                                                         httplib::Response& res) {
+    send(AlarmPicture(req.get_header_value("Authorization"), req.matches[1], req.matches[2]), res);
   });
   http.Get(R"(/v1/places/(\d+)/thumbnail)",
            [&](const httplib::Request& req, httplib::Response& res) {

@@ -12,6 +12,7 @@
 #include <string>
 
 #include "client/client.h"
+#include "common/storage/landmark_store.h"
 #include "common/util/status.h"
 #include "gateway/access.h"
 #include "gateway/site_watcher.h"
@@ -35,6 +36,9 @@ struct GatewayOptions {
   double query_timeout_s = 30;         // waiting for the server's answer
   size_t recent_loop_closures = 20;    // kept for the site overview
   ClientOptions client;                // LCM URL, retries
+  // The server's map (a file path or a postgresql:// URL), read for the places' stored pictures
+  // (GET /v1/places/{id}/thumbnail); empty: the gateway shows none. Never written.
+  std::string db;
 
   bool Check(std::string* error) const;
 };
@@ -60,8 +64,12 @@ class Gateway {
   HttpReply ServerStatus(const std::string& authorization);
   // GET /v1/site: heartbeat, robots heard, recent loop closures.
   HttpReply Site(const std::string& authorization);
-  // GET /v1/places/{id}/thumbnail.
+  // GET /v1/places/{id}/thumbnail: the place's stored picture (JPEG) from the map (--db).
   HttpReply Thumbnail(const std::string& authorization, const std::string& place_id);
+  // GET /v1/alarms/{id}/{frame|place}.jpg: a recent scene-change alarm's pictures (the frame
+  // with the change's box, the stored place), as the server published them.
+  HttpReply AlarmPicture(const std::string& authorization, const std::string& alarm_id,
+                         const std::string& which);
 
   // Listens and serves until Stop(); an error when it cannot listen.
   Status Serve();
@@ -80,6 +88,7 @@ class Gateway {
   // gateway's own key, ClientOptions::key_id).
   std::map<std::string, std::unique_ptr<PlacerecClient>> clients_;
   std::unique_ptr<SiteWatcher> watcher_;
+  std::unique_ptr<LandmarkStore> map_;  // null without --db
   std::unique_ptr<httplib::SSLServer> http_;
   std::atomic<int64_t> next_sequence_{0};
   std::atomic<int> bound_port_{0};

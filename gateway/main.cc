@@ -26,8 +26,9 @@ constexpr char kUsage[] =
     "                                   -> the server's answer as JSON; queries only, the map\n"
     "                                   never changes\n"
     "  GET  /v1/status                  the server's last heartbeat\n"
-    "  GET  /v1/site                    robots heard and recent loop closures\n"
-    "  GET  /v1/places/ID/thumbnail     the stored picture of a place\n"
+    "  GET  /v1/site                    robots heard, recent loop closures and change alarms\n"
+    "  GET  /v1/places/ID/thumbnail     the stored picture of a place (needs --db)\n"
+    "  GET  /v1/alarms/ID/frame.jpg     a recent scene-change alarm's frame (and place.jpg)\n"
     "Errors are JSON {\"error\": \"...\"} with the HTTP status. The tokens file has one device "
     "per\n"
     "line: TOKEN DEVICE [key=KEY_ID] [expires=YYYY-MM-DDTHH:MM:SSZ]. DEVICE names the device's\n"
@@ -57,6 +58,9 @@ int Main(int argc, char** argv) {
              "keys file holding the gateway's key: its queries are signed with it (a key with "
              "permission 'query' only; scripts/make-key.sh gateway query)");
   parser.Add("key-id", &options.client.key_id, "which key of --key-file (empty: its first)");
+  parser.Add("db", &options.db,
+             "the server's map (file or postgresql:// URL), read for place pictures (GET "
+             "/v1/places/ID/thumbnail); empty: none shown");
   parser.Add("retry-after", &options.client.retry_after_s,
              "seconds after which an unanswered query is sent again (same request id)");
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 1, "placerec-gateway")) {

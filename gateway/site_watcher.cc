@@ -2,6 +2,7 @@
 
 #include <lcm/lcm-cpp.hpp>
 
+#include "placerec/change_t.hpp"
 #include "placerec/result_t.hpp"
 #include "placerec/status_t.hpp"
 #include "proto/channels.h"
@@ -18,7 +19,11 @@ StatusOr<std::unique_ptr<SiteWatcher>> SiteWatcher::Start(const std::string& lcm
                                                         &SiteWatcher::OnResult, watcher.get());
   lcm::Subscription* status =
       watcher->lcm_->subscribe(kStatusChannel, &SiteWatcher::OnStatus, watcher.get());
-  if (results == nullptr || status == nullptr) return Status::IoError("cannot subscribe on LCM");
+  lcm::Subscription* changes =
+      watcher->lcm_->subscribe(kChangeChannel, &SiteWatcher::OnChange, watcher.get());
+  if (results == nullptr || status == nullptr || changes == nullptr) {
+    return Status::IoError("cannot subscribe on LCM");
+  }
   SiteWatcher* self = watcher.get();
   watcher->thread_ = std::thread([self] {
     while (!self->stop_) self->lcm_->handleTimeout(100);
@@ -73,6 +78,45 @@ void SiteWatcher::OnStatus(const lcm::ReceiveBuffer* buffer, const std::string&)
              {"frames_per_second", s.frames_per_second}};
 }
 
+void SiteWatcher::OnChange(const lcm::ReceiveBuffer* buffer, const std::string&) {
+  change_t c;
+  if (c.decode(buffer->data, 0, buffer->data_size) < 0) return;
+  std::lock_guard lock(mutex_);
+  Alarm alarm;
+  alarm.id = next_alarm_id_++;
+  const std::string pictures = "/v1/alarms/" + std::to_string(alarm.id);
+  alarm.summary = {
+      {"id", alarm.id},
+      {"robot", c.robot},
+      {"sequence", c.sequence},
+      {"utime", c.frame_utime},
+      {"kind", c.kind == change_t::KIND_DISAPPEARED ? "disappeared" : "appeared"},
+      {"class", c.object_class},
+      {"confidence", c.confidence},
+      {"box", {{"x", c.box[0]}, {"y", c.box[1]}, {"width", c.box[2]}, {"height", c.box[3]}}},
+      {"place",
+       {{"place_id", c.place_id},
+        {"robot", c.place_robot},
+        {"sequence", c.place_sequence},
+        {"utime", c.place_utime}}},
+      {"frame_picture", c.frame_jpeg.empty() ? "" : pictures + "/frame.jpg"},
+      {"place_picture", c.place_jpeg.empty() ? "" : pictures + "/place.jpg"}};
+  alarm.frame_jpeg = std::move(c.frame_jpeg);
+  alarm.place_jpeg = std::move(c.place_jpeg);
+  alarms_.push_front(std::move(alarm));
+  while (alarms_.size() > keep_) alarms_.pop_back();
+}
+
+bool SiteWatcher::AlarmPicture(int64_t id, bool place, std::vector<uint8_t>* jpeg) const {
+  std::lock_guard lock(mutex_);
+  for (const Alarm& alarm : alarms_) {
+    if (alarm.id != id) continue;
+    *jpeg = place ? alarm.place_jpeg : alarm.frame_jpeg;
+    return true;
+  }
+  return false;
+}
+
 nlohmann::json SiteWatcher::LastStatus() const {
   std::lock_guard lock(mutex_);
   return status_;
@@ -80,6 +124,8 @@ nlohmann::json SiteWatcher::LastStatus() const {
 
 nlohmann::json SiteWatcher::Overview() const {
   std::lock_guard lock(mutex_);
+  nlohmann::json alarms = nlohmann::json::array();
+  for (const Alarm& alarm : alarms_) alarms.push_back(alarm.summary);
   nlohmann::json robots = nlohmann::json::array();
   for (const auto& [robot, frames] : robots_.items()) {
     robots.push_back({{"robot", robot}, {"frames", frames}});
@@ -87,7 +133,8 @@ nlohmann::json SiteWatcher::Overview() const {
   return {{"server", status_},
           {"loop_closures", nlohmann::json(std::vector<nlohmann::json>(loop_closures_.begin(),
                                                                        loop_closures_.end()))},
-          {"robots", robots}};
+          {"robots", robots},
+          {"alarms", alarms}};
 }
 
 }  // namespace placerec

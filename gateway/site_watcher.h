@@ -1,6 +1,7 @@
-// What the gateway's site overview shows (issue 26 item 4): the server's last heartbeat and the
-// recent loop closures of every robot, heard on the LCM network (PLACEREC_STATUS and every
-// PLACEREC_RESULT_<robot> channel). Thread-safe; listens on a thread of its own.
+// What the gateway's site overview shows (issue 26 item 4): the server's last heartbeat, the
+// recent loop closures of every robot and the recent scene-change alarms, heard on the LCM
+// network (PLACEREC_STATUS, every PLACEREC_RESULT_<robot> channel and PLACEREC_CHANGE).
+// Thread-safe; listens on a thread of its own.
 #pragma once
 
 #include <atomic>
@@ -10,6 +11,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -24,13 +26,19 @@ namespace placerec {
 
 class SiteWatcher {
  public:
-  // Listens on `lcm_url` (empty: LCM's default); keeps the last `keep` loop closures.
+  // Listens on `lcm_url` (empty: LCM's default); keeps the last `keep` loop closures and the
+  // last `keep` alarms (with their two small pictures).
   static StatusOr<std::unique_ptr<SiteWatcher>> Start(const std::string& lcm_url, size_t keep);
   ~SiteWatcher();
 
   // {"server": {...heartbeat...} or null, "loop_closures": [{robot, sequence, utime, place:
-  // {robot, sequence, utime, place_id, score}}, ...] newest first, "robots": [ids heard]}.
+  // {robot, sequence, utime, place_id, score}}, ...] newest first, "robots": [ids heard],
+  // "alarms": [{id, robot, sequence, utime, kind, class, confidence, box, place: {place_id,
+  // robot, sequence, utime}, frame_picture, place_picture}, ...] newest first}.
   nlohmann::json Overview() const;
+  // The frame's (or, with `place`, the stored place's) JPEG of the recent alarm `id`; false when
+  // it is no longer kept.
+  bool AlarmPicture(int64_t id, bool place, std::vector<uint8_t>* jpeg) const;
   // The last heartbeat as JSON; null when none was heard yet.
   nlohmann::json LastStatus() const;
 
@@ -38,6 +46,14 @@ class SiteWatcher {
   SiteWatcher(std::unique_ptr<lcm::LCM> lcm, size_t keep);
   void OnResult(const lcm::ReceiveBuffer* buffer, const std::string& channel);
   void OnStatus(const lcm::ReceiveBuffer* buffer, const std::string& channel);
+  void OnChange(const lcm::ReceiveBuffer* buffer, const std::string& channel);
+
+  struct Alarm {
+    int64_t id = 0;
+    nlohmann::json summary;  // as Overview lists it
+    std::vector<uint8_t> frame_jpeg;
+    std::vector<uint8_t> place_jpeg;
+  };
 
   std::unique_ptr<lcm::LCM> lcm_;
   size_t keep_;
@@ -45,6 +61,8 @@ class SiteWatcher {
   nlohmann::json status_;
   std::deque<nlohmann::json> loop_closures_;          // newest first
   nlohmann::json robots_ = nlohmann::json::object();  // robot -> frames heard
+  std::deque<Alarm> alarms_;                          // newest first
+  int64_t next_alarm_id_ = 1;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

@@ -22,11 +22,14 @@
 
 #include <gtest/gtest.h>
 #include <httplib.h>
+#include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
 
 #include "client/client.h"
 #include "common/eval/run.h"
 #include "common/util/paths.h"
+#include "placerec/change_t.hpp"
+#include "proto/channels.h"
 #include "tests/service_harness.h"
 
 namespace placerec {
@@ -97,12 +100,29 @@ class GatewayTest : public ::testing::Test {
       ASSERT_TRUE(r.ok()) << DescribeResult(r) << Tail(server_->log_path());
     }
 
-    StatusOr<std::unique_ptr<ChildProcess>> gateway = ChildProcess::Start(
-        {BinaryPath("placerec-gateway"), "--cert", dir_ + "/cert.pem", "--key", dir_ + "/key.pem",
-         "--tokens", dir_ + "/tokens", "--key-file", gateway_keys, "--key-id", "gateway", "--port",
-         std::to_string(kPort), "--lcm-url", TestLcmUrl(), "--max-upload-bytes", "2000000",
-         "--burst", std::to_string(kBurst)},
-        dir_ + "/gateway.log");
+    StatusOr<std::unique_ptr<ChildProcess>> gateway =
+        ChildProcess::Start({BinaryPath("placerec-gateway"),
+                             "--cert",
+                             dir_ + "/cert.pem",
+                             "--key",
+                             dir_ + "/key.pem",
+                             "--tokens",
+                             dir_ + "/tokens",
+                             "--key-file",
+                             gateway_keys,
+                             "--key-id",
+                             "gateway",
+                             "--db",
+                             dir_ + "/map.db",
+                             "--port",
+                             std::to_string(kPort),
+                             "--lcm-url",
+                             TestLcmUrl(),
+                             "--max-upload-bytes",
+                             "2000000",
+                             "--burst",
+                             std::to_string(kBurst)},
+                            dir_ + "/gateway.log");
     ASSERT_TRUE(gateway.ok()) << gateway.status().ToString();
     gateway_ = std::move(*gateway);
     // Listening once a request gets any HTTP answer.
@@ -199,6 +219,8 @@ TEST_F(GatewayTest, HttpsQueriesAnswerTheSamePlacesAsLcm) {
       EXPECT_EQ(body["matches"][m]["score"].get<double>(), lcm.matches[m].score) << f;
       EXPECT_EQ(body["matches"][m]["robot"], "robot");
     }
+    EXPECT_EQ(body["change_checked"].get<bool>(), lcm.change_checked) << f;
+    EXPECT_EQ(body["changes"].size(), lcm.changes.size()) << f;
     if (!lcm.matches.empty()) ++recognised;
   }
   EXPECT_GT(recognised, 0) << "no frame was recognised: the comparison says nothing";
@@ -218,6 +240,85 @@ TEST_F(GatewayTest, HttpsQueriesAnswerTheSamePlacesAsLcm) {
   const auto [status, body] = Json(Https()->Post("/v1/query", Bearer(kToken), form));
   EXPECT_EQ(status, 200) << body.dump();
   EXPECT_EQ(MapPlaces(), places) << "queries through the gateway changed the map";
+}
+
+// The matched place's stored picture comes from the server's map (--db), as the page shows it
+// beside the photo; a place the map does not hold has none.
+TEST_F(GatewayTest, TheMatchedPlacesPictureComesFromTheMap) {
+  const std::string photo = ReadBytes(run_.frames[kMapped + 2].image);
+  const auto [status, body] = Json(Https()->Post("/v1/query", Bearer(kToken), photo, "image/jpeg"));
+  ASSERT_EQ(status, 200) << body.dump();
+  ASSERT_FALSE(body["matches"].empty()) << body.dump();
+  const std::string link = body["matches"][0]["thumbnail"].get<std::string>();
+  httplib::Result picture = Https()->Get(link, Bearer(kToken));
+  ASSERT_TRUE(picture);
+  ASSERT_EQ(picture->status, 200) << picture->body;
+  EXPECT_EQ(picture->get_header_value("Content-Type"), "image/jpeg");
+  ASSERT_GT(picture->body.size(), 100u);
+  EXPECT_EQ(picture->body.substr(0, 2), "\xff\xd8") << "not a JPEG";
+  const auto [code, error] = Json(Https()->Get("/v1/places/999999/thumbnail", Bearer(kToken)));
+  EXPECT_EQ(code, 404) << error.dump();
+  EXPECT_NE(error["error"].get<std::string>().find("not in the map"), std::string::npos);
+  httplib::Result anonymous = Https()->Get(link);
+  ASSERT_TRUE(anonymous);
+  EXPECT_EQ(anonymous->status, 401);
+}
+
+// A scene-change alarm the server publishes on PLACEREC_CHANGE shows in the site overview, with
+// its two pictures served to devices with a token. (The server's side of alarms is
+// tests/change_service_test.cc; here the alarm is published as the server does.)
+TEST_F(GatewayTest, SceneChangeAlarmsShowInTheSiteOverview) {
+  change_t alarm;
+  alarm.utime = 1'700'000'000'000'000;
+  alarm.robot = "robot";
+  alarm.sequence = 41;
+  alarm.request_id = 7;
+  alarm.frame_utime = run_.frames[41].utime;
+  alarm.place_id = 3;
+  alarm.place_robot = "robot";
+  alarm.place_sequence = 2;
+  alarm.place_utime = run_.frames[2].utime;
+  alarm.change_index = 0;
+  alarm.num_frame_changes = 1;
+  alarm.kind = change_t::KIND_APPEARED;
+  const int32_t box[4] = {100, 80, 60, 40};
+  std::copy(box, box + 4, alarm.box);
+  alarm.object_class = "car";
+  alarm.confidence = 0.75f;
+  alarm.frame_width = 640;
+  alarm.frame_height = 480;
+  const std::string frame_jpeg = ReadBytes(run_.frames[41].image);
+  const std::string place_jpeg = ReadBytes(run_.frames[2].image);
+  alarm.frame_jpeg.assign(frame_jpeg.begin(), frame_jpeg.end());
+  alarm.frame_jpeg_size = static_cast<int32_t>(alarm.frame_jpeg.size());
+  alarm.place_jpeg.assign(place_jpeg.begin(), place_jpeg.end());
+  alarm.place_jpeg_size = static_cast<int32_t>(alarm.place_jpeg.size());
+  lcm::LCM lcm(TestLcmUrl());
+  ASSERT_TRUE(lcm.good());
+  ASSERT_EQ(lcm.publish(kChangeChannel, &alarm), 0);
+
+  nlohmann::json listed;
+  for (int attempt = 0; attempt < 50 && listed.is_null(); ++attempt) {
+    const auto [code, site] = Json(Https()->Get("/v1/site", Bearer(kToken)));
+    ASSERT_EQ(code, 200) << site.dump();
+    if (!site["alarms"].empty()) listed = site["alarms"][0];
+    if (listed.is_null()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_FALSE(listed.is_null()) << "the alarm never showed in /v1/site";
+  EXPECT_EQ(listed["robot"], "robot");
+  EXPECT_EQ(listed["kind"], "appeared");
+  EXPECT_EQ(listed["class"], "car");
+  EXPECT_EQ(listed["box"]["width"], 60);
+  EXPECT_EQ(listed["place"]["place_id"], 3);
+  httplib::Result frame = Https()->Get(listed["frame_picture"].get<std::string>(), Bearer(kToken));
+  ASSERT_TRUE(frame);
+  EXPECT_EQ(frame->status, 200);
+  EXPECT_EQ(frame->body, frame_jpeg);
+  httplib::Result place = Https()->Get(listed["place_picture"].get<std::string>(), Bearer(kToken));
+  ASSERT_TRUE(place);
+  EXPECT_EQ(place->body, place_jpeg);
+  const auto [gone, error] = Json(Https()->Get("/v1/alarms/999/frame.jpg", Bearer(kToken)));
+  EXPECT_EQ(gone, 404) << error.dump();
 }
 
 // Each refusal: the right HTTP status, a JSON error that says what to do, no map change.

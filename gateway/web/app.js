@@ -1,6 +1,7 @@
 // The gateway's page: a photo goes to POST /v1/query with the device's token; the answer shows
 // the matched place (its stored picture beside the photo, which robot saw it when, how sure);
-// the site overview polls GET /v1/site. Plain JavaScript, no build step.
+// what changed there is boxed on the photo; the site overview (robots, loop closures, scene-change
+// alarms with their pictures) polls GET /v1/site. Plain JavaScript, no build step.
 'use strict';
 
 const $ = (id) => document.getElementById(id);
@@ -49,9 +50,41 @@ async function showThumbnail(match) {
   $('theirs-caption').textContent = 'Place #' + match.place_id + ' as ' + match.robot + ' saw it';
 }
 
+// What changed at the place: boxes over the photo (their pixels are the photo's as sent) and a
+// line for each change.
+function describeChange(c) {
+  const what = c.kind === 'appeared' ? 'appeared' : 'gone';
+  return (c.class || 'object') + ' ' + what + ' (' + Math.round(100 * c.confidence) + ' % sure)';
+}
+
+function showChanges(answer) {
+  const frame = $('mine-frame');
+  frame.querySelectorAll('.change-box').forEach((b) => b.remove());
+  const changes = answer.changes || [];
+  const place = () => {
+    const img = $('mine');
+    if (!img.naturalWidth) return;
+    for (const c of changes) {
+      const b = document.createElement('div');
+      b.className = 'change-box';
+      b.title = describeChange(c);
+      b.style.left = (100 * c.box.x / img.naturalWidth) + '%';
+      b.style.top = (100 * c.box.y / img.naturalHeight) + '%';
+      b.style.width = (100 * c.box.width / img.naturalWidth) + '%';
+      b.style.height = (100 * c.box.height / img.naturalHeight) + '%';
+      frame.append(b);
+    }
+  };
+  if ($('mine').complete) place(); else $('mine').addEventListener('load', place, { once: true });
+  if (!answer.change_checked) return null;
+  return changes.length ? 'Changed since then: ' + changes.map(describeChange).join('; ')
+                        : 'Nothing changed there since then.';
+}
+
 function showAnswer(answer) {
   const box = $('answer');
   box.replaceChildren();
+  $('mine-frame').querySelectorAll('.change-box').forEach((b) => b.remove());
   if (!answer.matches.length) {
     box.append(text('p', 'Not recognised: no stored place looks like this photo.', 'verdict none'));
     return;
@@ -71,6 +104,8 @@ function showAnswer(answer) {
                                                    ', score ' + m.score.toFixed(0) + ')');
     box.append(text('p', 'Other candidates: ' + others.join(', '), 'hint'));
   }
+  const changed = showChanges(answer);
+  if (changed) box.append(text('p', changed, 'changes'));
   showThumbnail(best);
 }
 
@@ -135,6 +170,51 @@ async function refreshSite() {
     rows.push(row);
   }
   $('loop-closures').tBodies[0].replaceChildren(...rows);
+  showAlarms(site.alarms || []);
+}
+
+// Alarm pictures need the token, so they are fetched once each and kept as object URLs.
+const alarmPictures = new Map();
+async function alarmPicture(path) {
+  if (!path) return null;
+  if (!alarmPictures.has(path)) {
+    alarmPictures.set(path, fetch(path, { headers: authHeaders() })
+        .then((r) => (r.ok ? r.blob() : null))
+        .then((blob) => (blob ? URL.createObjectURL(blob) : null))
+        .catch(() => null));
+  }
+  return alarmPictures.get(path);
+}
+
+function showAlarms(alarms) {
+  const rows = alarms.map((a) => {
+    const row = document.createElement('tr');
+    const pictures = document.createElement('td');
+    for (const path of [a.frame_picture, a.place_picture]) {
+      alarmPicture(path).then((url) => {
+        if (!url) return;
+        const img = document.createElement('img');
+        img.className = 'alarm-picture';
+        img.src = url;
+        img.alt = path === a.frame_picture ? 'the frame' : 'the stored place';
+        pictures.append(img);
+      });
+    }
+    row.append(text('td', a.robot), text('td', '#' + a.sequence + ' ' + when(a.utime)),
+               text('td', describeChange(a)),
+               text('td', '#' + a.place.place_id + ' (' + a.place.robot + ', ' +
+                    when(a.place.utime) + ')'),
+               pictures);
+    return row;
+  });
+  if (!rows.length) {
+    const row = document.createElement('tr');
+    const cell = text('td', 'None heard since the gateway started.', 'hint');
+    cell.colSpan = 5;
+    row.append(cell);
+    rows.push(row);
+  }
+  $('alarms').tBodies[0].replaceChildren(...rows);
 }
 
 $('save-token').addEventListener('click', () => { setToken($('token').value); refreshSite(); });
