@@ -619,6 +619,23 @@ bool ReadWholePlace(sqlite3* db, const std::string& store, int64_t id, WholePlac
   return true;
 }
 
+// The place's thumbnail for RepairSqliteMap, when the map has the table (schema v3) and the row
+// reads back within the size limit; a picture that does not read is left behind (the place is
+// whole without it).
+std::vector<uint8_t> ReadThumbnailForRepair(sqlite3* db, int version, int64_t id) {
+  if (version < 3) return {};
+  SqliteStatement select;
+  int rc = SqliteStatement::Prepare(db, kSelectThumbnail, false, &select);
+  if (rc == SQLITE_OK) {
+    select.BindInt(1, id);
+    rc = select.Step();
+  }
+  if (rc != SQLITE_ROW || select.ColumnType(0) != SQLITE_BLOB) return {};
+  const auto [bytes, size] = select.ColumnBlob(0);
+  if (size > kMaxThumbnailBytes) return {};
+  return std::vector<uint8_t>(bytes, bytes + size);
+}
+
 // Moves `from` (and its -wal and -shm companions) to `to`; companions that do not exist are
 // skipped.
 Status MoveMapFiles(const std::string& from, const std::string& to) {
@@ -774,6 +791,7 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
         why = "place " + std::to_string(id) + " has a landmark in a damaged page";
       }
       if (whole && why.empty()) {
+        place.place.thumbnail = ReadThumbnailForRepair(db.get(), *version, id);
         kept.push_back(std::move(place));
       } else if (!why.empty()) {
         ++report.places_dropped;

@@ -580,6 +580,13 @@ void CopyFile(const std::string& from, const std::string& to) {
   out << in.rdbuf();
 }
 
+// A small stand-in for place p's thumbnail.
+std::vector<uint8_t> PictureOf(int p) {
+  std::vector<uint8_t> bytes(200 + p);
+  for (size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<uint8_t>(p * 31 + i);
+  return bytes;
+}
+
 // Issue 23 item 6: 4 KB of random bytes in a page of the map; the store opened it and served
 // what it could read. Now opening refuses it, saying what to do, and RepairSqliteMap keeps
 // exactly the places that read back whole.
@@ -592,6 +599,7 @@ TEST(SqliteStoreTest, RandomBytesInAPageAreRefusedAtOpenAndRepairDropsTheDamaged
     ASSERT_NE(store, nullptr);
     for (int p = 0; p < kPlaces; ++p) {
       Place place = MakePlace("r", p);
+      place.thumbnail = PictureOf(p);
       std::vector<Landmark> landmarks = MakeLandmarks(10 * p, kLandmarksPerPlace, 60);
       ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
     }
@@ -641,6 +649,7 @@ TEST(SqliteStoreTest, RandomBytesInAPageAreRefusedAtOpenAndRepairDropsTheDamaged
   const Contents contents = ReadAll(*repaired);
   ASSERT_EQ(static_cast<int64_t>(contents.places.size()), report->places_kept);
   ASSERT_EQ(contents.landmarks.size(), contents.places.size() * kLandmarksPerPlace);
+  int64_t pictures_kept = 0;
   for (size_t i = 0; i < contents.places.size(); ++i) {
     const Place& place = contents.places[i];
     EXPECT_EQ(place.robot, "r");
@@ -654,7 +663,14 @@ TEST(SqliteStoreTest, RandomBytesInAPageAreRefusedAtOpenAndRepairDropsTheDamaged
       e.place = place.id;
       testing_storage::ExpectSameLandmark(e, actual);
     }
+    // A kept place keeps its picture, unless the damage took that picture's row.
+    const std::vector<uint8_t> picture = *repaired->LoadThumbnail(place.id);
+    if (!picture.empty()) {
+      EXPECT_EQ(picture, PictureOf(p)) << "place " << p;
+      ++pictures_kept;
+    }
   }
+  EXPECT_GE(pictures_kept, report->places_kept - 1) << "the repair dropped the places' pictures";
   repaired.reset();
 
   // A whole map is left alone.
