@@ -25,10 +25,16 @@ int64_t NowUtime() {
       .count();
 }
 
-void AddConnectionFlags(FlagParser* parser, ClientOptions* options) {
+// The LCM network alone: for commands that only listen (status, watch).
+void AddLcmUrlFlag(FlagParser* parser, ClientOptions* options) {
   parser->Add("lcm-url", &options->lcm_url,
               "LCM URL (empty: LCM's default, i.e. $LCM_DEFAULT_URL or "
               "udpm://239.255.76.67:7667?ttl=0)");
+}
+
+// The network and how frames are sent: for commands that send frames.
+void AddConnectionFlags(FlagParser* parser, ClientOptions* options) {
+  AddLcmUrlFlag(parser, options);
   parser->Add("timeout", &options->timeout_s, "seconds to wait for each answer");
   parser->Add("key-file", &options->key_file,
               "keys file (a line 'ID PERMISSION KEY' from the server's operator, "
@@ -170,7 +176,8 @@ int StatusCommand(int argc, const char* const* argv) {
   FlagParser parser(
       "placerec-client status [options]\n\n"
       "Waits for the server's next heartbeat on PLACEREC_STATUS and prints it.");
-  AddConnectionFlags(&parser, &options);
+  AddLcmUrlFlag(&parser, &options);
+  parser.Add("timeout", &options.timeout_s, "seconds to wait for a heartbeat");
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-client status")) {
     return *exit;
   }
@@ -212,7 +219,7 @@ int WatchCommand(int argc, const char* const* argv) {
   parser.Add("out", &out, "folder for the alarm pictures (created; empty: none saved)");
   parser.Add("duration", &duration_s, "stop after this many seconds (0: run until interrupted)");
   parser.Add("max-alarms", &max_alarms, "stop after this many alarms (0: no limit)");
-  AddConnectionFlags(&parser, &options);
+  AddLcmUrlFlag(&parser, &options);  // alarms are not signed: no key is needed to watch
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-client watch")) {
     return *exit;
   }

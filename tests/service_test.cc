@@ -1372,11 +1372,19 @@ TEST(ServiceCommandLineTest, HelpAndErrors) {
   EXPECT_EQ(auth_rc, 2);
   EXPECT_NE(auth.find("--auth must be on or off"), std::string::npos) << auth;
 
-  for (const char* command : {"send", "query", "status", "run"}) {
+  for (const char* command : {"send", "query", "run"}) {
     auto [rc, text] = run({client, command, "--help"});
     EXPECT_EQ(rc, 0) << command;
     EXPECT_NE(text.find("--lcm-url"), std::string::npos) << command;
     EXPECT_NE(text.find("--key-file"), std::string::npos) << command;
+  }
+  // Commands that only listen offer no flags of sending (heartbeats and alarms are unsigned).
+  for (const char* command : {"status", "watch"}) {
+    auto [rc, text] = run({client, command, "--help"});
+    EXPECT_EQ(rc, 0) << command;
+    EXPECT_NE(text.find("--lcm-url"), std::string::npos) << command;
+    EXPECT_EQ(text.find("--key-file"), std::string::npos) << command;
+    EXPECT_EQ(text.find("--retry-after"), std::string::npos) << command;
   }
   auto [usage_rc, usage] = run({client});
   EXPECT_EQ(usage_rc, 2);
