@@ -284,7 +284,8 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   j["seed"] = eval.seed;
   j["change_options"] = {{"sensitivity", options.change.sensitivity},
                          {"threshold_lab", options.change.Threshold()},
-                         {"min_area", options.change.min_area}};
+                         {"min_area", options.change.min_area},
+                         {"min_inliers_without_loop", options.change.min_inliers_without_loop}};
   j["appeared"] = TallyJson(pasted);
   j["removed"] = TallyJson(removed);
   j["detection_recall"] = j["appeared"]["detection_recall"];

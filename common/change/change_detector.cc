@@ -19,6 +19,7 @@ bool ChangeOptions::Check(std::string* error) const {
   if (!(min_difference > 0.0 && max_difference >= min_difference)) {
     return fail("change differences must satisfy 0 < min <= max");
   }
+  if (min_inliers_without_loop < 0) return fail("change min inliers without a loop must be >= 0");
   if (min_points < 4) return fail("change min_points must be at least 4 (a homography)");
   if (!(homography_threshold > 0.0 && homography_threshold < 0.5)) {
     return fail("change homography threshold must be in (0, 0.5) of the frame width");
@@ -61,6 +62,12 @@ bool ChangeOptions::Check(std::string* error) const {
 
 double ChangeOptions::Threshold() const {
   return max_difference - sensitivity * (max_difference - min_difference);
+}
+
+bool CompareAtRevisit(bool loop_closure, int verified_pairs, const ChangeOptions& options) {
+  if (!options.enabled) return false;
+  if (loop_closure) return true;
+  return options.min_inliers_without_loop > 0 && verified_pairs >= options.min_inliers_without_loop;
 }
 
 const char* ChangeKindName(SceneChange::Kind kind) {

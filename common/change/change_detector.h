@@ -21,6 +21,12 @@ namespace placerec {
 struct ChangeOptions {
   // Look for changes at every matched place (insert or query).
   bool enabled = true;
+  // A frame that is no loop closure is still compared with its best place when the geometric
+  // verification kept at least this many inlier point pairs with it (a revisit whose score the
+  // change itself, or the sequence, kept under the loop threshold); 0: only at loop closures.
+  // 20: the loop decision's min_score (loop_decision.h, pipeline step 9, seed §5.7), counted
+  // on this frame's own inliers rather than on the sequence-averaged score.
+  int min_inliers_without_loop = 20;
   // How readily a difference becomes an alarm, in (0, 1]: the appearance difference a region
   // needs is max_difference - sensitivity * (max_difference - min_difference) CIE Lab units.
   double sensitivity = 0.5;
@@ -115,6 +121,10 @@ struct ChangeResult {
 ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame_size,
                            const std::vector<ChangeReference>& references,
                            const ChangeOptions& options);
+
+// Whether a frame is compared with its best place: at a loop closure, or when the best place's
+// verification kept at least options.min_inliers_without_loop inlier pairs (when that is set).
+bool CompareAtRevisit(bool loop_closure, int verified_pairs, const ChangeOptions& options);
 
 // "appeared" / "disappeared".
 const char* ChangeKindName(SceneChange::Kind kind);

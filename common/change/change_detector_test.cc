@@ -162,6 +162,23 @@ TEST(ChangeDetectorTest, TooFewPointsOrNoThumbnailIsNotChecked) {
   EXPECT_FALSE(result.checked);
 }
 
+TEST(ChangeDetectorTest, ComparedAtLoopClosuresOrWithEnoughVerifiedPairs) {
+  ChangeOptions options;
+  options.min_inliers_without_loop = 0;
+  EXPECT_TRUE(CompareAtRevisit(true, 0, options));
+  EXPECT_FALSE(CompareAtRevisit(false, 100, options));  // 0: loop closures only
+  options.min_inliers_without_loop = 15;
+  EXPECT_TRUE(CompareAtRevisit(false, 15, options));
+  EXPECT_FALSE(CompareAtRevisit(false, 14, options));
+  EXPECT_FALSE(CompareAtRevisit(false, -1, options));  // not verified
+  options.enabled = false;
+  EXPECT_FALSE(CompareAtRevisit(true, 100, options));
+  std::string error;
+  options.enabled = true;
+  options.min_inliers_without_loop = -1;
+  EXPECT_FALSE(options.Check(&error));
+}
+
 TEST(ChangeDetectorTest, DrawChangesScalesToTheWidth) {
   const cv::Mat frame(480, 640, CV_8UC3, cv::Scalar(0, 0, 0));
   SceneChange change;

@@ -242,8 +242,11 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
          "every stored place keeps a JPEG thumbnail this wide (pixels; 0: none), the stored view "
          "alarms, tools and scene-change detection show and compare");
   p->Add("change-detection", &o->change.enabled,
-         "at a loop closure, report objects that appeared or landmarks that disappeared in the "
+         "at a recognised place, report objects that appeared or landmarks that disappeared in the "
          "view the frame shares with the place (seed §7.2.4); alarms go to PLACEREC_CHANGE");
+  p->Add("change-min-inliers", &o->change.min_inliers_without_loop,
+         "compare a frame that is no loop closure with its best place too when the geometric "
+         "check kept at least this many inlier point pairs with it (0: only at loop closures)");
   p->Add("change-sensitivity", &o->change.sensitivity,
          "how readily a difference is a scene change, in (0, 1]: a region must differ by "
          "change-max-difference - s * (change-max-difference - change-min-difference) CIE Lab "

@@ -440,7 +440,8 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
            : !result.matches.empty() && result.matches.front().score >= options_.loop.min_score;
   result.timings.emplace_back("index", found.index_ms);
   result.timings.emplace_back("decision", found.ranking_ms);
-  if (options_.change.enabled && result.loop_closure) {
+  if (!result.matches.empty() &&
+      CompareAtRevisit(result.loop_closure, result.matches.front().inliers, options_.change)) {
     timer.Restart();
     result.change = DetectSceneChanges(observation, result.matches);
     result.timings.emplace_back("change", timer.ElapsedMs());
