@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
-#include <exception>
 #include <fstream>
 #include <iterator>
 #include <random>
@@ -19,6 +18,7 @@
 #include "placerec/status_t.hpp"
 #include "proto/auth/signing.h"
 #include "proto/channels.h"
+#include "proto/decode.h"
 
 namespace placerec {
 namespace {
@@ -451,13 +451,7 @@ void PlacerecClient::SetAnswerCallback(std::function<void(const FrameResult&)> c
 void PlacerecClient::OnResult(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
   const auto now = std::chrono::steady_clock::now();
   result_t answer;
-  int decoded = -1;
-  try {
-    decoded = answer.decode(buffer->data, 0, static_cast<int>(buffer->data_size));
-  } catch (const std::exception&) {
-    decoded = -1;
-  }
-  if (decoded < 0) {
+  if (!DecodeLcmMessage(buffer->data, buffer->data_size, &answer)) {
     LOG(WARNING) << "dropped a " << buffer->data_size << "-byte message on " << channel
                  << " that is not a placerec.result_t";
     return;
@@ -505,13 +499,7 @@ void PlacerecClient::OnResult(const lcm::ReceiveBuffer* buffer, const std::strin
 
 void PlacerecClient::OnStatus(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
   status_t message;
-  int decoded = -1;
-  try {
-    decoded = message.decode(buffer->data, 0, static_cast<int>(buffer->data_size));
-  } catch (const std::exception&) {
-    decoded = -1;
-  }
-  if (decoded < 0) {
+  if (!DecodeLcmMessage(buffer->data, buffer->data_size, &message)) {
     LOG(WARNING) << "dropped a " << buffer->data_size << "-byte message on " << channel
                  << " that is not a placerec.status_t";
     return;
@@ -556,13 +544,7 @@ Status PlacerecClient::WatchAlarms(std::function<void(const SceneAlarm&)> callba
 
 void PlacerecClient::OnChange(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
   change_t message;
-  int decoded = -1;
-  try {
-    decoded = message.decode(buffer->data, 0, static_cast<int>(buffer->data_size));
-  } catch (const std::exception&) {
-    decoded = -1;
-  }
-  if (decoded < 0) {
+  if (!DecodeLcmMessage(buffer->data, buffer->data_size, &message)) {
     LOG(WARNING) << "dropped a " << buffer->data_size << "-byte message on " << channel
                  << " that is not a placerec.change_t";
     return;

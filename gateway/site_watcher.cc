@@ -6,6 +6,7 @@
 #include "placerec/result_t.hpp"
 #include "placerec/status_t.hpp"
 #include "proto/channels.h"
+#include "proto/decode.h"
 
 namespace placerec {
 
@@ -41,7 +42,7 @@ SiteWatcher::~SiteWatcher() {
 
 void SiteWatcher::OnResult(const lcm::ReceiveBuffer* buffer, const std::string&) {
   result_t answer;
-  if (answer.decode(buffer->data, 0, buffer->data_size) < 0) return;
+  if (!DecodeLcmMessage(buffer->data, buffer->data_size, &answer)) return;
   std::lock_guard lock(mutex_);
   robots_[answer.robot] = robots_.value(answer.robot, 0) + 1;
   if (answer.status != result_t::STATUS_OK || !answer.loop_closure || answer.matches.empty()) {
@@ -63,7 +64,7 @@ void SiteWatcher::OnResult(const lcm::ReceiveBuffer* buffer, const std::string&)
 
 void SiteWatcher::OnStatus(const lcm::ReceiveBuffer* buffer, const std::string&) {
   status_t s;
-  if (s.decode(buffer->data, 0, buffer->data_size) < 0) return;
+  if (!DecodeLcmMessage(buffer->data, buffer->data_size, &s)) return;
   std::lock_guard lock(mutex_);
   status_ = {{"version", s.version},
              {"uptime_s", s.uptime_s},
@@ -80,7 +81,7 @@ void SiteWatcher::OnStatus(const lcm::ReceiveBuffer* buffer, const std::string&)
 
 void SiteWatcher::OnChange(const lcm::ReceiveBuffer* buffer, const std::string&) {
   change_t c;
-  if (c.decode(buffer->data, 0, buffer->data_size) < 0) return;
+  if (!DecodeLcmMessage(buffer->data, buffer->data_size, &c)) return;
   std::lock_guard lock(mutex_);
   Alarm alarm;
   alarm.id = next_alarm_id_++;

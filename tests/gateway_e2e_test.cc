@@ -295,6 +295,26 @@ TEST_F(GatewayTest, SceneChangeAlarmsShowInTheSiteOverview) {
   alarm.place_jpeg_size = static_cast<int32_t>(alarm.place_jpeg.size());
   lcm::LCM lcm(TestLcmUrl());
   ASSERT_TRUE(lcm.good());
+  // First a forged alarm whose frame_jpeg_size reads -1 (LCM's decoder would resize a vector to
+  // that many bytes and throw): the gateway drops it and keeps serving.
+  {
+    change_t forged = alarm;
+    forged.frame_jpeg.clear();
+    forged.frame_jpeg_size = 0;
+    forged.place_jpeg.clear();
+    forged.place_jpeg_size = 0;
+    std::vector<uint8_t> bytes(forged.getEncodedSize());
+    ASSERT_GT(forged.encode(bytes.data(), 0, static_cast<int>(bytes.size())), 0);
+    // The last 8 bytes are frame_jpeg_size and place_jpeg_size (both arrays empty).
+    std::fill(bytes.end() - 8, bytes.end() - 4, 0xff);
+    ASSERT_EQ(lcm.publish(kChangeChannel, bytes.data(), static_cast<unsigned>(bytes.size())), 0);
+    ASSERT_EQ(lcm.publish(std::string(kResultChannelPrefix) + "forger", bytes.data(),
+                          static_cast<unsigned>(bytes.size())),
+              0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    ASSERT_TRUE(gateway_->running()) << "a forged alarm crashed the gateway\n"
+                                     << Tail(gateway_->log_path());
+  }
   ASSERT_EQ(lcm.publish(kChangeChannel, &alarm), 0);
 
   nlohmann::json listed;
