@@ -98,13 +98,10 @@ StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
   StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.recognizer.analyzer);
   if (!segmenter.ok()) return segmenter.status();
   // Without the object classifiers the server refuses to start, with the loader's advice.
-  std::shared_ptr<const ObjectClassLabeler> labeler;
-  if (options.recognizer.classes.enabled) {
-    StatusOr<std::unique_ptr<ObjectClassLabeler>> loaded =
-        ObjectClassLabeler::Load(options.recognizer.classes);
-    if (!loaded.ok()) return loaded.status();
-    labeler = std::move(*loaded);
-  }
+  StatusOr<std::unique_ptr<ObjectClassLabeler>> loaded =
+      ObjectClassLabeler::LoadIfEnabled(options.recognizer.classes);
+  if (!loaded.ok()) return loaded.status();
+  std::shared_ptr<const ObjectClassLabeler> labeler = std::move(*loaded);
   if (options.repair) {
     StatusOr<MapRepairReport> repaired = RepairSqliteMap(options.db_path, options.store);
     if (!repaired.ok()) return repaired.status();

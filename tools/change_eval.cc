@@ -136,14 +136,10 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   if (!map.ok()) return map.status();
   StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.analyzer);
   if (!segmenter.ok()) return segmenter.status();
-  std::unique_ptr<ObjectClassLabeler> labeler;
-  if (options.classes.enabled) {
-    StatusOr<std::unique_ptr<ObjectClassLabeler>> loaded =
-        ObjectClassLabeler::Load(options.classes);
-    if (!loaded.ok()) return loaded.status();
-    labeler = std::move(*loaded);
-  }
-  Recognizer recognizer(options, map->get(), std::move(*segmenter), std::move(labeler));
+  StatusOr<std::unique_ptr<ObjectClassLabeler>> labeler =
+      ObjectClassLabeler::LoadIfEnabled(options.classes);
+  if (!labeler.ok()) return labeler.status();
+  Recognizer recognizer(options, map->get(), std::move(*segmenter), std::move(*labeler));
 
   std::mt19937_64 rng(eval.seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);

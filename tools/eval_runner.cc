@@ -357,14 +357,10 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
   if (!map.ok()) return map.status();
   StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.analyzer);
   if (!segmenter.ok()) return segmenter.status();
-  std::unique_ptr<ObjectClassLabeler> labeler;
-  if (options.classes.enabled) {
-    StatusOr<std::unique_ptr<ObjectClassLabeler>> loaded =
-        ObjectClassLabeler::Load(options.classes);
-    if (!loaded.ok()) return loaded.status();
-    labeler = std::move(*loaded);
-  }
-  Recognizer recognizer(options, map->get(), std::move(*segmenter), std::move(labeler));
+  StatusOr<std::unique_ptr<ObjectClassLabeler>> labeler =
+      ObjectClassLabeler::LoadIfEnabled(options.classes);
+  if (!labeler.ok()) return labeler.status();
+  Recognizer recognizer(options, map->get(), std::move(*segmenter), std::move(*labeler));
 
   const int frames = eval.max_frames > 0 ? std::min<int>(eval.max_frames, run.frames.size())
                                          : static_cast<int>(run.frames.size());

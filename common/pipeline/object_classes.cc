@@ -61,6 +61,12 @@ ObjectClassLabeler::ObjectClassLabeler(const ObjectClassOptions& options,
   }
 }
 
+StatusOr<std::unique_ptr<ObjectClassLabeler>> ObjectClassLabeler::LoadIfEnabled(
+    const ObjectClassOptions& options) {
+  if (!options.enabled) return std::unique_ptr<ObjectClassLabeler>();
+  return Load(options);
+}
+
 StatusOr<std::unique_ptr<ObjectClassLabeler>> ObjectClassLabeler::Load(
     const ObjectClassOptions& options) {
   std::string error;

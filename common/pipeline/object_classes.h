@@ -62,6 +62,9 @@ class ObjectClassLabeler {
   // Loads the classifiers and the textons; NotFound / InvalidArgument with what to do when they
   // are missing or do not fit each other.
   static StatusOr<std::unique_ptr<ObjectClassLabeler>> Load(const ObjectClassOptions& options);
+  // Load when options.enabled; null otherwise.
+  static StatusOr<std::unique_ptr<ObjectClassLabeler>> LoadIfEnabled(
+      const ObjectClassOptions& options);
 
   // The class of `object` (its mask at the working resolution of `filter_bank`, the frame's
   // CV_32FC(20) filter bank, ComputeFilterBank). A background segment (sky, tree, road, grass,
