@@ -10,7 +10,8 @@
 
 namespace placerec {
 
-// Squared Euclidean distance of two 128-byte SIFT descriptors.
+// Squared Euclidean distance of two 128-byte SIFT descriptors, with the widest vector
+// instructions the processor has (chosen once at start).
 int SquaredDistance(const uint8_t* a, const uint8_t* b);
 
 // A match of row `query` of one object's descriptors with row `train` of another's.
