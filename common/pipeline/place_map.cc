@@ -77,15 +77,24 @@ Status PlaceMap::Insert(Place* place, std::vector<Landmark>* landmarks) {
                  << " did not come back through the map follower within " << timeout.count()
                  << " ms; indexed out of id order";
   } else {
-    lock.lock();
+    // One insert at a time, so that places are indexed in the order the store numbers them (as a
+    // reopened map holds them); lookups go on while the store commits.
+    std::lock_guard<std::mutex> inserting(insert_mutex_);
     PLACEREC_RETURN_IF_ERROR(store_->AddPlace(place, landmarks));
+    lock.lock();
+    if (places_.count(place->id) == 0) IndexCommitted(*place, *landmarks);
+    return Status::Ok();
   }
-  places_[place->id] = *place;
-  places_[place->id].thumbnail.clear();  // in the store only: LoadThumbnail
-  index_.AddPlace(*place);
-  for (const Landmark& landmark : *landmarks) index_.Add(landmark);
-  for (const LandmarkId seen : place->seen_landmarks) seen_at_[seen].push_back(place->id);
+  IndexCommitted(*place, *landmarks);
   return Status::Ok();
+}
+
+void PlaceMap::IndexCommitted(const Place& place, const std::vector<Landmark>& landmarks) {
+  places_[place.id] = place;
+  places_[place.id].thumbnail.clear();  // in the store only: LoadThumbnail
+  index_.AddPlace(place);
+  for (const Landmark& landmark : landmarks) index_.Add(landmark);
+  for (const LandmarkId seen : place.seen_landmarks) seen_at_[seen].push_back(place.id);
 }
 
 void PlaceMap::IndexThroughFollower(std::chrono::milliseconds timeout) {
@@ -94,14 +103,9 @@ void PlaceMap::IndexThroughFollower(std::chrono::milliseconds timeout) {
 
 bool PlaceMap::AddCommitted(const Place& place, std::vector<Landmark>&& landmarks) {
   std::unique_lock lock(mutex_);
-  // Insert holds the lock from its commit until the place is indexed, so a place committed
-  // through this map is already here when its committed row can be read.
+  // A place Insert committed through this map may come back here too; it is indexed once.
   if (places_.count(place.id) > 0) return false;
-  places_[place.id] = place;
-  places_[place.id].thumbnail.clear();  // in the store only: LoadThumbnail
-  index_.AddPlace(place);
-  for (const Landmark& landmark : landmarks) index_.Add(landmark);
-  for (const LandmarkId seen : place.seen_landmarks) seen_at_[seen].push_back(place.id);
+  IndexCommitted(place, landmarks);
   indexed_.notify_all();
   return true;
 }

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <shared_mutex>
 #include <string>
 #include <unordered_map>
@@ -82,6 +83,8 @@ class PlaceMap {
   void IndexThroughFollower(std::chrono::milliseconds timeout);
 
   MapCounts Counts() const;
+  // The in-memory index (for measurements; not to be used while inserts may run).
+  const LandmarkIndex& index() const { return index_; }
   // Calls `visit` for every place in the map (in no particular order), under the map's read lock:
   // `visit` must not call back into the map.
   void ForEachPlace(const std::function<void(const Place&)>& visit) const;
@@ -93,7 +96,13 @@ class PlaceMap {
  private:
   PlaceMap(std::unique_ptr<LandmarkStore> store, const LandmarkIndexOptions& index_options);
 
+  // Indexes a committed place; the caller holds mutex_ exclusively.
+  void IndexCommitted(const Place& place, const std::vector<Landmark>& landmarks);
+
   mutable std::shared_mutex mutex_;
+  // Held by Insert from its commit until its place is indexed (not while waiting for a
+  // follower): one commit at a time, indexed in commit order.
+  std::mutex insert_mutex_;
   // Signalled by AddCommitted, for Insert's wait (IndexThroughFollower).
   std::condition_variable_any indexed_;
   // Zero: Insert indexes its place itself; otherwise how long it waits for the follower
