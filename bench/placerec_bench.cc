@@ -8,12 +8,15 @@
 // Frames come from ../shared/data (or PLACEREC_DATA); without the data a synthetic frame is
 // used and the output says so.
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <iterator>
 #include <map>
 #include <memory>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -371,20 +374,101 @@ const cv::Mat& DescriptorPool() {
 struct SyntheticMap {
   std::unique_ptr<PlaceMap> map;
   MapLookup query;
+  double build_seconds = 0;  // inserting every place (store and index)
+  // Nearest-neighbour recall of the index against exact search, on a sample of query rows.
+  double recall_at_1 = 0;  // the index's nearest is at the exact nearest's distance
+  double recall_at_k = 0;  // share of the exact k nearest among the index's k (by distance)
 };
+
+// Recall of the map's descriptor index against an exact scan of every stored descriptor, on
+// every `step`-th query row: recall@1 counts a row when the index's nearest neighbour is at the
+// exact nearest's distance (ties between equally distant descriptors are not misses); recall@k
+// is the share of the exact k nearest distances found among the index's k.
+void MeasureRecall(SyntheticMap* synthetic, int step) {
+  const LandmarkIndex& index = synthetic->map->index();
+  const int k = RecognizerOptions().index.matching.knn;
+  cv::Mat rows;
+  for (const IndexQuery& q : synthetic->query.objects) rows.push_back(q.descriptors);
+  cv::Mat sample;
+  for (int r = 0; r < rows.rows; r += step) sample.push_back(rows.row(r));
+  NeighbourLists approximate;
+  index.descriptor_index().Search(sample, k, &approximate);
+  std::vector<std::vector<int>> exact(sample.rows);
+  cv::parallel_for_(cv::Range(0, sample.rows), [&](const cv::Range& range) {
+    for (int r = range.start; r < range.end; ++r) {
+      std::vector<int> best;  // the k smallest distances, a max-heap
+      const uint8_t* q = sample.ptr<uint8_t>(r);
+      for (size_t slot = 0; slot < index.num_landmarks(); ++slot) {
+        const cv::Mat& d = index.landmark(static_cast<int32_t>(slot)).descriptors;
+        for (int t = 0; t < d.rows; ++t) {
+          const int dist = SquaredDistance(q, d.ptr<uint8_t>(t));
+          if (static_cast<int>(best.size()) < k) {
+            best.push_back(dist);
+            std::push_heap(best.begin(), best.end());
+          } else if (dist < best.front()) {
+            std::pop_heap(best.begin(), best.end());
+            best.back() = dist;
+            std::push_heap(best.begin(), best.end());
+          }
+        }
+      }
+      std::sort_heap(best.begin(), best.end());
+      exact[r] = std::move(best);
+    }
+  });
+  int64_t hits_1 = 0;
+  int64_t hits_k = 0;
+  int64_t total_k = 0;
+  for (int r = 0; r < sample.rows; ++r) {
+    const std::vector<DescriptorIndex::Neighbour>& found = approximate[r];
+    if (!found.empty() && !exact[r].empty() &&
+        static_cast<int>(found.front().distance) == exact[r].front()) {
+      ++hits_1;
+    }
+    // Multiset intersection of sorted distances.
+    std::vector<int> got;
+    for (const DescriptorIndex::Neighbour& n : found) got.push_back(static_cast<int>(n.distance));
+    std::sort(got.begin(), got.end());
+    size_t i = 0;
+    size_t j = 0;
+    while (i < got.size() && j < exact[r].size()) {
+      if (got[i] == exact[r][j]) {
+        ++hits_k;
+        ++i;
+        ++j;
+      } else if (got[i] < exact[r][j]) {
+        ++i;
+      } else {
+        ++j;
+      }
+    }
+    total_k += static_cast<int64_t>(exact[r].size());
+  }
+  synthetic->recall_at_1 = static_cast<double>(hits_1) / std::max(1, sample.rows);
+  synthetic->recall_at_k = static_cast<double>(hits_k) / std::max<int64_t>(1, total_k);
+}
 
 // A map of `landmarks` landmark objects, 10 per place, each with `per_landmark` descriptors
 // (the mean stored on the Gardens Point runs); SIFT counts log-uniform in [9, 400] and one or
 // two dominant colours. The query is the real frame's objects.
-SyntheticMap& MapOf(int landmarks) {
-  static std::map<int, SyntheticMap> maps;
-  auto it = maps.find(landmarks);
-  if (it != maps.end()) return it->second;
+RecognizerOptions BenchRecognizerOptions() {
+  RecognizerOptions options;
+  // PLACEREC_BENCH_DESCRIPTOR_SEARCH=hnsw|flann: the index the map's descriptors are searched
+  // with (the default: the one the server uses).
+  const char* method = std::getenv("PLACEREC_BENCH_DESCRIPTOR_SEARCH");
+  if (method != nullptr && std::string(method) == "flann") {
+    options.index.flann.method = DescriptorSearch::kFlann;
+  } else if (method != nullptr && std::string(method) == "hnsw") {
+    options.index.flann.method = DescriptorSearch::kHnsw;
+  }
+  return options;
+}
+
+// Inserts `landmarks` synthetic landmark objects into `map`, 10 per place, each with 24
+// descriptors (the mean stored on the Gardens Point runs); SIFT counts log-uniform in [9, 400]
+// and one or two dominant colours. The same count always gives the same map.
+void FillSyntheticMap(int landmarks, PlaceMap* map) {
   const int per_landmark = 24;
-  const RecognizerOptions options;
-  StatusOr<std::unique_ptr<LandmarkStore>> store =
-      OpenSqliteStore(":memory:", SqliteStoreOptions());
-  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
   const cv::Mat& pool = DescriptorPool();
   std::mt19937 rng(42);
   std::uniform_int_distribution<int> pick(0, pool.rows - 1);
@@ -415,25 +499,128 @@ SyntheticMap& MapOf(int landmarks) {
       landmark.box = cv::Rect(0, 0, 10, 10);
       batch.push_back(std::move(landmark));
     }
-    CHECK((*map)->Insert(&p, &batch).ok());
+    CHECK(map->Insert(&p, &batch).ok());
+    if (place > 0 && place % 10000 == 0) {
+      std::fprintf(stderr, "synthetic map: %d of %d landmark objects\n", place * 10, landmarks);
+    }
   }
-  SyntheticMap& entry = maps[landmarks];
-  entry.map = std::move(*map);
+}
+
+// The bench frame's objects as a lookup.
+MapLookup BenchQuery() {
+  const RecognizerOptions options;
   const FrameAnalyzer analyzer(options.analyzer);
   const FrameObservation observation = analyzer.Analyze(Data().frame);
-  entry.query.recent.robot = "query";
-  entry.query.image_width = observation.processed_size.width;
+  MapLookup query;
+  query.recent.robot = "query";
+  query.image_width = observation.processed_size.width;
   for (const SceneObject& object : observation.objects) {
-    entry.query.objects.push_back({object.sift_count(), object.colour, object.descriptors});
+    query.objects.push_back({object.sift_count(), object.colour, object.descriptors});
     std::vector<cv::KeyPoint> keypoints;
     for (int k : object.keypoints) keypoints.push_back(observation.features.keypoints[k]);
-    entry.query.object_keypoints.push_back(std::move(keypoints));
+    query.object_keypoints.push_back(std::move(keypoints));
   }
+  return query;
+}
+
+// A map of `landmarks` synthetic landmark objects in memory; the query is the real frame's
+// objects.
+SyntheticMap& MapOf(int landmarks) {
+  static std::map<int, SyntheticMap> maps;
+  auto it = maps.find(landmarks);
+  if (it != maps.end()) return it->second;
+  const RecognizerOptions options = BenchRecognizerOptions();
+  StatusOr<std::unique_ptr<LandmarkStore>> store =
+      OpenSqliteStore(":memory:", SqliteStoreOptions());
+  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
+  const auto build_start = std::chrono::steady_clock::now();
+  FillSyntheticMap(landmarks, map->get());
+  SyntheticMap& entry = maps[landmarks];
+  entry.build_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - build_start).count();
+  entry.map = std::move(*map);
+  entry.query = BenchQuery();
+  MeasureRecall(&entry, 6);
   return entry;
 }
 
-void BM_Retrieval(benchmark::State& state) {
-  SyntheticMap& synthetic = MapOf(static_cast<int>(state.range(0)));
+// Resident memory of this process: current and peak (VmRSS, VmHWM in /proc/self/status), MiB.
+void ResidentMiB(double* current, double* peak) {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    std::istringstream fields(line);
+    std::string key;
+    double kib = 0;
+    fields >> key >> kib;
+    if (key == "VmRSS:") *current = kib / 1024.0;
+    if (key == "VmHWM:") *peak = kib / 1024.0;
+  }
+}
+
+// The places a lookup answers, one line each (id and score), best first.
+std::string AnswerText(const MapLookupResult& result) {
+  std::ostringstream text;
+  for (const PlaceMatch& match : result.places) {
+    text << match.place.id.value() << " " << match.score << "\n";
+  }
+  return text.str();
+}
+
+// A large map on disk (PLACEREC_BENCH_MAP_FILE, PLACEREC_BENCH_MAP_LANDMARKS landmark objects,
+// default 1,000,000): the first run builds the file and keeps the bench frame's answer beside it
+// (FILE.answer); every later run reopens it as the server does and reports the time to open,
+// this process's memory and whether the answer is the same. Run it twice, the second time in a
+// process of its own, for the memory of a server holding the map.
+void BM_MapReopen(benchmark::State& state) {
+  const std::string path = std::getenv("PLACEREC_BENCH_MAP_FILE");
+  const char* count = std::getenv("PLACEREC_BENCH_MAP_LANDMARKS");
+  const int landmarks = count != nullptr ? std::atoi(count) : 1000000;
+  const RecognizerOptions options = BenchRecognizerOptions();
+  const bool existed = std::ifstream(path).good();
+  if (!existed) {
+    SqliteStoreOptions build;
+    build.synchronous_full = false;  // a throw-away file: no fsync per place
+    StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(path, build);
+    CHECK(store.ok()) << store.status().message();
+    StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
+    CHECK(map.ok()) << map.status().message();
+    FillSyntheticMap(landmarks, map->get());
+    std::ofstream(path + ".answer")
+        << AnswerText((*map)->Lookup(BenchQuery(), LoopDecisionOptions()));
+  }
+  std::stringstream expected;
+  expected << std::ifstream(path + ".answer").rdbuf();
+  const MapLookup query = BenchQuery();
+  double before = 0;
+  double unused = 0;
+  ResidentMiB(&before, &unused);
+  for (auto _ : state) {
+    StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(path, SqliteStoreOptions());
+    CHECK(store.ok()) << store.status().message();
+    StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
+    CHECK(map.ok()) << map.status().message();
+    double rss = 0;
+    double peak = 0;
+    ResidentMiB(&rss, &peak);
+    const MapCounts counts = (*map)->Counts();
+    const std::string answer = AnswerText((*map)->Lookup(query, LoopDecisionOptions()));
+    state.counters["open_s"] = (*map)->open_ms() / 1000.0;
+    state.counters["rss_mib"] = rss;
+    state.counters["peak_mib"] = peak;
+    state.counters["map_rss_mib"] = rss - before;
+    state.counters["bytes_per_landmark"] =
+        (rss - before) * 1024.0 * 1024.0 / std::max<double>(1, counts.landmarks);
+    state.counters["landmarks"] = static_cast<double>(counts.landmarks);
+    state.counters["answer_places"] =
+        static_cast<double>(std::count(answer.begin(), answer.end(), '\n'));
+    state.counters["answer_same"] = answer == expected.str() ? 1 : 0;
+    state.counters["built_now"] = existed ? 0 : 1;
+  }
+}
+
+void RetrievalOn(int landmarks, benchmark::State& state) {
+  SyntheticMap& synthetic = MapOf(landmarks);
   const LoopDecisionOptions options;
   int descriptors = 0;
   for (const IndexQuery& q : synthetic.query.objects) descriptors += q.descriptors.rows;
@@ -457,8 +644,14 @@ void BM_Retrieval(benchmark::State& state) {
   state.counters["map_descriptors"] = static_cast<double>(counts.descriptors);
   state.counters["query_objects"] = static_cast<double>(synthetic.query.objects.size());
   state.counters["query_descriptors"] = descriptors;
+  state.counters["recall_at_1"] = synthetic.recall_at_1;
+  state.counters["recall_at_k"] = synthetic.recall_at_k;
+  state.counters["build_s"] = synthetic.build_seconds;
 }
+void BM_Retrieval(benchmark::State& state) { RetrievalOn(static_cast<int>(state.range(0)), state); }
 BENCHMARK(BM_Retrieval)->Arg(1000)->Arg(10000)->Arg(100000)->Unit(benchmark::kMillisecond);
+// 1,000,000 landmark objects (24 million descriptors: many GB and a long build) only when
+// PLACEREC_BENCH_MILLION is set (registered in main).
 
 // ---- Perceptual Organization segmentation (seed Ch. 3), stage by stage on the frame ----
 
@@ -656,6 +849,16 @@ int main(int argc, char** argv) {
   FLAGS_minloglevel = 1;  // no INFO lines between benchmark rows
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  if (std::getenv("PLACEREC_BENCH_MILLION") != nullptr) {
+    benchmark::RegisterBenchmark("BM_Retrieval/1000000", [](benchmark::State& state) {
+      placerec::RetrievalOn(1000000, state);
+    })->Unit(benchmark::kMillisecond);
+  }
+  if (std::getenv("PLACEREC_BENCH_MAP_FILE") != nullptr) {
+    benchmark::RegisterBenchmark("BM_MapReopen", placerec::BM_MapReopen)
+        ->Unit(benchmark::kSecond)
+        ->Iterations(1);
+  }
   std::printf("frames: %s\n", placerec::Data().real_data
                                   ? "Gardens Point day_left Image100-139 resized to 640x480"
                                   : "synthetic 640x480 (no ../shared/data; set PLACEREC_DATA)");

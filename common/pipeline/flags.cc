@@ -59,6 +59,23 @@ std::istream& operator>>(std::istream& is, IndexSearch& value) {
   return is;
 }
 
+std::ostream& operator<<(std::ostream& os, DescriptorSearch value) {
+  return os << (value == DescriptorSearch::kHnsw ? "hnsw" : "flann");
+}
+
+std::istream& operator>>(std::istream& is, DescriptorSearch& value) {
+  std::string text;
+  is >> text;
+  if (text == "hnsw") {
+    value = DescriptorSearch::kHnsw;
+  } else if (text == "flann") {
+    value = DescriptorSearch::kFlann;
+  } else {
+    is.setstate(std::ios::failbit);
+  }
+  return is;
+}
+
 std::ostream& operator<<(std::ostream& os, SegmentationMethod value) {
   return os << (value == SegmentationMethod::kOrganization ? "organization" : "superpixels");
 }
@@ -142,7 +159,8 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add("store-tracked-only", &o->store_tracked_descriptors_only,
          "store only the landmark descriptors that matched into previous frames");
   p->Add("index-search", &o->index.search,
-         "verification: flann (nearest neighbours vote) | exhaustive (every candidate)");
+         "verification: flann (approximate nearest neighbours vote, from the index "
+         "--descriptor-search builds) | exhaustive (every candidate, §5.6 literally)");
   p->Add("use-count-range", &o->index.use_count_range,
          "restrict candidates by SIFT count (range tree, §5.6)");
   p->Add("count-range-low", &o->index.count_range_low,
@@ -167,7 +185,17 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
       "also verify the places most query descriptors have neighbours in (0: object matches only)");
   p->Add("vote-window-seconds", &o->index.vote_window_seconds,
          "a robot's places taken within this many seconds count as one location for the votes");
-  p->Add("flann-checks", &o->index.flann.checks, "FLANN leaves checked per query descriptor");
+  p->Add("descriptor-search", &o->index.flann.method,
+         "nearest neighbours of the map's descriptors: hnsw (a graph; cost grows with the "
+         "logarithm of the map) | flann (a k-d tree; cost grows with the map)");
+  p->Add("flann-checks", &o->index.flann.checks,
+         "FLANN leaves checked per query descriptor (--descriptor-search flann)");
+  p->Add("hnsw-links", &o->index.flann.hnsw_links,
+         "links per descriptor in the search graph (hnswlib M; more: slower, closer to exact)");
+  p->Add("hnsw-build-candidates", &o->index.flann.hnsw_build_candidates,
+         "candidates kept while linking a new descriptor (hnswlib ef_construction)");
+  p->Add("hnsw-search-candidates", &o->index.flann.hnsw_search_candidates,
+         "candidates kept while searching (hnswlib ef; at least --match-knn are used)");
   p->Add("sequence-frames", &o->sequence.frames,
          "earlier frames of the robot that may support a candidate place matched in step along "
          "the same route; the score is the mean over them (0: each frame alone, as in the seed)");

@@ -1,11 +1,18 @@
-// Approximate nearest-neighbour search over the SIFT descriptors of many objects with FLANN's
-// k-d tree (libflann). The tree is grown by insertion only: FLANN's batch build shuffles its
-// points with std::random_device, so two processes fed the same frames would answer
-// differently, and a rebuild would stall every lookup for seconds on a large map. Grown trees
-// are deterministic (the same additions give the same answers) and cheap to extend, at the cost
-// of a little nearest-neighbour recall against a batch-built forest with the same number of
-// checks. The descriptor matching this serves is the seed's verification step (§5.6); the
-// comparison is in docs/experiments/2026-11-22-flann-and-ransac.md.
+// Approximate nearest-neighbour search over the SIFT descriptors of many objects, grown by
+// insertion only, so that two processes fed the same descriptors in the same order answer alike
+// and no rebuild ever stalls a lookup. Two methods:
+//
+// - kFlann (the default): FLANN's k-d tree (libflann), grown point by point. FLANN's batch build
+//   shuffles its points with std::random_device (answers would differ between processes); a
+//   grown tree is deterministic. Inserting is cheap (a map reopens quickly), but its search
+//   clears a bit per stored point for every query, so search cost grows with the map, and with
+//   a fixed number of checks it finds fewer of the exact nearest neighbours as the map grows.
+// - kHnsw: a hierarchical navigable small-world graph (hnswlib, Malkov and Yashunin 2018): close
+//   to exact search at any size, with search cost growing with the logarithm of the map, but
+//   inserting costs about twenty times as much (a reopened map is indexed again).
+//
+// The descriptor matching this serves is the seed's verification step (§5.6); the comparisons
+// are in docs/experiments/2026-11-22-flann-and-ransac.md and 2026-12-03-retrieval.md.
 #pragma once
 
 #include <cstdint>
@@ -17,9 +24,18 @@
 
 namespace placerec {
 
+enum class DescriptorSearch { kHnsw, kFlann };
+
 struct DescriptorIndexOptions {
-  // Leaves checked per query: more is slower and closer to exact (FLANN SearchParams).
+  DescriptorSearch method = DescriptorSearch::kFlann;
+  // kFlann: leaves checked per query; more is slower and closer to exact (FLANN SearchParams).
   int checks = 32;
+  // kHnsw: links per point and layer (the graph's M; 2M in the bottom layer), candidates kept
+  // while inserting (ef_construction) and while searching (ef, at least the neighbours asked
+  // for). More of each is slower and closer to exact.
+  int hnsw_links = 16;
+  int hnsw_build_candidates = 64;
+  int hnsw_search_candidates = 32;
 
   bool Check(std::string* error) const;
 };
@@ -50,8 +66,13 @@ class DescriptorIndex {
 
  private:
   struct Flann;
+  struct Hnsw;
+  void AddToFlann(cv::Mat block);
+  void AddToHnsw(const cv::Mat& block, size_t first_point);
+
   DescriptorIndexOptions options_;
   std::unique_ptr<Flann> flann_;
+  std::unique_ptr<Hnsw> hnsw_;
   std::vector<cv::Mat> blocks_;  // keeps the descriptor memory FLANN points into alive
   std::vector<int32_t> point_owner_;
   std::vector<int32_t> point_row_;

@@ -281,6 +281,7 @@ IndexResult LandmarkIndex::Query(const std::vector<IndexQuery>& objects,
           {query.object[hit.query], query.row_in_object[hit.query], hit.owner, hit.train, hit.d1});
     }
   }
+  result.stats.places_ms = timer.ElapsedMs();
   return result;
 }
 

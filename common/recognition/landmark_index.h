@@ -130,6 +130,9 @@ class LandmarkIndex {
   // Slots of a place's landmarks (empty for an unknown place or one without landmarks).
   std::vector<int32_t> SlotsOfPlace(PlaceId place) const;
 
+  // The nearest-neighbour index over every stored descriptor (for measurements).
+  const DescriptorIndex& descriptor_index() const { return descriptors_; }
+
   size_t num_landmarks() const { return landmarks_.size(); }
   size_t num_descriptors() const { return num_descriptors_; }
   const LandmarkIndexOptions& options() const { return options_; }

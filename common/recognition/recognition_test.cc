@@ -92,6 +92,51 @@ TEST(DescriptorIndexTest, FindsExactPointsWithOwnerAndRow) {
   EXPECT_EQ(neighbours[1][0].row, 44);
 }
 
+// Both search methods: exact points, owners and rows, beyond the graph's first allocation (1,024
+// points), closest first; the same additions give the same answers in a second index.
+TEST(DescriptorIndexTest, BothMethodsFindNoisyCopiesClosestFirstAndDeterministically) {
+  for (const DescriptorSearch method : {DescriptorSearch::kFlann, DescriptorSearch::kHnsw}) {
+    SCOPED_TRACE(method == DescriptorSearch::kHnsw ? "hnsw" : "flann");
+    DescriptorIndexOptions options;
+    options.method = method;
+    DescriptorIndex first(options);
+    DescriptorIndex second(options);
+    std::mt19937 rng(5);
+    std::vector<cv::Mat> blocks;
+    for (int owner = 0; owner < 60; ++owner) {
+      blocks.push_back(RandomDescriptors(40, &rng));
+      first.Add(owner, blocks.back());
+      second.Add(owner, blocks.back());
+    }
+    ASSERT_EQ(first.size(), 2400u);
+    cv::Mat queries;
+    std::vector<std::pair<int, int>> truth;
+    for (int i = 0; i < 100; ++i) {
+      const int owner = (i * 7) % 60;
+      const int row = (i * 13) % 40;
+      queries.push_back(Noisy(blocks[owner].row(row), &rng, 4));
+      truth.emplace_back(owner, row);
+    }
+    std::vector<std::vector<DescriptorIndex::Neighbour>> a;
+    std::vector<std::vector<DescriptorIndex::Neighbour>> b;
+    first.Search(queries, 4, &a);
+    second.Search(queries, 4, &b);
+    int found = 0;
+    for (int q = 0; q < queries.rows; ++q) {
+      ASSERT_EQ(a[q].size(), 4u);
+      for (size_t j = 1; j < a[q].size(); ++j) EXPECT_LE(a[q][j - 1].distance, a[q][j].distance);
+      if (a[q][0].owner == truth[q].first && a[q][0].row == truth[q].second) ++found;
+      ASSERT_EQ(b[q].size(), a[q].size());
+      for (size_t j = 0; j < a[q].size(); ++j) {
+        EXPECT_EQ(a[q][j].owner, b[q][j].owner);
+        EXPECT_EQ(a[q][j].row, b[q][j].row);
+      }
+    }
+    // Random rows are far apart and the copies close: a working index finds nearly all.
+    EXPECT_GE(found, 95);
+  }
+}
+
 TEST(RangeTreeTest, ReturnsExactlyTheValuesInRange) {
   std::mt19937 rng(4);
   std::uniform_int_distribution<int> key(0, 300);
