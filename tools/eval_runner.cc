@@ -371,6 +371,13 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
                                  const EvalOptions& eval) {
   std::string error;
   if (!options.Check(&error)) return Status::InvalidArgument(error);
+  const int frames = eval.max_frames > 0 ? std::min<int>(eval.max_frames, run.frames.size())
+                                         : static_cast<int>(run.frames.size());
+  if (eval.first_frame < 0 || eval.first_frame >= frames) {
+    return Status::InvalidArgument("first frame " + std::to_string(eval.first_frame) +
+                                   " is not below the last frame fed (" + std::to_string(frames) +
+                                   ")");
+  }
   if (!eval.out_dir.empty() && !MakeDirectories(eval.out_dir)) {
     return Status::IoError("cannot create output directory " + eval.out_dir);
   }
@@ -383,13 +390,6 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
   if (!labeler.ok()) return labeler.status();
   Recognizer recognizer(options, map->get(), std::move(*segmenter), std::move(*labeler));
 
-  const int frames = eval.max_frames > 0 ? std::min<int>(eval.max_frames, run.frames.size())
-                                         : static_cast<int>(run.frames.size());
-  if (eval.first_frame < 0 || eval.first_frame >= frames) {
-    return Status::InvalidArgument("first frame " + std::to_string(eval.first_frame) +
-                                   " is not below the last frame fed (" + std::to_string(frames) +
-                                   ")");
-  }
   EvalReport report;
   FeedTotals totals;
   totals.records.resize(frames);
