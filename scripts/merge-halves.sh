@@ -29,8 +29,14 @@ second=$(awk -F, 'NR > 1 && (m == "" || $1 + 0 < m) { m = $1 + 0 } END { print m
 half=$((second / 2))
 eval_bin=$root/build/bin/placerec-eval
 map_bin=$root/build/bin/placerec-map
+# OUT is replaced only when empty or written by this script before (its marker file).
+if [ -d "$out" ] && [ -n "$(ls -A "$out")" ] && [ ! -f "$out/.merge-halves" ]; then
+  echo "merge-halves: $out exists and was not written by merge-halves.sh; give another OUT" >&2
+  exit 1
+fi
 rm -rf "$out"
 mkdir -p "$out"
+touch "$out/.merge-halves"
 feed() { "$eval_bin" run --dataset "$dir" --run "$run" --pictures 0 --quiet "$@" >/dev/null; }
 
 echo "merge-halves: $dataset/$run, mapping pass [0, $second), halves [0, $half) and [$half, $second)"
