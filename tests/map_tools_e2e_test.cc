@@ -143,6 +143,11 @@ std::map<int, Answer> Feed(const placerec::Run& run, const std::string& db, int 
   std::map<int, Answer> answers;
   if (report.ok()) {
     for (const Answer& answer : report->answers) answers[answer.frame] = answer;
+    // Scored on the fed frames' revisits only.
+    int revisits = 0;
+    for (int f = first; f < end; ++f) revisits += run.is_revisit[f] ? 1 : 0;
+    EXPECT_EQ(report->score.revisit_frames, revisits);
+    EXPECT_EQ(report->summary["first_frame"], first);
   }
   EXPECT_EQ(answers.size(), static_cast<size_t>(end - first));
   return answers;
