@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <fstream>
 #include <iomanip>
+#include <iterator>
 #include <map>
 #include <sstream>
 
@@ -133,19 +134,21 @@ void PrintLoopClosure(const Run& run, const RunFrame& frame, const RecognitionRe
   std::fflush(stdout);
 }
 
-// Feeds the first `frames` frames of `run` through `recognizer`, appending one answer per frame
-// to `report` and the counts and timings to `totals`.
-Status FeedFrames(const Run& run, const EvalOptions& eval, int frames, const Timer& run_timer,
-                  Recognizer& recognizer, EvalReport* report, FeedTotals* totals) {
+// Feeds frames [`first`, `frames`) of `run` through `recognizer`, appending one answer per frame
+// to `report` and the counts and timings to `totals` (indexed by frame).
+Status FeedFrames(const Run& run, const EvalOptions& eval, int first, int frames,
+                  const Timer& run_timer, Recognizer& recognizer, EvalReport* report,
+                  FeedTotals* totals) {
   FrameObservation last_observation;
-  ProgressLine progress(static_cast<size_t>(frames), static_cast<size_t>(frames / 10));
+  const int fed = frames - first;
+  ProgressLine progress(static_cast<size_t>(fed), static_cast<size_t>(fed / 10));
 
-  for (int f = 0; f < frames; ++f) {
+  for (int f = first; f < frames; ++f) {
     const RunFrame& frame = run.frames[f];
     Timer frame_timer;
     // A frame sent again (a repeated run) is analysed once: analysis is deterministic.
     double decode_ms = 0;
-    if (f == 0 || frame.image != run.frames[f - 1].image) {
+    if (f == first || frame.image != run.frames[f - 1].image) {
       StatusOr<cv::Mat> image = ReadFrame(frame.image, eval);
       if (!image.ok()) return image.status();
       decode_ms = frame_timer.ElapsedMs();
@@ -203,13 +206,14 @@ Status FeedFrames(const Run& run, const EvalOptions& eval, int frames, const Tim
       if (eval.print_loop_closures) PrintLoopClosure(run, frame, result, answer, eval, &progress);
     }
     if (eval.progress) {
+      const int done = f - first + 1;
       const double elapsed = run_timer.ElapsedMs() / 1000.0;
-      const double eta = elapsed / (f + 1) * (frames - f - 1);
-      progress.Report(static_cast<size_t>(f + 1),
+      const double eta = elapsed / done * (fed - done);
+      progress.Report(static_cast<size_t>(done),
                       "[%4d/%d] %5.1f%%  %s  kp %4d  obj %3d  lm %3d  map %6lld lm  loops %d  "
                       "eta %4.0fs",
-                      f + 1, frames, 100.0 * (f + 1) / frames, frame.robot.c_str(),
-                      result.keypoints, result.objects, result.landmarks,
+                      f + 1, frames, 100.0 * done / fed, frame.robot.c_str(), result.keypoints,
+                      result.objects, result.landmarks,
                       static_cast<long long>(result.map.landmarks), totals->loop_closures, eta);
     }
   }
@@ -221,9 +225,8 @@ Status FeedFrames(const Run& run, const EvalOptions& eval, int frames, const Tim
 DecisionCounts CountDecisions(const Run& run, const Run& scored, const std::vector<Answer>& answers,
                               const std::vector<FrameRecord>& records) {
   DecisionCounts counts;
-  for (size_t f = 0; f < answers.size(); ++f) {
-    const Answer& a = answers[f];
-    if (a.reference < 0 || !records[f].loop_closure) continue;
+  for (const Answer& a : answers) {
+    if (a.reference < 0 || !records[a.frame].loop_closure) continue;
     if (scored.IsPositive(a.frame, a.reference)) {
       ++counts.tp;
     } else {
@@ -295,16 +298,16 @@ Status WriteOutputs(const Run& run, const std::string& out_dir, const EvalReport
   return WritePrCurvePng(out_dir + "/pr_curve.png", run.name + ": precision-recall", {curve});
 }
 
-// Which frames get a match picture: the strongest correct answers, then the strongest wrong
-// ones (a third of `pictures` at most); each with whether it is correct.
-std::vector<std::pair<int, bool>> ChoosePictures(const Run& scored, int frames,
-                                                 const EvalReport& report, const FeedTotals& totals,
-                                                 int pictures) {
+// Which answers (indices into report.answers) get a match picture: the strongest correct ones,
+// then the strongest wrong ones (a third of `pictures` at most); each with whether it is correct.
+std::vector<std::pair<int, bool>> ChoosePictures(const Run& scored, const EvalReport& report,
+                                                 const FeedTotals& totals, int pictures) {
   std::vector<int> correct;
   std::vector<int> wrong;
-  for (int f = 0; f < frames; ++f) {
-    if (!totals.records[f].has_match) continue;
-    (scored.IsPositive(f, report.answers[f].reference) ? correct : wrong).push_back(f);
+  for (int i = 0; i < static_cast<int>(report.answers.size()); ++i) {
+    const Answer& answer = report.answers[i];
+    if (!totals.records[answer.frame].has_match) continue;
+    (scored.IsPositive(answer.frame, answer.reference) ? correct : wrong).push_back(i);
   }
   auto by_score = [&](int a, int b) { return report.answers[a].score > report.answers[b].score; };
   std::sort(correct.begin(), correct.end(), by_score);
@@ -318,24 +321,27 @@ std::vector<std::pair<int, bool>> ChoosePictures(const Run& scored, int frames,
 }
 
 // Match pictures in `out_dir`/matches: the strongest correct answers and the strongest wrong ones.
-Status WriteMatchPictures(const Run& run, const Run& scored, int frames, const EvalOptions& eval,
+Status WriteMatchPictures(const Run& run, const Run& scored, int first, const EvalOptions& eval,
                           const EvalReport& report, const FeedTotals& totals,
                           Recognizer& recognizer) {
   const std::string dir = eval.out_dir + "/matches";
   if (!MakeDirectories(dir)) return Status::IoError("cannot create " + dir);
-  for (const auto& [f, is_correct] :
-       ChoosePictures(scored, frames, report, totals, eval.pictures)) {
-    const int reference = report.answers[f].reference;
+  for (const auto& [i, is_correct] : ChoosePictures(scored, report, totals, eval.pictures)) {
+    const int f = report.answers[i].frame;
+    const int reference = report.answers[i].reference;
     StatusOr<cv::Mat> query = ReadFrame(run.frames[f].image, eval);
     StatusOr<cv::Mat> ref = ReadFrame(run.frames[reference].image, eval);
     if (!query.ok() || !ref.ok()) continue;
     const FrameObservation observation = recognizer.Analyze(*query);
+    // A reference fed by an earlier call (before `first`): its scale as the analysis sets it.
+    const double reference_scale =
+        reference >= first ? totals.frame_scale[reference] : recognizer.Analyze(*ref).scale;
     const std::string caption =
         "frame " + std::to_string(f) + " (" + run.frames[f].robot + ") -> frame " +
         std::to_string(reference) + " (" + run.frames[reference].robot + ")  score " +
-        Fixed(report.answers[f].score, 0) + "  " + (is_correct ? "correct" : "WRONG");
-    const cv::Mat picture = DrawMatchPicture(
-        *query, observation, *ref, totals.frame_scale[reference], totals.records[f].best, caption);
+        Fixed(report.answers[i].score, 0) + "  " + (is_correct ? "correct" : "WRONG");
+    const cv::Mat picture = DrawMatchPicture(*query, observation, *ref, reference_scale,
+                                             totals.records[f].best, caption);
     char name[64];
     std::snprintf(name, sizeof(name), "/%s_%03d_to_%03d.jpg", is_correct ? "correct" : "wrong", f,
                   reference);
@@ -344,12 +350,34 @@ Status WriteMatchPictures(const Run& run, const Run& scored, int frames, const E
   return Status::Ok();
 }
 
+// The run as far as it was fed, scored on the fed frames' revisits only: frames before `first`
+// were fed by an earlier call, and their answers are not in this one.
+Run ScoredRun(const Run& run, int first, int frames) {
+  Run scored = FirstFrames(run, frames);
+  if (first <= 0) return scored;
+  for (auto it = scored.positives.begin(); it != scored.positives.end();) {
+    it = it->first < first ? scored.positives.erase(it) : std::next(it);
+  }
+  for (int f = 0; f < first; ++f) {
+    if (scored.is_revisit[f]) --scored.num_revisits;
+    scored.is_revisit[f] = false;
+  }
+  return scored;
+}
+
 }  // namespace
 
 StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& options,
                                  const EvalOptions& eval) {
   std::string error;
   if (!options.Check(&error)) return Status::InvalidArgument(error);
+  const int frames = eval.max_frames > 0 ? std::min<int>(eval.max_frames, run.frames.size())
+                                         : static_cast<int>(run.frames.size());
+  if (eval.first_frame < 0 || eval.first_frame >= frames) {
+    return Status::InvalidArgument("first frame " + std::to_string(eval.first_frame) +
+                                   " is not below the last frame fed (" + std::to_string(frames) +
+                                   ")");
+  }
   if (!eval.out_dir.empty() && !MakeDirectories(eval.out_dir)) {
     return Status::IoError("cannot create output directory " + eval.out_dir);
   }
@@ -362,29 +390,29 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
   if (!labeler.ok()) return labeler.status();
   Recognizer recognizer(options, map->get(), std::move(*segmenter), std::move(*labeler));
 
-  const int frames = eval.max_frames > 0 ? std::min<int>(eval.max_frames, run.frames.size())
-                                         : static_cast<int>(run.frames.size());
   EvalReport report;
   FeedTotals totals;
   totals.records.resize(frames);
   totals.frame_scale.assign(frames, 1.0);
   Timer run_timer;
-  PLACEREC_RETURN_IF_ERROR(FeedFrames(run, eval, frames, run_timer, recognizer, &report, &totals));
+  PLACEREC_RETURN_IF_ERROR(
+      FeedFrames(run, eval, eval.first_frame, frames, run_timer, recognizer, &report, &totals));
 
-  const Run scored = FirstFrames(run, frames);  // score only the frames that ran
+  const Run scored = ScoredRun(run, eval.first_frame, frames);  // score only the frames that ran
   StatusOr<RunScore> score = ScoreAnswers(scored, report.answers);
   if (!score.ok()) return score.status();
   report.score = *score;
   const DecisionCounts decisions = CountDecisions(run, scored, report.answers, totals.records);
-  report.summary = SummaryJson(run, frames, recognizer.options(), report, decisions, totals, **map,
-                               recognizer, run_timer);
+  report.summary = SummaryJson(run, frames - eval.first_frame, recognizer.options(), report,
+                               decisions, totals, **map, recognizer, run_timer);
   report.summary["frame_width"] = eval.frame_width;  // 0: as recorded
+  report.summary["first_frame"] = eval.first_frame;
 
   if (eval.out_dir.empty()) return report;
   PLACEREC_RETURN_IF_ERROR(WriteOutputs(run, eval.out_dir, report, totals));
   if (eval.pictures > 0) {
     PLACEREC_RETURN_IF_ERROR(
-        WriteMatchPictures(run, scored, frames, eval, report, totals, recognizer));
+        WriteMatchPictures(run, scored, eval.first_frame, eval, report, totals, recognizer));
   }
   return report;
 }

@@ -23,7 +23,11 @@ struct EvalOptions {
   int pictures = 6;                  // match pictures to draw (best true and false positives)
   bool progress = true;              // a progress line on stderr
   bool print_loop_closures = false;  // one stdout line per loop closure as it is found
-  int max_frames = 0;                // stop after this many frames (0: all)
+  // Frames fed: [first_frame, max_frames), max_frames 0 meaning the run's end. A first frame
+  // above 0 continues a map (db_path) that an earlier call built from the frames before it, as a
+  // restarted server would; only the revisits among the fed frames are scored.
+  int first_frame = 0;
+  int max_frames = 0;  // stop before this frame (0: all); with first_frame 0, a frame count
   // Every frame is scaled to this width as it is read (0: as recorded), as a camera of that
   // resolution would send it; the pipeline's own scaling comes after.
   int frame_width = 0;

@@ -66,7 +66,11 @@ int RunCommand(int argc, char** argv) {
   parser.AddRequired("out", &out, "output directory (created if missing)");
   parser.Add("db", &eval.db_path, "SQLite map file to build (default: a map in memory)");
   parser.Add("pictures", &eval.pictures, "match pictures to draw");
-  parser.Add("max-frames", &eval.max_frames, "stop after this many frames (0: all)");
+  parser.Add("max-frames", &eval.max_frames,
+             "stop before this frame (0: all); without --first-frame, a frame count");
+  parser.Add("first-frame", &eval.first_frame,
+             "feed from this frame on (0: the first), continuing the map --db that a run with "
+             "--max-frames FIRST built, as a restarted server would; scores its revisits only");
   parser.Add("frame-width", &eval.frame_width,
              "scale every frame to this many pixels wide as it is read, as a camera of that "
              "resolution would send it (0: as recorded; e.g. 160 or 320)");
