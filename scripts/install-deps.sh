@@ -15,7 +15,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev clang-format
   clang-15 libfuzzer-15-dev
   libcpp-httplib-dev libssl-dev openssl chromium chromium-driver
-  iproute2 util-linux procps
+  iproute2 util-linux procps time
   liblcm-java default-jre-headless
 )
 

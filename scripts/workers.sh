@@ -1,0 +1,68 @@
+#!/usr/bin/env bash
+# Throughput of one placerec-server with 1 and with 2 worker threads (issue 24 item 3): the first
+# FRAMES frames (0: all 400; the run holds robot left's frames, then right's) of Gardens Point
+# day_left_then_day_right sent by robots `left` and `right` at once
+# (`placerec-client run --concurrent-robots`), once per worker count, each on a fresh map.
+# Prints frames per second and the ratio; OUT/workers_N/ holds each client summary.json and the
+# server log. Runs in a private network namespace as root (loopback only).
+#
+#   bash scripts/workers.sh [FRAMES] [OUT]      (default all frames, out/workers)
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+build_dir=${BUILD_DIR:-$root/build}
+data=${PLACEREC_DATA:-$root/../shared/data}
+frames=${1:-0}
+out=${2:-$root/out/workers}
+case "$frames" in '' | *[!0-9]*) echo "workers: FRAMES must be a number" >&2; exit 2 ;; esac
+
+if [ -z "${PLACEREC_WORKERS_STAGE:-}" ]; then
+  if [ "$(id -u)" -ne 0 ] || ! unshare -n true 2>/dev/null; then
+    echo "workers: needs root and unshare -n (a private network namespace)" >&2
+    exit 1
+  fi
+  [ -x "$build_dir/bin/placerec-server" ] || { echo "workers: build first (bash scripts/build.sh)" >&2; exit 1; }
+  exec unshare -n -- env PLACEREC_WORKERS_STAGE=netns bash "$0" "$frames" "$out"
+fi
+
+export PATH="$PATH:/usr/sbin:/sbin"
+ip link set lo up
+ip link set lo multicast on
+ip route add 224.0.0.0/4 dev lo
+url="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608"
+server="$build_dir/bin/placerec-server"
+client="$build_dir/bin/placerec-client"
+mkdir -p "$out"
+keys=$out/keys
+(umask 077 && bash "$root/scripts/make-key.sh" workers-robots both > "$keys")
+
+server_pid=
+stop_server() {
+  if [ -n "$server_pid" ] && kill -0 "$server_pid" 2>/dev/null; then
+    kill -TERM "$server_pid"
+    wait "$server_pid" || true
+  fi
+}
+trap stop_server EXIT
+
+declare -A fps
+for workers in 1 2; do
+  dir=$out/workers_$workers
+  rm -rf "$dir"
+  mkdir -p "$dir"
+  "$server" --db "$dir/map.db" --lcm-url "$url" --keys "$keys" --workers "$workers" \
+    2> "$dir/server.log" &
+  server_pid=$!
+  for _ in $(seq 1 30); do
+    "$client" status --lcm-url "$url" --timeout 2 > /dev/null 2>&1 && break
+  done
+  /usr/bin/time -f "%U %S %e" -o "$dir/client.time" \
+    "$client" run --dataset "$data/gardens_point" --run day_left_then_day_right --out "$dir" \
+    --lcm-url "$url" --key-file "$keys" --concurrent-robots --max-frames "$frames" > "$dir/client.log"
+  # The server's CPU seconds (utime + stime, fields 14 and 15 of /proc/PID/stat).
+  server_cpu=$(awk -v hz="$(getconf CLK_TCK)" '{ print ($14 + $15) / hz }' "/proc/$server_pid/stat")
+  stop_server
+  fps[$workers]=$(sed -n 's/.*"frames_per_second": *\([0-9.]*\).*/\1/p' "$dir/summary.json" | head -n 1)
+  read -r cu cs ce < "$dir/client.time"
+  echo "workers: $workers worker(s): ${fps[$workers]} frames/s; CPU seconds: server ${server_cpu}, client $(awk -v u="$cu" -v s="$cs" 'BEGIN { print u + s }') in ${ce} s"
+done
+awk -v a="${fps[1]}" -v b="${fps[2]}" 'BEGIN { printf "workers: 2 workers / 1 worker = %.2fx\n", b / a }'
