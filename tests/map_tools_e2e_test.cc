@@ -206,6 +206,13 @@ TEST(MapToolsEndToEndTest, CorridorLoopMergedHalvesAnswerTheSecondPassAsTheWhole
   EXPECT_EQ(EvaluateRun(*run, RecognizerOptions(), backwards).status().code(),
             StatusCode::kInvalidArgument);
   EXPECT_FALSE(PathExists(whole));
+  // A first frame above 0 continues a map file: without one it is refused, not fed into an
+  // empty map and scored as a continuation.
+  EvalOptions no_map;
+  no_map.first_frame = kHalf;
+  no_map.max_frames = kSecondPass;
+  EXPECT_EQ(EvaluateRun(*run, RecognizerOptions(), no_map).status().code(),
+            StatusCode::kInvalidArgument);
 
   Feed(*run, whole, 0, kSecondPass);
   Feed(*run, a, 0, kHalf);

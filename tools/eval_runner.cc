@@ -231,7 +231,11 @@ DecisionCounts CountDecisions(const Run& run, const Run& scored, const std::vect
       ++counts.tp;
     } else {
       ++counts.fp;
-      if (run.frames[a.frame].robot == run.frames[a.reference].robot) ++counts.fp_same_robot;
+      // A map file from another run may answer with a place beyond this run's frames.
+      if (a.reference < static_cast<int>(run.frames.size()) &&
+          run.frames[a.frame].robot == run.frames[a.reference].robot) {
+        ++counts.fp_same_robot;
+      }
     }
   }
   return counts;
@@ -329,6 +333,8 @@ Status WriteMatchPictures(const Run& run, const Run& scored, int first, const Ev
   for (const auto& [i, is_correct] : ChoosePictures(scored, report, totals, eval.pictures)) {
     const int f = report.answers[i].frame;
     const int reference = report.answers[i].reference;
+    // A place beyond the frames fed (a map file from another run) has no picture here.
+    if (reference >= static_cast<int>(totals.frame_scale.size())) continue;
     StatusOr<cv::Mat> query = ReadFrame(run.frames[f].image, eval);
     StatusOr<cv::Mat> ref = ReadFrame(run.frames[reference].image, eval);
     if (!query.ok() || !ref.ok()) continue;
@@ -373,6 +379,10 @@ StatusOr<EvalReport> EvaluateRun(const Run& run, const RecognizerOptions& option
   if (!options.Check(&error)) return Status::InvalidArgument(error);
   const int frames = eval.max_frames > 0 ? std::min<int>(eval.max_frames, run.frames.size())
                                          : static_cast<int>(run.frames.size());
+  if (eval.first_frame > 0 && eval.db_path.empty()) {
+    return Status::InvalidArgument(
+        "a first frame above 0 continues a map file that an earlier run built: give --db");
+  }
   if (eval.first_frame < 0 || eval.first_frame >= frames) {
     return Status::InvalidArgument("first frame " + std::to_string(eval.first_frame) +
                                    " is not below the last frame fed (" + std::to_string(frames) +
