@@ -26,10 +26,19 @@ data=${PLACEREC_DATA:-$root/../shared/data}
 positives=$dir/runs/$run.positives.csv
 [ -f "$positives" ] || { echo "merge-halves: no $positives" >&2; exit 1; }
 second=$(awk -F, 'NR > 1 && (m == "" || $1 + 0 < m) { m = $1 + 0 } END { print m }' "$positives")
+case "$second" in '' | *[!0-9]*) echo "merge-halves: no revisit in $positives" >&2; exit 1 ;; esac
+if [ "$second" -lt 2 ]; then
+  echo "merge-halves: the first revisit is frame $second: no mapping pass to split" >&2
+  exit 1
+fi
 half=$((second / 2))
 eval_bin=$root/build/bin/placerec-eval
 map_bin=$root/build/bin/placerec-map
 # OUT is replaced only when empty or written by this script before (its marker file).
+if [ -e "$out" ] && [ ! -d "$out" ]; then
+  echo "merge-halves: $out exists and is not a directory; give another OUT" >&2
+  exit 1
+fi
 if [ -d "$out" ] && [ -n "$(ls -A "$out")" ] && [ ! -f "$out/.merge-halves" ]; then
   echo "merge-halves: $out exists and was not written by merge-halves.sh; give another OUT" >&2
   exit 1

@@ -14,6 +14,11 @@ data=${PLACEREC_DATA:-$root/../shared/data}
 frames=${1:-0}
 out=${2:-$root/out/workers}
 case "$frames" in '' | *[!0-9]*) echo "workers: FRAMES must be a number" >&2; exit 2 ;; esac
+if [ "$frames" -gt 0 ] && [ "$frames" -le 200 ]; then
+  # The run's first 200 frames are robot left's: fewer would send one robot only.
+  echo "workers: FRAMES must be 0 (all) or above 200, so that both robots send" >&2
+  exit 2
+fi
 
 if [ -z "${PLACEREC_WORKERS_STAGE:-}" ]; then
   if [ "$(id -u)" -ne 0 ] || ! unshare -n true 2>/dev/null; then
@@ -41,6 +46,7 @@ stop_server() {
     kill -TERM "$server_pid"
     wait "$server_pid" || true
   fi
+  server_pid=
 }
 trap stop_server EXIT
 
