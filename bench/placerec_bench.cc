@@ -577,7 +577,16 @@ void BM_MapReopen(benchmark::State& state) {
   const char* count = std::getenv("PLACEREC_BENCH_MAP_LANDMARKS");
   const int landmarks = count != nullptr ? std::atoi(count) : 1000000;
   const RecognizerOptions options = BenchRecognizerOptions();
+  // The settings the file was built with head its answer file; a file built otherwise (or a
+  // build cut short, which leaves no answer file) is refused rather than measured.
+  const char* method = std::getenv("PLACEREC_BENCH_DESCRIPTOR_SEARCH");
+  const std::string settings = "landmarks " + std::to_string(landmarks) + " descriptor-search " +
+                               (method != nullptr ? method : "default") + "\n";
   const bool existed = std::ifstream(path).good();
+  if (existed && !std::ifstream(path + ".answer").good()) {
+    state.SkipWithError((path + " has no .answer file (a build cut short?): remove it").c_str());
+    return;
+  }
   if (!existed) {
     SqliteStoreOptions build;
     build.synchronous_full = false;  // a throw-away file: no fsync per place
@@ -587,10 +596,17 @@ void BM_MapReopen(benchmark::State& state) {
     CHECK(map.ok()) << map.status().message();
     FillSyntheticMap(landmarks, map->get());
     std::ofstream(path + ".answer")
-        << AnswerText((*map)->Lookup(BenchQuery(), LoopDecisionOptions()));
+        << settings << AnswerText((*map)->Lookup(BenchQuery(), LoopDecisionOptions()));
+  }
+  std::ifstream answer_file(path + ".answer");
+  std::string built_with;
+  std::getline(answer_file, built_with);
+  if (built_with + "\n" != settings) {
+    state.SkipWithError((path + " was built with " + built_with + ", not " + settings).c_str());
+    return;
   }
   std::stringstream expected;
-  expected << std::ifstream(path + ".answer").rdbuf();
+  expected << answer_file.rdbuf();
   const MapLookup query = BenchQuery();
   double before = 0;
   double unused = 0;
@@ -624,21 +640,26 @@ void RetrievalOn(int landmarks, benchmark::State& state) {
   const LoopDecisionOptions options;
   int descriptors = 0;
   for (const IndexQuery& q : synthetic.query.objects) descriptors += q.descriptors.rows;
-  IndexQueryStats stats;
+  // Every stage's time is the mean over the iterations.
+  IndexQueryStats sum;
   double ranking_ms = 0;
   int n = 0;
   for (auto _ : state) {
     MapLookupResult result = synthetic.map->Lookup(synthetic.query, options);
     benchmark::DoNotOptimize(result.places.data());
-    stats = result.stats;
+    sum.filter_ms += result.stats.filter_ms;
+    sum.search_ms += result.stats.search_ms;
+    sum.objects_ms += result.stats.objects_ms;
+    sum.places_ms += result.stats.places_ms;
     ranking_ms += result.ranking_ms;
     ++n;
   }
-  state.counters["filter_ms"] = stats.filter_ms;
-  state.counters["search_ms"] = stats.search_ms;
-  state.counters["objects_ms"] = stats.objects_ms;
-  state.counters["places_ms"] = stats.places_ms;
-  state.counters["ranking_ms"] = ranking_ms / std::max(1, n);
+  n = std::max(1, n);
+  state.counters["filter_ms"] = sum.filter_ms / n;
+  state.counters["search_ms"] = sum.search_ms / n;
+  state.counters["objects_ms"] = sum.objects_ms / n;
+  state.counters["places_ms"] = sum.places_ms / n;
+  state.counters["ranking_ms"] = ranking_ms / n;
   const MapCounts counts = synthetic.map->Counts();
   state.counters["landmarks"] = static_cast<double>(counts.landmarks);
   state.counters["map_descriptors"] = static_cast<double>(counts.descriptors);

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <future>
 #include <memory>
+#include <mutex>
 #include <random>
 #include <string>
 #include <utility>
@@ -38,12 +39,22 @@ class HeldStore : public LandmarkStore {
   std::string Describe() const override { return inner_->Describe(); }
 
   std::future<void> Entered() { return entered_.get_future(); }
-  void Release() { release_.set_value(); }
+  void Release() {
+    std::call_once(released_, [this] { release_.set_value(); });
+  }
 
  private:
   std::unique_ptr<LandmarkStore> inner_;
   std::promise<void> entered_;
   std::promise<void> release_;
+  std::once_flag released_;
+};
+
+// Lets a held commit go on when the test leaves, also by a failed assertion (the insert's
+// future waits for it).
+struct ReleaseAtExit {
+  HeldStore* store;
+  ~ReleaseAtExit() { store->Release(); }
 };
 
 Landmark TestLandmark(int seed) {
@@ -78,6 +89,7 @@ TEST(PlaceMapTest, LookupsGoOnWhileAnInsertCommits) {
     std::vector<Landmark> landmarks = {TestLandmark(1)};
     return map.Insert(&place, &landmarks);
   });
+  const ReleaseAtExit release_at_exit{store};
   ASSERT_EQ(entered.wait_for(std::chrono::seconds(10)), std::future_status::ready);
 
   // The commit is held: a lookup (and the counts) must still answer.

@@ -57,8 +57,9 @@ bool DescriptorIndexOptions::Check(std::string* error) const {
     *error = "index checks must be at least 1";
     return false;
   }
-  if (hnsw_links < 2 || hnsw_build_candidates < 1 || hnsw_search_candidates < 1) {
-    *error = "index hnsw links must be at least 2 and its candidates at least 1";
+  if (hnsw_links < 2 || hnsw_links > 1000 || hnsw_build_candidates < 1 ||
+      hnsw_search_candidates < 1) {
+    *error = "index hnsw links must be in [2, 1000] and its candidates at least 1";
     return false;
   }
   return true;

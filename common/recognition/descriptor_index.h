@@ -7,12 +7,13 @@
 //   grown tree is deterministic. Inserting is cheap (a map reopens quickly), but its search
 //   clears a bit per stored point for every query, so search cost grows with the map, and with
 //   a fixed number of checks it finds fewer of the exact nearest neighbours as the map grows.
-// - kHnsw: a hierarchical navigable small-world graph (hnswlib, Malkov and Yashunin 2018): close
-//   to exact search at any size, with search cost growing with the logarithm of the map, but
-//   inserting costs about twenty times as much (a reopened map is indexed again).
+// - kHnsw: a hierarchical navigable small-world graph (hnswlib, Malkov and Yashunin 2018): far
+//   closer to exact search than the tree with the default settings, search cost growing with
+//   the logarithm of the map, but inserting costs about twenty times as much (a reopened map is
+//   indexed again) and each descriptor takes about 350 more bytes (a copy, links, a lock).
 //
 // The descriptor matching this serves is the seed's verification step (§5.6); the comparisons
-// are in docs/experiments/2026-11-22-flann-and-ransac.md and 2026-12-03-retrieval.md.
+// are in docs/experiments/2026-11-22-flann-and-ransac.md and 2026-12-03-retrieval-and-scale.md.
 #pragma once
 
 #include <cstdint>
