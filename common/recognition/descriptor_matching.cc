@@ -16,7 +16,7 @@ namespace {
 
 static_assert(kDescriptorSize % 32 == 0, "the vector loops take 32 bytes at a time");
 
-[[maybe_unused]] int SquaredDistanceScalar(const uint8_t* a, const uint8_t* b) {
+int SquaredDistanceScalar(const uint8_t* a, const uint8_t* b) {
   int sum = 0;
   for (int i = 0; i < kDescriptorSize; ++i) {
     const int d = static_cast<int>(a[i]) - static_cast<int>(b[i]);
@@ -81,6 +81,18 @@ DistanceFunction ChooseSquaredDistance() {
 int SquaredDistance(const uint8_t* a, const uint8_t* b) {
   static const DistanceFunction distance = ChooseSquaredDistance();
   return distance(a, b);
+}
+
+std::vector<std::pair<std::string, int (*)(const uint8_t*, const uint8_t*)>>
+SquaredDistanceImplementations() {
+  std::vector<std::pair<std::string, int (*)(const uint8_t*, const uint8_t*)>> all = {
+      {"scalar", &SquaredDistanceScalar}};
+#if defined(__x86_64__)
+  all.emplace_back("sse2", &SquaredDistanceSse2);
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("avx2")) all.emplace_back("avx2", &SquaredDistanceAvx2);
+#endif
+  return all;
 }
 
 std::vector<DescriptorMatch> MatchRatioTest(const cv::Mat& query, const cv::Mat& train,

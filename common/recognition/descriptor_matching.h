@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -13,6 +14,11 @@ namespace placerec {
 // Squared Euclidean distance of two 128-byte SIFT descriptors, with the widest vector
 // instructions the processor has (chosen once at start).
 int SquaredDistance(const uint8_t* a, const uint8_t* b);
+
+// Every implementation SquaredDistance may choose from that this processor runs (the plain loop
+// first), by name: for tests, which otherwise only see the one chosen here.
+std::vector<std::pair<std::string, int (*)(const uint8_t*, const uint8_t*)>>
+SquaredDistanceImplementations();
 
 // A match of row `query` of one object's descriptors with row `train` of another's.
 struct DescriptorMatch {

@@ -46,6 +46,31 @@ TEST(DescriptorMatchingTest, SquaredDistance) {
   }
 }
 
+// Every vector implementation against the plain loop, not only the one this processor chooses:
+// extremes both ways and random rows at every byte offset (unaligned loads).
+TEST(DescriptorMatchingTest, EveryImplementationIsExact) {
+  const auto implementations = SquaredDistanceImplementations();
+  ASSERT_GE(implementations.size(), 1u);
+  const auto reference = implementations.front().second;
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> byte(0, 255);
+  std::vector<uint8_t> x(128 + 16);
+  std::vector<uint8_t> y(128 + 16);
+  for (const auto& [name, distance] : implementations) {
+    SCOPED_TRACE(name);
+    std::vector<uint8_t> zeros(128, 0);
+    std::vector<uint8_t> full(128, 255);
+    EXPECT_EQ(distance(zeros.data(), full.data()), 128 * 255 * 255);
+    EXPECT_EQ(distance(full.data(), zeros.data()), 128 * 255 * 255);
+    for (int trial = 0; trial < 200; ++trial) {
+      for (uint8_t& v : x) v = static_cast<uint8_t>(byte(rng));
+      for (uint8_t& v : y) v = static_cast<uint8_t>(byte(rng));
+      const int offset = trial % 16;
+      EXPECT_EQ(distance(x.data() + offset, y.data()), reference(x.data() + offset, y.data()));
+    }
+  }
+}
+
 TEST(DescriptorMatchingTest, RatioTestFindsTrueMatchesAndRejectsAmbiguousOnes) {
   std::mt19937 rng(1);
   const cv::Mat train = RandomDescriptors(30, &rng);
