@@ -64,27 +64,25 @@ MapLookupResult PlaceMap::Lookup(const MapLookup& lookup,
 }
 
 Status PlaceMap::Insert(Place* place, std::vector<Landmark>* landmarks) {
-  std::unique_lock lock(mutex_, std::defer_lock);
   const std::chrono::milliseconds timeout(follower_timeout_ms_.load());
-  if (timeout.count() > 0) {
-    // The store serialises its own calls; lookups go on while it commits.
-    PLACEREC_RETURN_IF_ERROR(store_->AddPlace(place, landmarks));
-    lock.lock();
-    if (indexed_.wait_for(lock, timeout, [&] { return places_.count(place->id) > 0; })) {
-      return Status::Ok();
-    }
-    LOG(WARNING) << "place " << place->id.value()
-                 << " did not come back through the map follower within " << timeout.count()
-                 << " ms; indexed out of id order";
-  } else {
+  if (timeout.count() <= 0) {
     // One insert at a time, so that places are indexed in the order the store numbers them (as a
     // reopened map holds them); lookups go on while the store commits.
     std::lock_guard<std::mutex> inserting(insert_mutex_);
     PLACEREC_RETURN_IF_ERROR(store_->AddPlace(place, landmarks));
-    lock.lock();
+    std::unique_lock lock(mutex_);
     if (places_.count(place->id) == 0) IndexCommitted(*place, *landmarks);
     return Status::Ok();
   }
+  // The store serialises its own calls; lookups go on while it commits.
+  PLACEREC_RETURN_IF_ERROR(store_->AddPlace(place, landmarks));
+  std::unique_lock lock(mutex_);
+  if (indexed_.wait_for(lock, timeout, [&] { return places_.count(place->id) > 0; })) {
+    return Status::Ok();
+  }
+  LOG(WARNING) << "place " << place->id.value()
+               << " did not come back through the map follower within " << timeout.count()
+               << " ms; indexed out of id order";
   IndexCommitted(*place, *landmarks);
   return Status::Ok();
 }

@@ -9,8 +9,8 @@
 //   a fixed number of checks it finds fewer of the exact nearest neighbours as the map grows.
 // - kHnsw: a hierarchical navigable small-world graph (hnswlib, Malkov and Yashunin 2018): far
 //   closer to exact search than the tree with the default settings, search cost growing with
-//   the logarithm of the map, but inserting costs about twenty times as much (a reopened map is
-//   indexed again) and each descriptor takes about 350 more bytes (a copy, links, a lock).
+//   the logarithm of the map, but inserting costs far more (a reopened map is indexed again)
+//   and each descriptor carries more memory (a copy of it, its links, a lock).
 //
 // The descriptor matching this serves is the seed's verification step (§5.6); the comparisons
 // are in docs/experiments/2026-11-22-flann-and-ransac.md and 2026-12-03-retrieval-and-scale.md.

@@ -63,29 +63,10 @@ __attribute__((target("avx2"))) int SquaredDistanceAvx2(const uint8_t* a, const 
 }
 #endif
 
-using DistanceFunction = int (*)(const uint8_t*, const uint8_t*);
-
-// The fastest exact implementation this processor runs, chosen once.
-DistanceFunction ChooseSquaredDistance() {
-#if defined(__x86_64__)
-  __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx2")) return &SquaredDistanceAvx2;
-  return &SquaredDistanceSse2;
-#else
-  return &SquaredDistanceScalar;
-#endif
-}
-
 }  // namespace
 
-int SquaredDistance(const uint8_t* a, const uint8_t* b) {
-  static const DistanceFunction distance = ChooseSquaredDistance();
-  return distance(a, b);
-}
-
-std::vector<std::pair<std::string, int (*)(const uint8_t*, const uint8_t*)>>
-SquaredDistanceImplementations() {
-  std::vector<std::pair<std::string, int (*)(const uint8_t*, const uint8_t*)>> all = {
+std::vector<std::pair<std::string, SquaredDistanceFunction>> SquaredDistanceImplementations() {
+  std::vector<std::pair<std::string, SquaredDistanceFunction>> all = {
       {"scalar", &SquaredDistanceScalar}};
 #if defined(__x86_64__)
   all.emplace_back("sse2", &SquaredDistanceSse2);
@@ -93,6 +74,12 @@ SquaredDistanceImplementations() {
   if (__builtin_cpu_supports("avx2")) all.emplace_back("avx2", &SquaredDistanceAvx2);
 #endif
   return all;
+}
+
+int SquaredDistance(const uint8_t* a, const uint8_t* b) {
+  // The widest implementation, chosen once.
+  static const SquaredDistanceFunction distance = SquaredDistanceImplementations().back().second;
+  return distance(a, b);
 }
 
 std::vector<DescriptorMatch> MatchRatioTest(const cv::Mat& query, const cv::Mat& train,

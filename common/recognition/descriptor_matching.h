@@ -15,10 +15,10 @@ namespace placerec {
 // instructions the processor has (chosen once at start).
 int SquaredDistance(const uint8_t* a, const uint8_t* b);
 
-// Every implementation SquaredDistance may choose from that this processor runs (the plain loop
-// first), by name: for tests, which otherwise only see the one chosen here.
-std::vector<std::pair<std::string, int (*)(const uint8_t*, const uint8_t*)>>
-SquaredDistanceImplementations();
+// Every implementation of SquaredDistance this processor runs, by name, from the plain loop to
+// the widest (the one SquaredDistance uses): for tests, which otherwise only see that one.
+using SquaredDistanceFunction = int (*)(const uint8_t*, const uint8_t*);
+std::vector<std::pair<std::string, SquaredDistanceFunction>> SquaredDistanceImplementations();
 
 // A match of row `query` of one object's descriptors with row `train` of another's.
 struct DescriptorMatch {
