@@ -152,8 +152,8 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   int pictures_hit = 0, pictures_miss = 0, pictures_false = 0;
   ProgressLine progress(static_cast<size_t>(frames), 50);
   std::ofstream cases(eval.out_dir + "/revisits.csv");
-  cases << "frame,case,truth_x,truth_y,truth_w,truth_h,loop_closure,compared,why_not,changes,"
-           "best_iou,boxes\n";
+  cases << "frame,case,truth_x,truth_y,truth_w,truth_h,loop_closure,best_inliers,compared,why_not,"
+           "changes,best_iou,boxes\n";
   for (int i = 0; i < frames; ++i) {
     const RunFrame& frame = run.frames[i];
     StatusOr<cv::Mat> image = ReadImageFile(frame.image);
@@ -252,6 +252,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
         }
         cases << frame.frame << ',' << what_case << ',' << truth.x << ',' << truth.y << ','
               << truth.width << ',' << truth.height << ',' << answer.loop_closure << ','
+              << (answer.matches.empty() ? -1 : answer.matches.front().inliers) << ','
               << report.checked << ",\"" << report.why_not << "\"," << report.changes.size() << ','
               << best << ",\"" << boxes << "\"\n";
       }

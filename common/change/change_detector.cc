@@ -6,6 +6,7 @@
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
 
 namespace placerec {
 
@@ -50,6 +51,9 @@ bool ChangeOptions::Check(std::string* error) const {
   }
   if (!(texture_window > 0.0 && texture_window < 0.5)) {
     return fail("change texture window must be in (0, 0.5) of the frame width");
+  }
+  if (!(max_elsewhere_similarity > 0.0 && max_elsewhere_similarity <= 1.0)) {
+    return fail("change elsewhere similarity must be in (0, 1]");
   }
   if (max_changes < 1) return fail("change max_changes must be at least 1");
   if (max_references < 1) return fail("change max_references must be at least 1");
@@ -178,6 +182,96 @@ bool FitHomography(const ChangeReference& reference, int frame_width, const Chan
   return true;
 }
 
+// Moves the warped stored view (and where it is valid) so that each frame pixel shows what the
+// dense optical flow from the frame to the stored view finds there.
+void AlignByFlow(const cv::Mat& frame, cv::Mat* warped, cv::Mat* valid) {
+  cv::Mat frame_grey, stored_grey;
+  cv::cvtColor(frame, frame_grey, cv::COLOR_BGR2GRAY);
+  cv::cvtColor(*warped, stored_grey, cv::COLOR_BGR2GRAY);
+  // Outside the stored view the frame's own pixels, so that the flow is not pulled to black.
+  frame_grey.copyTo(stored_grey, *valid == 0);
+  // At the thumbnail's own scale (the medium preset's finest), patches of 6 pixels every 3.
+  cv::Ptr<cv::DISOpticalFlow> dis = cv::DISOpticalFlow::create(cv::DISOpticalFlow::PRESET_MEDIUM);
+  dis->setPatchSize(6);
+  dis->setPatchStride(3);
+  cv::Mat flow;
+  dis->calc(frame_grey, stored_grey, flow);
+  cv::Mat map(flow.size(), CV_32FC2);
+  for (int y = 0; y < flow.rows; ++y) {
+    for (int x = 0; x < flow.cols; ++x) {
+      const cv::Point2f f = flow.at<cv::Point2f>(y, x);
+      map.at<cv::Point2f>(y, x) = cv::Point2f(x + f.x, y + f.y);
+    }
+  }
+  cv::Mat moved, moved_valid;
+  cv::remap(*warped, moved, map, cv::noArray(), cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+  cv::remap(*valid, moved_valid, map, cv::noArray(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
+  *warped = moved;
+  *valid &= moved_valid;
+}
+
+// How far from where the homography maps it a region's content is looked for (fraction of the
+// thumbnail's width).
+constexpr double kElsewhereReach = 0.2;
+// Grey levels of standard deviation a patch needs to be looked for elsewhere.
+constexpr double kMinPatchDeviation = 6.0;
+// Pixels a region needs at the stored view's scale to be looked for.
+constexpr int kMinRegionPixels = 16;
+
+// Whether the frame's content in `box` (thumbnail pixels; `region`: its own pixels in the box)
+// shows in a compared stored view somewhere, at the scale the homography gives there, within a
+// quarter of a scale: what the robot's motion moved by more than the alignment explains (the
+// parallax of a near door or pillar) is there to be found; a new object is not.
+bool SeenElsewhere(const cv::Mat& frame, const cv::Rect& box, const cv::Mat& region,
+                   const std::vector<std::pair<cv::Mat, cv::Mat>>& compared, double similarity) {
+  const cv::Mat patch = frame(box);
+  if (patch.rows < 4 || patch.cols < 4) return false;
+  // A plain patch has nothing to be found by: it matches every plain area equally.
+  cv::Scalar mean, deviation;
+  cv::meanStdDev(patch, mean, deviation, region);
+  if (deviation[0] < kMinPatchDeviation) return false;
+  const cv::Point2f centre(box.x + box.width * 0.5f, box.y + box.height * 0.5f);
+  for (const auto& [thumbnail, h] : compared) {
+    // The local scale of frame -> stored at the box's centre.
+    const cv::Mat inverse = h.inv();
+    std::vector<cv::Point2f> around = {centre, centre + cv::Point2f(1, 0),
+                                       centre + cv::Point2f(0, 1)};
+    std::vector<cv::Point2f> mapped;
+    cv::perspectiveTransform(around, mapped, inverse);
+    const cv::Point2f dx = mapped[1] - mapped[0], dy = mapped[2] - mapped[0];
+    const double scale = std::sqrt(std::abs(dx.x * dy.y - dx.y * dy.x));
+    if (!(scale > 0.1 && scale < 10.0)) continue;
+    for (const double f : {0.8, 1.0, 1.25}) {
+      const cv::Size size(static_cast<int>(std::lround(patch.cols * scale * f)),
+                          static_cast<int>(std::lround(patch.rows * scale * f)));
+      if (size.width < 4 || size.height < 4 || size.width > thumbnail.cols ||
+          size.height > thumbnail.rows) {
+        continue;
+      }
+      // Around where the homography puts the region: parallax moves content, but not far.
+      const int reach = static_cast<int>(std::lround(kElsewhereReach * thumbnail.cols));
+      const cv::Rect around_box =
+          cv::Rect(cv::Point(static_cast<int>(mapped[0].x) - size.width / 2 - reach,
+                             static_cast<int>(mapped[0].y) - size.height / 2 - reach),
+                   cv::Size(size.width + 2 * reach, size.height + 2 * reach)) &
+          cv::Rect(0, 0, thumbnail.cols, thumbnail.rows);
+      if (around_box.width < size.width || around_box.height < size.height) continue;
+      // Only the region's own pixels count, not what surrounds it in its box.
+      cv::Mat resized, resized_region, scores;
+      cv::resize(patch, resized, size, 0, 0, cv::INTER_AREA);
+      cv::resize(region, resized_region, size, 0, 0, cv::INTER_NEAREST);
+      if (cv::countNonZero(resized_region) < kMinRegionPixels) continue;
+      cv::matchTemplate(thumbnail(around_box), resized, scores, cv::TM_CCOEFF_NORMED,
+                        resized_region);
+      cv::patchNaNs(scores, 0.0);
+      double best = 0;
+      cv::minMaxLoc(scores, nullptr, &best);
+      if (best >= similarity) return true;
+    }
+  }
+  return false;
+}
+
 cv::Rect Scaled(const cv::Rect& box, double scale) {
   return cv::Rect(cv::Point(static_cast<int>(std::floor(box.x * scale)),
                             static_cast<int>(std::floor(box.y * scale))),
@@ -213,10 +307,15 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
   const int contrast_window =
       std::max(3, static_cast<int>(std::lround(options.texture_window * width)) | 1);
   const cv::Mat frame_contrast = LocalContrast(frame_lab, contrast_window);
+  cv::Mat frame_grey;
+  cv::cvtColor(frame_thumbnail, frame_grey, cv::COLOR_BGR2GRAY);
 
   cv::Mat difference(height, width, CV_32F, cv::Scalar(1e9));
   cv::Mat shared = cv::Mat::zeros(height, width, CV_8U);
   std::vector<cv::Point2f> matched_points;  // verified points of the frame, thumbnail pixels
+  // The references compared: their thumbnails in grey and homographies (thumbnail -> frame
+  // thumbnail).
+  std::vector<std::pair<cv::Mat, cv::Mat>> compared;
   // Stored landmarks mapped into the frame (thumbnail pixels) that the frame did not match.
   std::vector<std::pair<cv::Rect, std::string>> unmatched_landmarks;
   for (const ChangeReference& reference : references) {
@@ -244,8 +343,9 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
                         cv::BORDER_CONSTANT);
     cv::warpPerspective(cv::Mat(reference.thumbnail.size(), CV_8U, cv::Scalar(255)), valid, h,
                         frame_thumbnail.size(), cv::INTER_NEAREST, cv::BORDER_CONSTANT);
-    // The edges of the shared view: the frame's and the place's.
-    cv::rectangle(valid, cv::Rect(0, 0, width, height), cv::Scalar(0), 1);
+    // The edges of the shared view are the place's: where the motion brings new scene into the
+    // frame, the stored view ends. The frame's own border is none where the place sees beyond it
+    // (erosion leaves the image border alone).
     if (margin > 0) {
       cv::erode(
           valid, valid,
@@ -268,6 +368,7 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
       if (result.why_not.empty()) result.why_not = "the views share too little";
       continue;
     }
+    if (options.flow_alignment) AlignByFlow(frame_thumbnail, &warped, &valid);
     const cv::Mat stored_lab = MatchExposure(ToLab(warped), frame_lab, valid);
     cv::Mat outside = OutsideRange(frame_lab, stored_lab, radius);
     if (options.texture_weight > 0) {
@@ -282,6 +383,9 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
     difference = cv::min(difference, inside_valid);
     shared |= valid;
     ++result.references;
+    cv::Mat stored_grey;
+    cv::cvtColor(reference.thumbnail, stored_grey, cv::COLOR_BGR2GRAY);
+    compared.emplace_back(stored_grey, h);
     for (const cv::Point2f& p : fitted.frame_points) {
       matched_points.emplace_back(p.x * to_thumb, p.y * to_thumb);
     }
@@ -369,6 +473,11 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
       if (x >= 0 && y >= 0 && x < width && y < height && labels.at<int>(y, x) == c) ++inside;
     }
     if (inside > 0 && inside >= options.max_match_density * density * area) continue;
+    if (options.max_elsewhere_similarity < 1.0 &&
+        SeenElsewhere(frame_grey, box, in_component(box), compared,
+                      options.max_elsewhere_similarity)) {
+      continue;
+    }
     const double mean = cv::mean(difference, in_component)[0];
     // Confidence: how far beyond the threshold the region differs, and how large it is.
     const double strength = std::clamp((mean - threshold) / threshold, 0.0, 1.0);

@@ -3,7 +3,8 @@
 // the place did not (an object that appeared) and what the place showed that the frame does not
 // (a landmark that disappeared) are the changes a patrol robot reports. The shared view comes from
 // the geometric verification (loop_decision.h): a homography fitted to its inlier keypoint pairs
-// maps the stored place's thumbnail into the frame. Regions whose appearance differs beyond the
+// maps the stored place's thumbnail into the frame, and dense optical flow then aligns what the
+// homography leaves misplaced (parallax). Regions whose appearance differs beyond the
 // sensitivity and that hold no verified match are changes; the robot's own motion (edges of the
 // shared view, parallax around edges, a changed exposure) and objects that did match are not.
 // The stored place's route neighbours that also matched serve as further references: a region is
@@ -44,7 +45,12 @@ struct ChangeOptions {
   double edge_margin = 0.05;
   // The shared view is where the homography holds: within this fraction of the frame width of a
   // verified point that fits it (0: the whole mapped view).
-  double support_radius = 0.15;
+  double support_radius = 0.3;
+  // After the homography, the stored view is aligned to the frame by dense optical flow (DIS,
+  // Kroeger et al. 2016) within the shared view: the parallax of a scene that is not one plane
+  // (corridor walls, a pillar before a facade) is then no difference, while a new object, which
+  // has no counterpart in the stored view to flow to, stays one.
+  bool flow_alignment = true;
   // Misalignment tolerated when comparing (fraction of the frame width): a pixel differs only by
   // what lies outside the range of the stored values around it.
   double alignment_tolerance = 0.02;
@@ -70,6 +76,9 @@ struct ChangeOptions {
   // A region holding at least this share of the shared view's verified points per unit area
   // matched: what is there was seen before (an object that did match, or occludes nothing).
   double max_match_density = 0.35;
+  // A region whose content shows in a stored view somewhere near its scale (normalised
+  // correlation at least this) was moved there by the robot's motion, not put there (1: off).
+  double max_elsewhere_similarity = 0.7;
   // At most this many changes per frame, most confident first.
   int max_changes = 5;
   // Matched places of the best place's route (same robot, within this many seconds of it) that

@@ -100,6 +100,61 @@ TEST(ChangeDetectorTest, PastedObjectIsFoundWhereItIs) {
   EXPECT_LE(result.changes[0].confidence, 1.0f);
 }
 
+TEST(ChangeDetectorTest, ObjectAtTheFrameBorderIsFound) {
+  // The place sees beyond the frame's top border: an object there is in the shared view, not
+  // new scene brought in by the motion.
+  const cv::Mat scene = Scene();
+  cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+  const cv::Rect object(260, 0, 110, 80);  // 3 % of the frame, along its top border
+  frame(object).setTo(cv::Scalar(20, 200, 30));
+  cv::circle(frame, object.tl() + cv::Point(55, 40), 25, cv::Scalar(250, 250, 250), -1);
+  const ChangeResult result = DetectChanges(Thumbnail(frame), frame.size(),
+                                            {Reference(scene, kOffset, object)}, ChangeOptions());
+  ASSERT_TRUE(result.checked);
+  ASSERT_EQ(result.changes.size(), 1u);
+  EXPECT_GT(IoU(result.changes[0].box, object), 0.5) << result.changes[0].box;
+}
+
+// The frame with `block` (frame pixels) showing the scene moved by `shift` more than the rest:
+// a near object's parallax, which no homography of the whole view models.
+cv::Mat FrameWithParallax(const cv::Mat& scene, const cv::Rect& block, cv::Point shift) {
+  cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+  scene(block + kOffset + shift).copyTo(frame(block));
+  return frame;
+}
+
+TEST(ChangeDetectorTest, ParallaxTheFlowFollowsIsNotAChange) {
+  const cv::Mat scene = Scene();
+  const cv::Rect block(280, 180, 140, 140);
+  const cv::Mat frame = FrameWithParallax(scene, block, cv::Point(28, 0));
+  ChangeOptions options;
+  options.max_elsewhere_similarity = 1.0;  // the flow alone
+  EXPECT_TRUE(
+      DetectChanges(Thumbnail(frame), frame.size(), {Reference(scene, kOffset, block)}, options)
+          .changes.empty());
+  options.flow_alignment = false;
+  EXPECT_FALSE(
+      DetectChanges(Thumbnail(frame), frame.size(), {Reference(scene, kOffset, block)}, options)
+          .changes.empty());
+}
+
+TEST(ChangeDetectorTest, ContentTheStoredViewShowsElsewhereIsNotAChange) {
+  // Moved farther than the alignment follows, but the place shows that content nearby.
+  const cv::Mat scene = Scene();
+  const cv::Rect block(280, 180, 140, 140);
+  const cv::Mat frame = FrameWithParallax(scene, block, cv::Point(48, 24));
+  ChangeOptions options;
+  options.flow_alignment = false;
+  options.max_elsewhere_similarity = 1.0;
+  EXPECT_FALSE(
+      DetectChanges(Thumbnail(frame), frame.size(), {Reference(scene, kOffset, block)}, options)
+          .changes.empty());
+  options.max_elsewhere_similarity = ChangeOptions().max_elsewhere_similarity;
+  EXPECT_TRUE(
+      DetectChanges(Thumbnail(frame), frame.size(), {Reference(scene, kOffset, block)}, options)
+          .changes.empty());
+}
+
 TEST(ChangeDetectorTest, RegionWithVerifiedMatchesIsNotAChange) {
   // The region differs but holds as many verified points as anywhere: it was seen before.
   const cv::Mat scene = Scene();

@@ -288,6 +288,12 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add("change-support-radius", &o->change.support_radius,
          "compare only within this share of the frame width of a verified point that fits the "
          "homography (0: the whole mapped view)");
+  p->Add("change-flow", &o->change.flow_alignment,
+         "align the stored view to the frame by dense optical flow after the homography, so that "
+         "the parallax of a scene that is no plane is not a change");
+  p->Add("change-elsewhere", &o->change.max_elsewhere_similarity,
+         "a region whose content shows in the stored view at about its scale (normalised "
+         "correlation at least this) is the robot's motion, not a change (1: off)");
   p->Add("change-noise-spread", &o->change.noise_spread,
          "a change must also differ by the frame's median difference plus this many robust "
          "standard deviations");
