@@ -130,8 +130,16 @@ class LandmarkIndex {
   // Slots of a place's landmarks (empty for an unknown place or one without landmarks).
   std::vector<int32_t> SlotsOfPlace(PlaceId place) const;
 
-  // The nearest-neighbour index over every stored descriptor (for measurements).
+  // The nearest-neighbour index over every stored descriptor (for measurements, and
+  // DescriptorIndex::SaveSnapshot).
   const DescriptorIndex& descriptor_index() const { return descriptors_; }
+  // Opening a map: Add records descriptors without indexing them until FinishDescriptors, which
+  // starts from the snapshot at `snapshot_path` if it fits (DescriptorIndex::FinishDeferred).
+  // Query must not run in between.
+  void DeferDescriptors() { descriptors_.DeferInsertion(); }
+  SnapshotLoad FinishDescriptors(const std::string& snapshot_path) {
+    return descriptors_.FinishDeferred(snapshot_path);
+  }
 
   size_t num_landmarks() const { return landmarks_.size(); }
   size_t num_descriptors() const { return num_descriptors_; }
