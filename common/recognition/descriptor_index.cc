@@ -10,6 +10,7 @@
 #include <cstring>
 #include <limits>
 #include <queue>
+#include <sstream>
 #include <stdexcept>
 
 #include <hnswlib/hnswlib.h>
@@ -229,7 +230,12 @@ class SnapshotReader : public flann::serialization::InputArchive<SnapshotReader>
   SnapshotReader(std::FILE* file, uint64_t limit) : file_(file), left_in_file_(limit) {}
   template <typename T>
   void load(T& value) {
-    Read(&value, sizeof(value));
+    if (end_ - next_ >= sizeof(value)) {  // the common case, inlined: a fixed-size copy
+      std::memcpy(&value, buffer_.data() + next_, sizeof(value));
+      next_ += sizeof(value);
+    } else {
+      Read(&value, sizeof(value));
+    }
   }
   template <typename T>
   void load(T*& pointer) {
@@ -377,13 +383,14 @@ SnapshotLoad DescriptorIndex::FinishDeferred(const std::string& snapshot_path) {
   if (snapshot_path.empty()) {
     result.message = "no snapshot";
   } else {
-    StatusOr<size_t> covered = LoadSnapshot(snapshot_path);
+    std::string timing;
+    StatusOr<size_t> covered = LoadSnapshot(snapshot_path, &timing);
     if (covered.ok()) {
       first_block = *covered;
       result.used = true;
       result.covered_adds = static_cast<int64_t>(first_block);
       result.message = "loaded " + snapshot_path + " (" + std::to_string(first_block) + " of " +
-                       std::to_string(blocks_.size()) + " descriptor blocks)";
+                       std::to_string(blocks_.size()) + " descriptor blocks; " + timing + ")";
       LOG(INFO) << "descriptor index: " << result.message;
     } else {
       flann_.reset();
@@ -406,7 +413,7 @@ SnapshotLoad DescriptorIndex::FinishDeferred(const std::string& snapshot_path) {
   return result;
 }
 
-StatusOr<size_t> DescriptorIndex::LoadSnapshot(const std::string& path) {
+StatusOr<size_t> DescriptorIndex::LoadSnapshot(const std::string& path, std::string* timing) {
   File file(std::fopen(path.c_str(), "rb"));
   if (!file) {
     if (errno == ENOENT) return Status::NotFound("there is none");
@@ -426,7 +433,10 @@ StatusOr<size_t> DescriptorIndex::LoadSnapshot(const std::string& path) {
   const size_t adds = static_cast<size_t>(header->adds);
   size_t points = 0;
   for (size_t b = 0; b < adds; ++b) points += blocks_[b].rows;
-  if (header->points != points || header->content_digest != ContentDigest(adds)) {
+  Timer digest_timer;
+  const uint64_t digest = header->points == points ? ContentDigest(adds) : 0;
+  const double digest_ms = digest_timer.ElapsedMs();
+  if (header->points != points || header->content_digest != digest) {
     return Status::InvalidArgument("the map's first " + std::to_string(adds) +
                                    " descriptor blocks are not the ones it covers");
   }
@@ -437,6 +447,7 @@ StatusOr<size_t> DescriptorIndex::LoadSnapshot(const std::string& path) {
                                    std::to_string(SnapshotHeader::kBytes + header->payload_bytes));
   }
   // The whole tree is checked before FLANN reads any of it: FLANN trusts the indices it reads.
+  Timer check_timer;
   {
     Hash64 hash;
     std::vector<uint8_t> buffer(1 << 20);
@@ -455,6 +466,8 @@ StatusOr<size_t> DescriptorIndex::LoadSnapshot(const std::string& path) {
   if (std::fseek(file.get(), SnapshotHeader::kBytes, SEEK_SET) != 0) {
     return Status::IoError("cannot read it");
   }
+  const double check_ms = check_timer.ElapsedMs();
+  Timer tree_timer;
   std::vector<unsigned char*> point_table;
   point_table.reserve(points);
   for (size_t b = 0; b < adds; ++b) {
@@ -472,6 +485,11 @@ StatusOr<size_t> DescriptorIndex::LoadSnapshot(const std::string& path) {
                                    " stray bytes");
   }
   flann_ = std::move(flann);
+  std::ostringstream text;
+  text.precision(3);
+  text << "digest " << digest_ms / 1000 << " s, checksum " << check_ms / 1000 << " s, tree "
+       << tree_timer.ElapsedMs() / 1000 << " s";
+  *timing = text.str();
   return adds;
 }
 
@@ -481,7 +499,10 @@ Status DescriptorIndex::SaveSnapshot(const std::string& path) const {
   }
   CHECK(!deferred_) << "SaveSnapshot between DeferInsertion and FinishDeferred";
   if (!flann_) return Status::InvalidArgument("the descriptor index is empty: nothing to save");
-  const std::string temporary = path + ".tmp-" + std::to_string(getpid());
+  // One fixed name: a file left by a process killed while writing is overwritten by the next
+  // save rather than piling up. Two processes saving at once can mix their bytes in it; the
+  // checksums make such a file one that is ignored, never one that is used.
+  const std::string temporary = path + ".tmp";
   File file(std::fopen(temporary.c_str(), "wb"));
   if (!file) {
     return Status::IoError("cannot write " + temporary + ": " + std::strerror(errno));

@@ -94,10 +94,10 @@ class DescriptorIndex {
   // Adds are inserted; otherwise every point is inserted. Either way the index then answers
   // exactly as one grown by Add alone. A snapshot that cannot be used is logged with the reason.
   SnapshotLoad FinishDeferred(const std::string& snapshot_path);
-  // Writes a snapshot of the whole index to `path`: to a temporary file beside it, flushed to
-  // disk, then renamed over `path`, so a reader sees the old snapshot or the new one, never half
-  // of one. kFlann only; may run alongside Search, not alongside Add. The snapshot holds the
-  // tree only (about 9 bytes per descriptor), not the descriptors.
+  // Writes a snapshot of the whole index to `path`: to `path`.tmp, flushed to disk, then renamed
+  // over `path`, so a reader sees the old snapshot or the new one, never half of one. kFlann only;
+  // may run alongside Search, not alongside Add. The snapshot holds the tree only (about 9 bytes
+  // per descriptor), not the descriptors.
   Status SaveSnapshot(const std::string& path) const;
 
  private:
@@ -108,8 +108,8 @@ class DescriptorIndex {
   // Digest of the first `adds` blocks (owner, rows, bytes): what a snapshot covers.
   uint64_t ContentDigest(size_t adds) const;
   // Loads the tree of the snapshot at `path` if it covers a prefix of blocks_; the number of
-  // blocks it covers, or the reason it cannot be used.
-  StatusOr<size_t> LoadSnapshot(const std::string& path);
+  // blocks it covers (and `timing`, the time each step took), or the reason it cannot be used.
+  StatusOr<size_t> LoadSnapshot(const std::string& path, std::string* timing);
 
   DescriptorIndexOptions options_;
   std::unique_ptr<Flann> flann_;

@@ -293,6 +293,17 @@ TEST_F(DescriptorSnapshotTest, DamagedSnapshotsAreIgnoredWithAReason) {
   EXPECT_EQ(Answers(*index, queries_), expected);
 }
 
+TEST_F(DescriptorSnapshotTest, LeftoverTemporaryFileIsOverwritten) {
+  // A save killed half way leaves path.tmp behind; it is never read, and the next save reuses it.
+  std::ofstream(path_ + ".tmp") << "half a snapshot";
+  SaveGrown(blocks_.size());
+  EXPECT_FALSE(std::ifstream(path_ + ".tmp").good());
+  SnapshotLoad load;
+  const std::unique_ptr<DescriptorIndex> index = Reopen(&load);
+  EXPECT_TRUE(load.used) << load.message;
+  EXPECT_EQ(Answers(*index, queries_), GrownAnswers());
+}
+
 TEST_F(DescriptorSnapshotTest, SaveFailsCleanly) {
   DescriptorIndex empty(FewChecks());
   EXPECT_FALSE(empty.SaveSnapshot(path_).ok());
