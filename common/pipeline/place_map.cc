@@ -1,6 +1,8 @@
 #include "common/pipeline/place_map.h"
 
+#include <algorithm>
 #include <mutex>
+#include <utility>
 
 #include "common/util/logging.h"
 #include "common/util/timer.h"
@@ -22,6 +24,9 @@ StatusOr<std::unique_ptr<PlaceMap>> PlaceMap::Open(std::unique_ptr<LandmarkStore
     map->index_.AddPlace(place);
     for (const LandmarkId seen : place.seen_landmarks) map->seen_at_[seen].push_back(place.id);
   }));
+  size_t landmarks = 0;
+  for (const auto& [id, place] : map->places_) landmarks += std::max(place.num_landmarks, 0);
+  map->index_.Reserve(landmarks);
   Status status;
   PLACEREC_RETURN_IF_ERROR(map->store_->LoadLandmarks([&map, &status](Landmark&& landmark) {
     if (!status.ok()) return;
@@ -31,7 +36,7 @@ StatusOr<std::unique_ptr<PlaceMap>> PlaceMap::Open(std::unique_ptr<LandmarkStore
                           " refers to missing place " + std::to_string(landmark.place.value()));
       return;
     }
-    map->index_.Add(landmark);
+    map->index_.Add(std::move(landmark));
   }));
   PLACEREC_RETURN_IF_ERROR(status);
   const double load_ms = timer.ElapsedMs();

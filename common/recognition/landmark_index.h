@@ -114,7 +114,12 @@ class LandmarkIndex {
 
   // Adds a stored landmark (valid id and place, descriptors CV_8U x 128 with one keypoint per
   // row). Keeps a reference to the descriptor matrix.
-  void Add(const Landmark& landmark);
+  void Add(const Landmark& landmark) { Add(Landmark(landmark)); }
+  void Add(Landmark&& landmark);
+  // Makes room for this many landmarks in all (opening a map): saves the copies of every
+  // landmark held that growing one at a time makes (cv::Mat cannot be moved without a possible
+  // exception, so std::vector copies its landmarks when it grows).
+  void Reserve(size_t landmarks) { landmarks_.reserve(landmarks); }
 
   // Matches each query object against the stored landmarks of places for which
   // `place_allowed` is true.
