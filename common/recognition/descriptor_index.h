@@ -4,12 +4,14 @@
 //
 // - kFlann (the default): FLANN's k-d tree (libflann), grown point by point. FLANN's batch build
 //   shuffles its points with std::random_device (answers would differ between processes); a
-//   grown tree is deterministic. Inserting is cheap (a map reopens quickly), but its search
+//   grown tree is deterministic. Inserting is cheaper than into the graph, and a reopened map
+//   loads the tree from its snapshot (below) instead of growing it again; but its search
 //   clears a bit per stored point for every query, so search cost grows with the map, and with
 //   a fixed number of checks it finds fewer of the exact nearest neighbours as the map grows.
 // - kHnsw: a hierarchical navigable small-world graph (hnswlib, Malkov and Yashunin 2018): far
 //   closer to exact search than the tree with the default settings, search cost growing with
-//   the logarithm of the map, but inserting costs far more (a reopened map is indexed again)
+//   the logarithm of the map, but inserting costs far more (a reopened map is indexed again:
+//   it has no snapshot)
 //   and each descriptor carries more memory (a copy of it, its links, a lock).
 //
 // A kFlann tree can be written to a snapshot file (SaveSnapshot) and read back when a map is
@@ -20,7 +22,8 @@
 // damaged) is ignored and the index is grown from scratch.
 //
 // The descriptor matching this serves is the seed's verification step (§5.6); the comparisons
-// are in docs/experiments/2026-11-22-flann-and-ransac.md and 2026-12-03-retrieval-and-scale.md.
+// are in docs/experiments/2026-11-22-flann-and-ransac.md and 2026-12-03-retrieval-and-scale.md,
+// the snapshot's in 2026-12-03-fast-reopen.md.
 #pragma once
 
 #include <cstdint>
