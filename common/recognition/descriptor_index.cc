@@ -109,6 +109,12 @@ constexpr char kSnapshotMagic[16] = "placerec-dindex";
 constexpr uint32_t kSnapshotVersion = 1;
 constexpr uint32_t kSnapshotFlann = 1;  // the method field: kFlann's k-d tree
 
+// The payload is FLANN's layout on this kind of machine: another FLANN version (its serialize may
+// change) or another word size reads it otherwise, so both must match.
+std::string PayloadLayout() {
+  return std::string("flann ") + FLANN_VERSION_ + " size_t " + std::to_string(sizeof(size_t));
+}
+
 struct SnapshotHeader {
   uint32_t version = kSnapshotVersion;
   uint32_t method = kSnapshotFlann;
@@ -120,7 +126,11 @@ struct SnapshotHeader {
   uint64_t payload_bytes = 0;
   uint64_t payload_hash = 0;  // Hash64 of the payload
 
-  static constexpr size_t kBytes = 16 + 4 * 4 + 6 * 8;  // magic, the fields, the header hash
+  std::string layout = PayloadLayout();  // at most kLayoutBytes - 1 characters
+
+  static constexpr size_t kLayoutBytes = 32;
+  // magic, the fields, the layout, the header hash
+  static constexpr size_t kBytes = 16 + 4 * 4 + 5 * 8 + kLayoutBytes + 8;
 
   std::vector<uint8_t> Encode() const {
     std::vector<uint8_t> bytes(kBytes);
@@ -134,6 +144,9 @@ struct SnapshotHeader {
     for (const uint64_t v : {adds, points, content_digest, payload_bytes, payload_hash}) {
       put(&v, 8);
     }
+    char layout_field[kLayoutBytes] = {};
+    std::memcpy(layout_field, layout.data(), std::min(layout.size(), kLayoutBytes - 1));
+    put(layout_field, kLayoutBytes);
     Hash64 hash;
     hash.Update(bytes.data(), kBytes - 8);
     const uint64_t header_hash = hash.Digest();
@@ -161,10 +174,18 @@ struct SnapshotHeader {
     for (uint64_t* v : {&h.adds, &h.points, &h.content_digest, &h.payload_bytes, &h.payload_hash}) {
       get(v, 8);
     }
+    char layout_field[kLayoutBytes];
+    get(layout_field, kLayoutBytes);
+    layout_field[kLayoutBytes - 1] = '\0';
+    h.layout = layout_field;
     if (h.version != kSnapshotVersion) {
       return Status::InvalidArgument("format version " + std::to_string(h.version) +
                                      ", this build reads version " +
                                      std::to_string(kSnapshotVersion));
+    }
+    if (h.layout != PayloadLayout()) {
+      return Status::InvalidArgument("written with " + h.layout + ", this build has " +
+                                     PayloadLayout());
     }
     if (h.method != kSnapshotFlann || h.descriptor_size != kDescriptorSize || h.trees != 1) {
       return Status::InvalidArgument("made for another index (method " + std::to_string(h.method) +

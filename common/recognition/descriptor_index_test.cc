@@ -262,7 +262,8 @@ TEST_F(DescriptorSnapshotTest, DamagedSnapshotsAreIgnoredWithAReason) {
   ASSERT_GT(whole.size(), 200u);
   const std::vector<std::tuple<int32_t, int32_t, float>> expected = GrownAnswers();
   std::vector<std::pair<std::string, std::string>> damaged;  // what, bytes
-  for (const size_t length : {size_t{0}, size_t{10}, size_t{79}, size_t{80}, size_t{81},
+  // The header is 112 bytes.
+  for (const size_t length : {size_t{0}, size_t{10}, size_t{111}, size_t{112}, size_t{113},
                               whole.size() / 2, whole.size() - 1}) {
     damaged.emplace_back("cut to " + std::to_string(length), whole.substr(0, length));
   }
