@@ -1,6 +1,5 @@
 #include "common/recognition/descriptor_index.h"
 
-#include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -47,6 +46,7 @@ constexpr size_t kHnswSeed = 100;
 class Hash64 {
  public:
   void Update(const void* data, size_t size) {
+    if (size == 0) return;
     const uint8_t* p = static_cast<const uint8_t*>(data);
     total_ += size;
     if (buffered_ > 0) {
@@ -395,7 +395,9 @@ uint64_t DescriptorIndex::ContentDigest(size_t adds) const {
 SnapshotLoad DescriptorIndex::FinishDeferred(const std::string& snapshot_path) {
   SnapshotLoad result;
   if (!deferred_) {
-    result.message = "nothing deferred";
+    // kHnsw, or no DeferInsertion: Add inserted every point already.
+    result.message = "nothing deferred: every descriptor was inserted as it was added";
+    result.inserted_points = static_cast<int64_t>(size());
     return result;
   }
   deferred_ = false;
