@@ -243,6 +243,10 @@ Status Server::Run() {
     Publish(&answer, false, job.network, job.key ? &*job.key : nullptr);
   }
   PublishStatus();
+  // The next start loads the descriptor index from this snapshot instead of growing it again.
+  const Status saved = map_->SaveIndexSnapshot();
+  LOG_IF(WARNING, !saved.ok()) << "cannot write the descriptor index snapshot: " << saved.message()
+                               << "; the next start indexes what the last snapshot does not cover";
   LOG(INFO) << "placerec-server stopped; " << pending.size()
             << " queued frames answered 'shutting down'; map " << map_->Describe() << " closed";
   return result;

@@ -22,6 +22,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/pipeline/place_map.h"
 #include "common/storage/sqlite_store.h"
 #include "common/util/options_test_util.h"
 
@@ -333,6 +334,37 @@ TEST(ServerTest, RunReturnsOnceStopped) {
     EXPECT_TRUE(result.ok()) << result.ToString();
     EXPECT_EQ(s->CurrentStatus().frames_answered, 0);
   }
+}
+
+// Issue 24 item 2: a clean stop writes the descriptor index snapshot beside the map, and the
+// next open loads the tree from it instead of growing it again.
+TEST(ServerTest, ACleanStopWritesTheIndexSnapshot) {
+  const TempDir dir("snapshot");
+  const std::string db = dir.File("map.db");
+  ASSERT_NO_FATAL_FAILURE(WriteMap(db));
+  {
+    StatusOr<std::unique_ptr<Server>> created = Server::Create(TestOptions(db));
+    ASSERT_TRUE(created.ok()) << created.status().ToString();
+    std::unique_ptr<Server> server = std::move(*created);
+    Server* s = server.get();
+    auto returned = std::make_shared<std::promise<Status>>();
+    std::future<Status> run = returned->get_future();
+    std::thread([s, returned] { returned->set_value(s->Run()); }).detach();
+    s->Stop();
+    if (run.wait_for(std::chrono::seconds(30)) != std::future_status::ready) {
+      server.release();
+      FAIL() << "Run did not return within 30 s of Stop";
+    }
+    EXPECT_TRUE(run.get().ok());
+  }
+  ASSERT_TRUE(std::filesystem::exists(db + ".index"));
+  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(db, SqliteStoreOptions());
+  ASSERT_TRUE(store.ok());
+  StatusOr<std::unique_ptr<PlaceMap>> map =
+      PlaceMap::Open(std::move(*store), TestOptions(db).recognizer.index);
+  ASSERT_TRUE(map.ok());
+  EXPECT_TRUE((*map)->snapshot_load().used) << (*map)->snapshot_load().message;
+  EXPECT_EQ((*map)->snapshot_load().inserted_points, 0);
 }
 
 }  // namespace

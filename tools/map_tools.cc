@@ -12,10 +12,12 @@
 #include <system_error>
 #include <unordered_map>
 
+#include "common/pipeline/place_map.h"
 #include "common/recognition/types.h"
 #include "common/storage/schema.h"
 #include "common/storage/sqlite_db.h"
 #include "common/storage/sqlite_store.h"
+#include "common/util/timer.h"
 #include "proto/channels.h"
 
 namespace placerec {
@@ -783,6 +785,27 @@ StatusOr<CheckReport> CheckMap(const std::string& path) {
     }
   });
   if (!landmarks.ok()) report.problems.push_back(landmarks.message());
+  return report;
+}
+
+StatusOr<IndexSnapshotReport> WriteIndexSnapshot(const std::string& path) {
+  SqliteStoreOptions options;
+  options.must_exist = true;
+  Timer timer;
+  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(path, options);
+  if (!store.ok()) return store.status();
+  IndexSnapshotReport report;
+  report.snapshot = (*store)->IndexSnapshotPath();
+  // The tree depends on the descriptors and their order only, not on the search options.
+  StatusOr<std::unique_ptr<PlaceMap>> map =
+      PlaceMap::Open(std::move(*store), LandmarkIndexOptions());
+  if (!map.ok()) return map.status();
+  report.open_ms = timer.ElapsedMs();
+  report.started_from_snapshot = (*map)->snapshot_load().used;
+  report.descriptors = (*map)->Counts().descriptors;
+  Timer write_timer;
+  PLACEREC_RETURN_IF_ERROR((*map)->SaveIndexSnapshot(&report.written));
+  report.write_ms = write_timer.ElapsedMs();
   return report;
 }
 

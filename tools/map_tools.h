@@ -189,4 +189,18 @@ struct CheckReport {
 // status only when the check itself cannot run; damage goes into the report.
 StatusOr<CheckReport> CheckMap(const std::string& path);
 
+struct IndexSnapshotReport {
+  std::string snapshot;                // the file written (MAP.index)
+  bool written = false;                // false: the snapshot on disk already covered the whole map
+  bool started_from_snapshot = false;  // the map opened from an older snapshot
+  int64_t descriptors = 0;             // descriptors the snapshot covers
+  double open_ms = 0;                  // opening the map (PlaceMap::Open)
+  double write_ms = 0;                 // writing the snapshot
+};
+
+// Opens the map as the server does (must exist; from its descriptor index snapshot when one
+// fits) and writes the snapshot beside it, so that the next server start loads the FLANN tree
+// instead of growing it point by point. Reads the map only.
+StatusOr<IndexSnapshotReport> WriteIndexSnapshot(const std::string& path);
+
 }  // namespace placerec

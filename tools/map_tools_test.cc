@@ -261,6 +261,60 @@ TEST(MapToolsTest, PruneRefusesAMapHeldOpenAndLeavesItUnchanged) {
   EXPECT_TRUE(PruneMap(map.path(), options).ok());  // closed: allowed
 }
 
+// The descriptor index's neighbours of every stored descriptor, and their distances.
+std::string IndexAnswers(const std::string& path) {
+  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(Open(path), LandmarkIndexOptions());
+  EXPECT_TRUE(map.ok());
+  std::ostringstream text;
+  for (const Landmark& landmark : Landmarks(path)) {
+    std::vector<std::vector<DescriptorIndex::Neighbour>> neighbours;
+    (*map)->index().descriptor_index().Search(landmark.descriptors, 3, &neighbours);
+    for (const auto& list : neighbours) {
+      for (const auto& n : list) text << n.owner << ":" << n.row << ":" << n.distance << " ";
+    }
+    text << "\n";
+  }
+  return text.str();
+}
+
+TEST(MapToolsTest, IndexWritesTheSnapshotThatAPruneMakesStale) {
+  TempMap map("index");
+  BuildSite(map.path());
+  const std::string fresh = IndexAnswers(map.path());
+  StatusOr<IndexSnapshotReport> report = WriteIndexSnapshot(map.path());
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_TRUE(report->written);
+  EXPECT_FALSE(report->started_from_snapshot);
+  EXPECT_EQ(report->snapshot, map.path() + ".index");
+  EXPECT_EQ(report->descriptors, ReadMapInfo(map.path())->descriptors);
+  // Up to date: opened from it, nothing to write.
+  report = WriteIndexSnapshot(map.path());
+  ASSERT_TRUE(report.ok());
+  EXPECT_TRUE(report->started_from_snapshot);
+  EXPECT_FALSE(report->written);
+  EXPECT_EQ(IndexAnswers(map.path()), fresh);
+
+  // Pruning the first place leaves the snapshot stale: ignored, the map indexed afresh.
+  PruneOptions options;
+  options.before_utime = kStart + 1;
+  ASSERT_TRUE(PruneMap(map.path(), options).ok());
+  {
+    StatusOr<std::unique_ptr<PlaceMap>> opened =
+        PlaceMap::Open(Open(map.path()), LandmarkIndexOptions());
+    ASSERT_TRUE(opened.ok());
+    EXPECT_FALSE((*opened)->snapshot_load().used) << (*opened)->snapshot_load().message;
+  }
+  report = WriteIndexSnapshot(map.path());
+  ASSERT_TRUE(report.ok());
+  EXPECT_FALSE(report->started_from_snapshot);
+  EXPECT_TRUE(report->written);
+
+  // A missing map is an error, and no snapshot appears for it.
+  TempMap missing("index_missing");
+  EXPECT_FALSE(WriteIndexSnapshot(missing.path()).ok());
+  EXPECT_FALSE(std::ifstream(missing.path() + ".index").good());
+}
+
 TEST(MapToolsTest, ParseTimeArgument) {
   EXPECT_EQ(*ParseTimeArgument("1764547200000000"), 1764547200LL * 1000000);
   EXPECT_EQ(*ParseTimeArgument("2025-12-01"), 1764547200LL * 1000000);

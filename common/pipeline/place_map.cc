@@ -1,6 +1,8 @@
 #include "common/pipeline/place_map.h"
 
+#include <algorithm>
 #include <mutex>
+#include <utility>
 
 #include "common/util/logging.h"
 #include "common/util/timer.h"
@@ -15,11 +17,16 @@ StatusOr<std::unique_ptr<PlaceMap>> PlaceMap::Open(std::unique_ptr<LandmarkStore
   CHECK(store != nullptr);
   Timer timer;
   std::unique_ptr<PlaceMap> map(new PlaceMap(std::move(store), index_options));
+  // The descriptors are indexed once all are known: then the snapshot can be judged.
+  map->index_.DeferDescriptors();
   PLACEREC_RETURN_IF_ERROR(map->store_->LoadPlaces([&map](const Place& place) {
     map->places_[place.id] = place;
     map->index_.AddPlace(place);
     for (const LandmarkId seen : place.seen_landmarks) map->seen_at_[seen].push_back(place.id);
   }));
+  size_t landmarks = 0;
+  for (const auto& [id, place] : map->places_) landmarks += std::max(place.num_landmarks, 0);
+  map->index_.Reserve(landmarks);
   Status status;
   PLACEREC_RETURN_IF_ERROR(map->store_->LoadLandmarks([&map, &status](Landmark&& landmark) {
     if (!status.ok()) return;
@@ -29,14 +36,42 @@ StatusOr<std::unique_ptr<PlaceMap>> PlaceMap::Open(std::unique_ptr<LandmarkStore
                           " refers to missing place " + std::to_string(landmark.place.value()));
       return;
     }
-    map->index_.Add(landmark);
+    map->index_.Add(std::move(landmark));
   }));
   PLACEREC_RETURN_IF_ERROR(status);
+  const double load_ms = timer.ElapsedMs();
+  map->snapshot_load_ = map->index_.FinishDescriptors(map->store_->IndexSnapshotPath());
+  if (map->snapshot_load_.used && map->snapshot_load_.inserted_points == 0) {
+    map->snapshot_descriptors_ = static_cast<int64_t>(map->index_.num_descriptors());
+  }
   map->open_ms_ = timer.ElapsedMs();
   LOG(INFO) << "opened " << map->store_->Describe() << ": " << map->places_.size() << " places, "
             << map->index_.num_landmarks() << " landmarks, " << map->index_.num_descriptors()
-            << " descriptors in " << map->open_ms_ << " ms";
+            << " descriptors in " << map->open_ms_ << " ms (store " << load_ms
+            << " ms, index snapshot " << map->snapshot_load_.load_ms << " ms, "
+            << map->snapshot_load_.inserted_points << " descriptors inserted in "
+            << map->snapshot_load_.insert_ms << " ms)";
   return map;
+}
+
+Status PlaceMap::SaveIndexSnapshot(bool* written) {
+  if (written != nullptr) *written = false;
+  const std::string path = store_->IndexSnapshotPath();
+  if (path.empty() || index_.options().flann.method != DescriptorSearch::kFlann) {
+    return Status::Ok();
+  }
+  std::lock_guard<std::mutex> saving(snapshot_mutex_);
+  // Readers only: lookups go on, inserts (which take the lock exclusively) wait.
+  std::shared_lock lock(mutex_);
+  const auto descriptors = static_cast<int64_t>(index_.num_descriptors());
+  if (descriptors == snapshot_descriptors_ || descriptors == 0) return Status::Ok();
+  Timer timer;
+  PLACEREC_RETURN_IF_ERROR(index_.descriptor_index().SaveSnapshot(path));
+  snapshot_descriptors_ = descriptors;
+  if (written != nullptr) *written = true;
+  LOG(INFO) << "wrote " << path << " (" << descriptors << " descriptors) in " << timer.ElapsedMs()
+            << " ms";
+  return Status::Ok();
 }
 
 MapLookupResult PlaceMap::Lookup(const MapLookup& lookup,

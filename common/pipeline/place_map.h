@@ -92,6 +92,15 @@ class PlaceMap {
   std::string Describe() const;
   // Milliseconds Open spent loading the store and building the index.
   double open_ms() const { return open_ms_; }
+  // What Open did with the descriptor index snapshot beside the map.
+  const SnapshotLoad& snapshot_load() const { return snapshot_load_; }
+
+  // Writes the descriptor index snapshot beside the map (LandmarkStore::IndexSnapshotPath), so
+  // that the next Open loads the tree instead of growing it again; lookups go on meanwhile,
+  // inserts wait. Skipped (ok, *written false) when the store keeps no snapshot, the index is
+  // not FLANN's (kHnsw has no snapshot) or the snapshot on disk already covers the whole index.
+  // `written` may be null.
+  Status SaveIndexSnapshot(bool* written = nullptr);
 
  private:
   PlaceMap(std::unique_ptr<LandmarkStore> store, const LandmarkIndexOptions& index_options);
@@ -114,6 +123,11 @@ class PlaceMap {
   // Per stored landmark, the later places that saw it again (Place::seen_landmarks).
   std::unordered_map<LandmarkId, std::vector<PlaceId>> seen_at_;
   double open_ms_ = 0;
+  SnapshotLoad snapshot_load_;
+  // Serialises SaveIndexSnapshot calls; guards snapshot_descriptors_.
+  std::mutex snapshot_mutex_;
+  // Descriptors the snapshot on disk covers, as far as this process knows (-1: unknown).
+  int64_t snapshot_descriptors_ = -1;
 };
 
 }  // namespace placerec

@@ -1,10 +1,15 @@
 #include "common/pipeline/place_map.h"
 
+#include <unistd.h>
+
 #include <chrono>
+#include <cstdlib>
+#include <fstream>
 #include <future>
 #include <memory>
 #include <mutex>
 #include <random>
+#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
@@ -109,6 +114,156 @@ TEST(PlaceMapTest, LookupsGoOnWhileAnInsertCommits) {
   EXPECT_EQ(looked_up.get(), 0);  // the place is not indexed before its commit returns
   ASSERT_TRUE(inserted.get().ok());
   EXPECT_EQ(map.Counts().places, 1);
+}
+
+// A map file in a fresh temporary directory, removed with its snapshot at the end.
+class MapFile {
+ public:
+  MapFile() {
+    char pattern[] = "/tmp/placerec_place_map_XXXXXX";
+    CHECK(mkdtemp(pattern) != nullptr);
+    dir_ = pattern;
+  }
+  ~MapFile() { std::system(("rm -rf " + dir_).c_str()); }
+  std::string path() const { return dir_ + "/map.db"; }
+
+ private:
+  std::string dir_;
+};
+
+std::unique_ptr<PlaceMap> OpenMap(const std::string& path, const LandmarkIndexOptions& options) {
+  StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(path, SqliteStoreOptions());
+  CHECK(store.ok()) << store.status().message();
+  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options);
+  CHECK(map.ok()) << map.status().message();
+  return std::move(*map);
+}
+
+// Place p of robot r1 sees landmarks of seeds p, p + 1, p + 2 (each seen again by the next two
+// places, with noise), ten seconds after place p - 1.
+void InsertPlace(int p, PlaceMap* map) {
+  Place place;
+  place.robot = "r1";
+  place.sequence = p;
+  place.utime = 10000000LL * p;
+  place.image_width = 640;
+  std::vector<Landmark> landmarks;
+  std::mt19937 rng(1000 + p);
+  for (int seed = p; seed < p + 3; ++seed) {
+    Landmark landmark = TestLandmark(seed);
+    landmark.descriptors = recognition_test::Noisy(landmark.descriptors, &rng, 10);
+    landmarks.push_back(landmark);
+  }
+  ASSERT_TRUE(map->Insert(&place, &landmarks).ok());
+}
+
+// What the map answers: the descriptor index's neighbours of noisy copies of every test
+// landmark, and the places a lookup of each ranks, with scores.
+std::string Answers(const PlaceMap& map, int seeds) {
+  std::ostringstream text;
+  std::mt19937 rng(77);
+  for (int seed = 0; seed < seeds; ++seed) {
+    const Landmark query = TestLandmark(seed);
+    const cv::Mat noisy = recognition_test::Noisy(query.descriptors, &rng, 25);
+    std::vector<std::vector<DescriptorIndex::Neighbour>> neighbours;
+    map.index().descriptor_index().Search(noisy, 2, &neighbours);
+    for (const auto& list : neighbours) {
+      for (const auto& n : list) text << n.owner << ":" << n.row << ":" << n.distance << " ";
+    }
+    MapLookup lookup;
+    lookup.recent.robot = "r2";
+    lookup.image_width = 640;
+    lookup.objects.push_back({query.sift_count, query.colour, noisy});
+    lookup.object_keypoints.push_back(query.keypoints);
+    for (const PlaceMatch& match : map.Lookup(lookup, LoopDecisionOptions()).places) {
+      text << "| " << match.place.id.value() << " " << match.score;
+    }
+    text << "\n";
+  }
+  return text.str();
+}
+
+TEST(PlaceMapTest, ReopensFromItsIndexSnapshotWithTheSameAnswers) {
+  MapFile file;
+  LandmarkIndexOptions options;
+  options.flann.checks = 4;  // far from exact: the answers show the shape of the tree
+  std::string grown;
+  {
+    std::unique_ptr<PlaceMap> map = OpenMap(file.path(), options);
+    EXPECT_FALSE(map->snapshot_load().used);
+    for (int p = 0; p < 8; ++p) InsertPlace(p, map.get());
+    bool written = false;
+    ASSERT_TRUE(map->SaveIndexSnapshot(&written).ok());
+    EXPECT_TRUE(written);
+    EXPECT_TRUE(std::ifstream(file.path() + ".index").good());
+    // Places committed after the snapshot, as by a server killed before its next one.
+    for (int p = 8; p < 14; ++p) InsertPlace(p, map.get());
+    grown = Answers(*map, 16);
+    ASSERT_NE(grown.find("| "), std::string::npos) << "no lookup found a place: a weak test";
+  }
+  {
+    std::unique_ptr<PlaceMap> map = OpenMap(file.path(), options);
+    EXPECT_TRUE(map->snapshot_load().used) << map->snapshot_load().message;
+    EXPECT_EQ(map->snapshot_load().covered_adds, 8 * 3);
+    EXPECT_EQ(map->snapshot_load().inserted_points, 6 * 3 * 20);
+    EXPECT_EQ(Answers(*map, 16), grown);
+    bool written = false;
+    ASSERT_TRUE(map->SaveIndexSnapshot(&written).ok());
+    EXPECT_TRUE(written);
+  }
+  {
+    std::unique_ptr<PlaceMap> map = OpenMap(file.path(), options);
+    EXPECT_TRUE(map->snapshot_load().used) << map->snapshot_load().message;
+    EXPECT_EQ(map->snapshot_load().inserted_points, 0);
+    EXPECT_EQ(Answers(*map, 16), grown);
+    // Up to date: nothing to write.
+    bool written = true;
+    ASSERT_TRUE(map->SaveIndexSnapshot(&written).ok());
+    EXPECT_FALSE(written);
+  }
+  // The same map without any snapshot answers alike too.
+  ASSERT_EQ(std::remove((file.path() + ".index").c_str()), 0);
+  std::unique_ptr<PlaceMap> map = OpenMap(file.path(), options);
+  EXPECT_FALSE(map->snapshot_load().used);
+  EXPECT_EQ(Answers(*map, 16), grown);
+}
+
+TEST(PlaceMapTest, SnapshotOfAnotherMapIsIgnored) {
+  MapFile first;
+  MapFile second;
+  LandmarkIndexOptions options;
+  options.flann.checks = 4;
+  std::string expected;
+  {
+    std::unique_ptr<PlaceMap> map = OpenMap(first.path(), options);
+    for (int p = 0; p < 6; ++p) InsertPlace(p, map.get());
+    ASSERT_TRUE(map->SaveIndexSnapshot().ok());
+  }
+  {
+    std::unique_ptr<PlaceMap> map = OpenMap(second.path(), options);
+    for (int p = 3; p < 9; ++p) InsertPlace(p, map.get());
+    expected = Answers(*map, 12);
+  }
+  std::ifstream in(first.path() + ".index", std::ios::binary);
+  std::ofstream(second.path() + ".index", std::ios::binary) << in.rdbuf();
+  std::unique_ptr<PlaceMap> map = OpenMap(second.path(), options);
+  EXPECT_FALSE(map->snapshot_load().used);
+  EXPECT_NE(map->snapshot_load().message.find("not the ones it covers"), std::string::npos)
+      << map->snapshot_load().message;
+  EXPECT_EQ(Answers(*map, 12), expected);
+}
+
+TEST(PlaceMapTest, MapsWithoutAFileKeepNoSnapshot) {
+  StatusOr<std::unique_ptr<LandmarkStore>> store =
+      OpenSqliteStore(":memory:", SqliteStoreOptions());
+  ASSERT_TRUE(store.ok());
+  StatusOr<std::unique_ptr<PlaceMap>> map =
+      PlaceMap::Open(std::move(*store), LandmarkIndexOptions());
+  ASSERT_TRUE(map.ok());
+  InsertPlace(0, map->get());
+  bool written = true;
+  EXPECT_TRUE((*map)->SaveIndexSnapshot(&written).ok());
+  EXPECT_FALSE(written);
 }
 
 }  // namespace

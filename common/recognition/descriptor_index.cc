@@ -1,8 +1,16 @@
 #include "common/recognition/descriptor_index.h"
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <limits>
 #include <queue>
+#include <sstream>
+#include <stdexcept>
 
 #include <hnswlib/hnswlib.h>
 #include <flann/flann.hpp>
@@ -10,6 +18,7 @@
 #include "common/features/features.h"
 #include "common/recognition/descriptor_matching.h"
 #include "common/util/logging.h"
+#include "common/util/timer.h"
 
 namespace placerec {
 namespace {
@@ -31,15 +40,294 @@ class DescriptorSpace : public hnswlib::SpaceInterface<int> {
 // graph in every process.
 constexpr size_t kHnswSeed = 100;
 
+// A 64-bit hash of a byte stream with XXH64's round and avalanche (Collet): fast enough to
+// cover every stored descriptor when a map opens, and good at telling apart damaged or
+// different contents (it is no protection against a deliberate forgery).
+class Hash64 {
+ public:
+  void Update(const void* data, size_t size) {
+    if (size == 0) return;
+    const uint8_t* p = static_cast<const uint8_t*>(data);
+    total_ += size;
+    if (buffered_ > 0) {
+      const size_t take = std::min(size, sizeof(buffer_) - buffered_);
+      std::memcpy(buffer_ + buffered_, p, take);
+      buffered_ += take;
+      p += take;
+      size -= take;
+      if (buffered_ < sizeof(buffer_)) return;
+      Stripe(buffer_);
+      buffered_ = 0;
+    }
+    for (; size >= sizeof(buffer_); p += sizeof(buffer_), size -= sizeof(buffer_)) Stripe(p);
+    std::memcpy(buffer_, p, size);
+    buffered_ = size;
+  }
+  uint64_t Digest() const {
+    uint64_t h =
+        Rotl(lanes_[0], 1) + Rotl(lanes_[1], 7) + Rotl(lanes_[2], 12) + Rotl(lanes_[3], 18);
+    for (const uint64_t lane : lanes_) h = (h ^ Round(0, lane)) * kP1 + kP4;
+    h += total_;
+    size_t i = 0;
+    for (; i + 8 <= buffered_; i += 8) h = Rotl(h ^ Round(0, Word(buffer_ + i)), 27) * kP1 + kP4;
+    for (; i < buffered_; ++i) h = Rotl(h ^ (buffer_[i] * kP5), 11) * kP1;
+    h ^= h >> 33;
+    h *= kP2;
+    h ^= h >> 29;
+    h *= kP3;
+    return h ^ (h >> 32);
+  }
+
+ private:
+  static constexpr uint64_t kP1 = 11400714785074694791ULL;
+  static constexpr uint64_t kP2 = 14029467366897019727ULL;
+  static constexpr uint64_t kP3 = 1609587929392839161ULL;
+  static constexpr uint64_t kP4 = 9650029242287828579ULL;
+  static constexpr uint64_t kP5 = 2870177450012600261ULL;
+  static uint64_t Rotl(uint64_t x, int r) { return (x << r) | (x >> (64 - r)); }
+  static uint64_t Round(uint64_t acc, uint64_t input) { return Rotl(acc + input * kP2, 31) * kP1; }
+  static uint64_t Word(const uint8_t* p) {
+    uint64_t w;
+    std::memcpy(&w, p, sizeof(w));
+    return w;
+  }
+  void Stripe(const uint8_t* p) {
+    for (int lane = 0; lane < 4; ++lane) lanes_[lane] = Round(lanes_[lane], Word(p + 8 * lane));
+  }
+
+  uint64_t lanes_[4] = {kP1 + kP2, kP2, 0, 0 - kP1};
+  uint8_t buffer_[32] = {};
+  size_t buffered_ = 0;
+  uint64_t total_ = 0;
+};
+
+// The snapshot file: a fixed header, then FLANN's own serialization of the tree (NNIndex and
+// KDTreeIndex::serialize, without the points) as raw native-endian values. A snapshot is a cache
+// of one machine's map, not an exchange format.
+constexpr char kSnapshotMagic[16] = "placerec-dindex";
+// Version 1: the header below; the payload of FLANN 1.9's KDTreeIndex serialize.
+constexpr uint32_t kSnapshotVersion = 1;
+constexpr uint32_t kSnapshotFlann = 1;  // the method field: kFlann's k-d tree
+
+// The payload is FLANN's layout on this kind of machine: another FLANN version (its serialize may
+// change) or another word size reads it otherwise, so both must match.
+std::string PayloadLayout() {
+  return std::string("flann ") + FLANN_VERSION_ + " size_t " + std::to_string(sizeof(size_t));
+}
+
+struct SnapshotHeader {
+  uint32_t version = kSnapshotVersion;
+  uint32_t method = kSnapshotFlann;
+  uint32_t descriptor_size = kDescriptorSize;
+  uint32_t trees = 1;
+  uint64_t adds = 0;            // Add calls covered, from the first
+  uint64_t points = 0;          // their descriptors
+  uint64_t content_digest = 0;  // DescriptorIndex::ContentDigest(adds)
+  uint64_t payload_bytes = 0;
+  uint64_t payload_hash = 0;  // Hash64 of the payload
+
+  std::string layout = PayloadLayout();  // at most kLayoutBytes - 1 characters
+
+  static constexpr size_t kLayoutBytes = 32;
+  // magic, the fields, the layout, the header hash
+  static constexpr size_t kBytes = 16 + 4 * 4 + 5 * 8 + kLayoutBytes + 8;
+
+  std::vector<uint8_t> Encode() const {
+    std::vector<uint8_t> bytes(kBytes);
+    uint8_t* p = bytes.data();
+    auto put = [&p](const void* value, size_t size) {
+      std::memcpy(p, value, size);
+      p += size;
+    };
+    put(kSnapshotMagic, 16);
+    for (const uint32_t v : {version, method, descriptor_size, trees}) put(&v, 4);
+    for (const uint64_t v : {adds, points, content_digest, payload_bytes, payload_hash}) {
+      put(&v, 8);
+    }
+    char layout_field[kLayoutBytes] = {};
+    std::memcpy(layout_field, layout.data(), std::min(layout.size(), kLayoutBytes - 1));
+    put(layout_field, kLayoutBytes);
+    Hash64 hash;
+    hash.Update(bytes.data(), kBytes - 8);
+    const uint64_t header_hash = hash.Digest();
+    put(&header_hash, 8);
+    return bytes;
+  }
+
+  // The header in `bytes` (kBytes of them), or why they are not one this code can read.
+  static StatusOr<SnapshotHeader> Decode(const uint8_t* bytes) {
+    if (std::memcmp(bytes, kSnapshotMagic, 16) != 0) {
+      return Status::InvalidArgument("not a descriptor index snapshot");
+    }
+    Hash64 hash;
+    hash.Update(bytes, kBytes - 8);
+    uint64_t header_hash;
+    std::memcpy(&header_hash, bytes + kBytes - 8, 8);
+    if (hash.Digest() != header_hash) return Status::InvalidArgument("its header is damaged");
+    SnapshotHeader h;
+    const uint8_t* p = bytes + 16;
+    auto get = [&p](void* value, size_t size) {
+      std::memcpy(value, p, size);
+      p += size;
+    };
+    for (uint32_t* v : {&h.version, &h.method, &h.descriptor_size, &h.trees}) get(v, 4);
+    for (uint64_t* v : {&h.adds, &h.points, &h.content_digest, &h.payload_bytes, &h.payload_hash}) {
+      get(v, 8);
+    }
+    char layout_field[kLayoutBytes];
+    get(layout_field, kLayoutBytes);
+    layout_field[kLayoutBytes - 1] = '\0';
+    h.layout = layout_field;
+    if (h.version != kSnapshotVersion) {
+      return Status::InvalidArgument("format version " + std::to_string(h.version) +
+                                     ", this build reads version " +
+                                     std::to_string(kSnapshotVersion));
+    }
+    if (h.layout != PayloadLayout()) {
+      return Status::InvalidArgument("written with " + h.layout + ", this build has " +
+                                     PayloadLayout());
+    }
+    if (h.method != kSnapshotFlann || h.descriptor_size != kDescriptorSize || h.trees != 1) {
+      return Status::InvalidArgument("made for another index (method " + std::to_string(h.method) +
+                                     ", " + std::to_string(h.trees) + " trees, " +
+                                     std::to_string(h.descriptor_size) + "-byte descriptors)");
+    }
+    return h;
+  }
+};
+
+// Closes a FILE* on scope exit.
+struct FileCloser {
+  void operator()(std::FILE* file) const { std::fclose(file); }
+};
+using File = std::unique_ptr<std::FILE, FileCloser>;
+
+// FLANN archives (flann/util/serialization.h) that write and read raw values through a large
+// buffer, hashing what passes, instead of FLANN's own LZ4-HC archive (slow to write, and it
+// trusts whatever it reads). Pointers are skipped, as in FLANN's archives.
+class SnapshotWriter : public flann::serialization::OutputArchive<SnapshotWriter> {
+ public:
+  explicit SnapshotWriter(std::FILE* file) : file_(file) { buffer_.reserve(kBufferBytes); }
+  template <typename T>
+  void save(const T& value) {
+    Write(&value, sizeof(value));
+  }
+  template <typename T>
+  void save(T* const& /*pointer*/) {}
+  template <typename T>
+  void save_binary(T* data, size_t size) {
+    Write(data, size);
+  }
+  // Writes out what is buffered; false if any write failed.
+  bool Flush() {
+    hash_.Update(buffer_.data(), buffer_.size());
+    if (!buffer_.empty() && std::fwrite(buffer_.data(), buffer_.size(), 1, file_) != 1) {
+      failed_ = true;
+    }
+    buffer_.clear();
+    return !failed_;
+  }
+  uint64_t bytes() const { return bytes_; }
+  uint64_t hash() const { return hash_.Digest(); }
+
+ private:
+  static constexpr size_t kBufferBytes = 1 << 20;
+  void Write(const void* data, size_t size) {
+    if (buffer_.size() + size > kBufferBytes) Flush();
+    const uint8_t* p = static_cast<const uint8_t*>(data);
+    buffer_.insert(buffer_.end(), p, p + size);
+    bytes_ += size;
+  }
+  std::FILE* file_;
+  std::vector<uint8_t> buffer_;
+  Hash64 hash_;
+  uint64_t bytes_ = 0;
+  bool failed_ = false;
+};
+
+class SnapshotReader : public flann::serialization::InputArchive<SnapshotReader> {
+ public:
+  // Reads at most `limit` bytes of `file` from its current position.
+  SnapshotReader(std::FILE* file, uint64_t limit) : file_(file), left_in_file_(limit) {}
+  template <typename T>
+  void load(T& value) {
+    if (end_ - next_ >= sizeof(value)) {  // the common case, inlined: a fixed-size copy
+      std::memcpy(&value, buffer_.data() + next_, sizeof(value));
+      next_ += sizeof(value);
+    } else {
+      Read(&value, sizeof(value));
+    }
+  }
+  template <typename T>
+  void load(T*& pointer) {
+    pointer = nullptr;
+  }
+  template <typename T>
+  void load_binary(T* data, size_t size) {
+    Read(data, size);
+  }
+  // Bytes of the limit not read.
+  uint64_t unread() const { return left_in_file_ + (end_ - next_); }
+
+ private:
+  void Read(void* out, size_t size) {
+    uint8_t* p = static_cast<uint8_t*>(out);
+    while (size > 0) {
+      if (next_ == end_) Refill();
+      const size_t take = std::min(size, end_ - next_);
+      std::memcpy(p, buffer_.data() + next_, take);
+      next_ += take;
+      p += take;
+      size -= take;
+    }
+  }
+  void Refill() {
+    const size_t want = static_cast<size_t>(std::min<uint64_t>(buffer_.size(), left_in_file_));
+    if (want == 0) throw std::runtime_error("the tree ends before its last node");
+    if (std::fread(buffer_.data(), want, 1, file_) != 1) {
+      throw std::runtime_error("cannot read the tree");
+    }
+    left_in_file_ -= want;
+    next_ = 0;
+    end_ = want;
+  }
+  std::FILE* file_;
+  uint64_t left_in_file_;
+  std::vector<uint8_t> buffer_ = std::vector<uint8_t>(1 << 20);
+  size_t next_ = 0;
+  size_t end_ = 0;
+};
+
+// The k-d tree, with the access to FLANN's point table that loading a snapshot needs.
+class GrownTree : public flann::KDTreeIndex<flann::L2<unsigned char>> {
+ public:
+  using Base = flann::KDTreeIndex<flann::L2<unsigned char>>;
+  GrownTree() : Base(flann::KDTreeIndexParams(1)) {}
+  // A one-point tree: the batch build has nothing to shuffle, so it is deterministic.
+  explicit GrownTree(const flann::Matrix<unsigned char>& first_point)
+      : Base(first_point, flann::KDTreeIndexParams(1)) {
+    buildIndex();
+  }
+  // Reads the tree of a snapshot whose points are `points` (the snapshot holds their indices,
+  // FLANN's serialize looks the pointers up here). Throws on a short or inconsistent tree.
+  void Load(std::vector<unsigned char*> points, SnapshotReader* reader) {
+    const size_t expected = points.size();
+    // KDTreeIndex redeclares its base's members private; the base's own name reaches them.
+    this->flann::NNIndex<flann::L2<unsigned char>>::points_ = std::move(points);
+    *reader& static_cast<Base&>(*this);
+    if (size() != expected || veclen() != kDescriptorSize) {
+      throw std::runtime_error("the tree holds " + std::to_string(size()) + " points of " +
+                               std::to_string(veclen()) + " values");
+    }
+  }
+};
+
 }  // namespace
 
 struct DescriptorIndex::Flann {
-  // A one-point tree: the batch build has nothing to shuffle, so it is deterministic.
-  explicit Flann(const flann::Matrix<unsigned char>& first_point)
-      : index(first_point, flann::KDTreeIndexParams(1)) {
-    index.buildIndex();
-  }
-  flann::Index<flann::L2<unsigned char>> index;
+  explicit Flann(const flann::Matrix<unsigned char>& first_point) : index(first_point) {}
+  Flann() = default;
+  GrownTree index;
 };
 
 struct DescriptorIndex::Hnsw {
@@ -83,8 +371,198 @@ void DescriptorIndex::Add(int32_t owner, const cv::Mat& descriptors) {
     AddToHnsw(block, first_point);
   } else {
     blocks_.push_back(block);
-    AddToFlann(block);
+    if (!deferred_) AddToFlann(block);
   }
+}
+
+void DescriptorIndex::DeferInsertion() {
+  if (options_.method == DescriptorSearch::kFlann) deferred_ = true;
+}
+
+uint64_t DescriptorIndex::ContentDigest(size_t adds) const {
+  Hash64 hash;
+  size_t point = 0;
+  for (size_t b = 0; b < adds; ++b) {
+    const cv::Mat& block = blocks_[b];
+    const int32_t owner_and_rows[2] = {point_owner_[point], block.rows};
+    hash.Update(owner_and_rows, sizeof(owner_and_rows));
+    hash.Update(block.data, block.total() * block.elemSize());
+    point += block.rows;
+  }
+  return hash.Digest();
+}
+
+SnapshotLoad DescriptorIndex::FinishDeferred(const std::string& snapshot_path) {
+  SnapshotLoad result;
+  if (!deferred_) {
+    // kHnsw, or no DeferInsertion: Add inserted every point already.
+    result.message = "nothing deferred: every descriptor was inserted as it was added";
+    result.inserted_points = static_cast<int64_t>(size());
+    return result;
+  }
+  deferred_ = false;
+  Timer timer;
+  size_t first_block = 0;
+  if (snapshot_path.empty()) {
+    result.message = "no snapshot";
+  } else {
+    std::string timing;
+    StatusOr<size_t> covered = LoadSnapshot(snapshot_path, &timing);
+    if (covered.ok()) {
+      first_block = *covered;
+      result.used = true;
+      result.covered_adds = static_cast<int64_t>(first_block);
+      result.message = "loaded " + snapshot_path + " (" + std::to_string(first_block) + " of " +
+                       std::to_string(blocks_.size()) + " descriptor blocks; " + timing + ")";
+      LOG(INFO) << "descriptor index: " << result.message;
+    } else {
+      flann_.reset();
+      result.message = "ignored " + snapshot_path + ": " + covered.status().message();
+      // A missing snapshot is the normal first open; anything else is worth a warning.
+      if (covered.status().code() == StatusCode::kNotFound) {
+        LOG(INFO) << "descriptor index: " << result.message;
+      } else {
+        LOG(WARNING) << "descriptor index: " << result.message << "; indexing every descriptor";
+      }
+    }
+  }
+  result.load_ms = timer.ElapsedMs();
+  Timer insert_timer;
+  for (size_t b = first_block; b < blocks_.size(); ++b) {
+    AddToFlann(blocks_[b]);
+    result.inserted_points += blocks_[b].rows;
+  }
+  result.insert_ms = insert_timer.ElapsedMs();
+  return result;
+}
+
+StatusOr<size_t> DescriptorIndex::LoadSnapshot(const std::string& path, std::string* timing) {
+  File file(std::fopen(path.c_str(), "rb"));
+  if (!file) {
+    if (errno == ENOENT) return Status::NotFound("there is none");
+    return Status::IoError(std::string("cannot open it: ") + std::strerror(errno));
+  }
+  uint8_t header_bytes[SnapshotHeader::kBytes];
+  if (std::fread(header_bytes, sizeof(header_bytes), 1, file.get()) != 1) {
+    return Status::InvalidArgument("it is shorter than its header");
+  }
+  StatusOr<SnapshotHeader> header = SnapshotHeader::Decode(header_bytes);
+  if (!header.ok()) return header.status();
+  if (header->adds == 0 || header->adds > blocks_.size()) {
+    return Status::InvalidArgument("it covers " + std::to_string(header->adds) +
+                                   " descriptor blocks, the map has " +
+                                   std::to_string(blocks_.size()));
+  }
+  const size_t adds = static_cast<size_t>(header->adds);
+  size_t points = 0;
+  for (size_t b = 0; b < adds; ++b) points += blocks_[b].rows;
+  Timer digest_timer;
+  const uint64_t digest = header->points == points ? ContentDigest(adds) : 0;
+  const double digest_ms = digest_timer.ElapsedMs();
+  if (header->points != points || header->content_digest != digest) {
+    return Status::InvalidArgument("the map's first " + std::to_string(adds) +
+                                   " descriptor blocks are not the ones it covers");
+  }
+  struct stat info;
+  if (fstat(fileno(file.get()), &info) != 0 ||
+      static_cast<uint64_t>(info.st_size) != SnapshotHeader::kBytes + header->payload_bytes) {
+    return Status::InvalidArgument("it is " + std::to_string(info.st_size) + " bytes, not " +
+                                   std::to_string(SnapshotHeader::kBytes + header->payload_bytes));
+  }
+  // The whole tree is checked before FLANN reads any of it: FLANN trusts the indices it reads.
+  Timer check_timer;
+  {
+    Hash64 hash;
+    std::vector<uint8_t> buffer(1 << 20);
+    for (uint64_t left = header->payload_bytes; left > 0;) {
+      const size_t want = static_cast<size_t>(std::min<uint64_t>(buffer.size(), left));
+      if (std::fread(buffer.data(), want, 1, file.get()) != 1) {
+        return Status::IoError("cannot read it");
+      }
+      hash.Update(buffer.data(), want);
+      left -= want;
+    }
+    if (hash.Digest() != header->payload_hash) {
+      return Status::InvalidArgument("its tree is damaged (checksum mismatch)");
+    }
+  }
+  if (std::fseek(file.get(), SnapshotHeader::kBytes, SEEK_SET) != 0) {
+    return Status::IoError("cannot read it");
+  }
+  const double check_ms = check_timer.ElapsedMs();
+  Timer tree_timer;
+  std::vector<unsigned char*> point_table;
+  point_table.reserve(points);
+  for (size_t b = 0; b < adds; ++b) {
+    for (int r = 0; r < blocks_[b].rows; ++r) point_table.push_back(blocks_[b].ptr<uchar>(r));
+  }
+  auto flann = std::make_unique<Flann>();
+  SnapshotReader reader(file.get(), header->payload_bytes);
+  try {
+    flann->index.Load(std::move(point_table), &reader);
+  } catch (const std::exception& e) {
+    return Status::InvalidArgument(std::string("its tree cannot be read: ") + e.what());
+  }
+  if (reader.unread() != 0) {
+    return Status::InvalidArgument("its tree is followed by " + std::to_string(reader.unread()) +
+                                   " stray bytes");
+  }
+  flann_ = std::move(flann);
+  std::ostringstream text;
+  text.precision(3);
+  text << "digest " << digest_ms / 1000 << " s, checksum " << check_ms / 1000 << " s, tree "
+       << tree_timer.ElapsedMs() / 1000 << " s";
+  *timing = text.str();
+  return adds;
+}
+
+Status DescriptorIndex::SaveSnapshot(const std::string& path) const {
+  if (options_.method != DescriptorSearch::kFlann) {
+    return Status::InvalidArgument("only the FLANN descriptor index has snapshots");
+  }
+  CHECK(!deferred_) << "SaveSnapshot between DeferInsertion and FinishDeferred";
+  if (!flann_) return Status::InvalidArgument("the descriptor index is empty: nothing to save");
+  // One fixed name: a file left by a process killed while writing is overwritten by the next
+  // save rather than piling up. Two processes saving at once can mix their bytes in it; the
+  // checksums make such a file one that is ignored, never one that is used.
+  const std::string temporary = path + ".tmp";
+  File file(std::fopen(temporary.c_str(), "wb"));
+  if (!file) {
+    return Status::IoError("cannot write " + temporary + ": " + std::strerror(errno));
+  }
+  auto fail = [&](const std::string& what) {
+    const std::string reason = std::strerror(errno);
+    file.reset();
+    std::remove(temporary.c_str());
+    return Status::IoError("cannot write " + temporary + ": " + what + ": " + reason);
+  };
+  SnapshotHeader header;
+  header.adds = blocks_.size();
+  header.points = point_owner_.size();
+  header.content_digest = ContentDigest(blocks_.size());
+  // The header is written last, once the payload's size and hash are known.
+  std::vector<uint8_t> placeholder(SnapshotHeader::kBytes, 0);
+  if (std::fwrite(placeholder.data(), placeholder.size(), 1, file.get()) != 1) {
+    return fail("header");
+  }
+  SnapshotWriter writer(file.get());
+  writer& static_cast<const GrownTree::Base&>(flann_->index);
+  if (!writer.Flush()) return fail("tree");
+  header.payload_bytes = writer.bytes();
+  header.payload_hash = writer.hash();
+  const std::vector<uint8_t> bytes = header.Encode();
+  if (std::fseek(file.get(), 0, SEEK_SET) != 0 ||
+      std::fwrite(bytes.data(), bytes.size(), 1, file.get()) != 1) {
+    return fail("header");
+  }
+  if (std::fflush(file.get()) != 0 || fsync(fileno(file.get())) != 0) return fail("flush");
+  if (std::fclose(file.release()) != 0) return fail("close");
+  if (std::rename(temporary.c_str(), path.c_str()) != 0) {
+    const std::string reason = std::strerror(errno);
+    std::remove(temporary.c_str());
+    return Status::IoError("cannot rename " + temporary + " to " + path + ": " + reason);
+  }
+  return Status::Ok();
 }
 
 void DescriptorIndex::AddToFlann(cv::Mat block) {
@@ -114,6 +592,7 @@ void DescriptorIndex::AddToHnsw(const cv::Mat& block, size_t first_point) {
 
 void DescriptorIndex::Search(const cv::Mat& queries, int knn,
                              std::vector<std::vector<Neighbour>>* neighbours) const {
+  CHECK(!deferred_) << "Search between DeferInsertion and FinishDeferred";
   neighbours->assign(queries.rows, {});
   if (size() == 0 || queries.empty() || knn <= 0) return;
   CHECK_EQ(queries.type(), CV_8U);

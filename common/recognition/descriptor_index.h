@@ -4,16 +4,26 @@
 //
 // - kFlann (the default): FLANN's k-d tree (libflann), grown point by point. FLANN's batch build
 //   shuffles its points with std::random_device (answers would differ between processes); a
-//   grown tree is deterministic. Inserting is cheap (a map reopens quickly), but its search
+//   grown tree is deterministic. Inserting is cheaper than into the graph, and a reopened map
+//   loads the tree from its snapshot (below) instead of growing it again; but its search
 //   clears a bit per stored point for every query, so search cost grows with the map, and with
 //   a fixed number of checks it finds fewer of the exact nearest neighbours as the map grows.
 // - kHnsw: a hierarchical navigable small-world graph (hnswlib, Malkov and Yashunin 2018): far
 //   closer to exact search than the tree with the default settings, search cost growing with
-//   the logarithm of the map, but inserting costs far more (a reopened map is indexed again)
+//   the logarithm of the map, but inserting costs far more (a reopened map is indexed again:
+//   it has no snapshot)
 //   and each descriptor carries more memory (a copy of it, its links, a lock).
 //
+// A kFlann tree can be written to a snapshot file (SaveSnapshot) and read back when a map is
+// opened (DeferInsertion, then FinishDeferred): the tree of the Adds the snapshot covers is
+// loaded instead of grown again, and only later Adds are inserted, so the index is exactly the
+// one insertion would have grown. A snapshot records a digest of every descriptor, owner and
+// row count it covers, in order; one that does not match (stale, foreign, another format,
+// damaged) is ignored and the index is grown from scratch.
+//
 // The descriptor matching this serves is the seed's verification step (§5.6); the comparisons
-// are in docs/experiments/2026-11-22-flann-and-ransac.md and 2026-12-03-retrieval-and-scale.md.
+// are in docs/experiments/2026-11-22-flann-and-ransac.md and 2026-12-03-retrieval-and-scale.md,
+// the snapshot's in 2026-12-03-fast-reopen.md.
 #pragma once
 
 #include <cstdint>
@@ -22,6 +32,8 @@
 #include <vector>
 
 #include <opencv2/core.hpp>
+
+#include "common/util/status.h"
 
 namespace placerec {
 
@@ -39,6 +51,16 @@ struct DescriptorIndexOptions {
   int hnsw_search_candidates = 32;
 
   bool Check(std::string* error) const;
+};
+
+// What FinishDeferred did with a snapshot.
+struct SnapshotLoad {
+  bool used = false;            // the snapshot's tree was loaded
+  int64_t covered_adds = 0;     // Add calls the loaded tree covered (0 when not used)
+  int64_t inserted_points = 0;  // points inserted one by one after it (all of them when unused)
+  std::string message;          // what was loaded, or why the snapshot was ignored
+  double load_ms = 0;           // checking and reading the snapshot, milliseconds
+  double insert_ms = 0;         // inserting the points it did not cover, milliseconds
 };
 
 class DescriptorIndex {
@@ -65,16 +87,38 @@ class DescriptorIndex {
 
   size_t size() const { return point_owner_.size(); }
 
+  // From now until FinishDeferred, Add only records the descriptors (kFlann; kHnsw inserts at
+  // once as always). Search must not be called meanwhile. For opening a map: whether a snapshot
+  // fits can only be judged once the descriptors it should cover are known.
+  void DeferInsertion();
+  // Inserts what Add recorded since DeferInsertion. When `snapshot_path` (may be empty) holds a
+  // snapshot of the first n Adds of this index (the same owners, row counts and descriptors in
+  // the same order, written by SaveSnapshot of kFlann), its tree is loaded and only the later
+  // Adds are inserted; otherwise every point is inserted. Either way the index then answers
+  // exactly as one grown by Add alone. A snapshot that cannot be used is logged with the reason.
+  SnapshotLoad FinishDeferred(const std::string& snapshot_path);
+  // Writes a snapshot of the whole index to `path`: to `path`.tmp, flushed to disk, then renamed
+  // over `path`, so a reader sees the old snapshot or the new one, never half of one. kFlann only;
+  // may run alongside Search, not alongside Add. The snapshot holds the tree only (about 9 bytes
+  // per descriptor), not the descriptors.
+  Status SaveSnapshot(const std::string& path) const;
+
  private:
   struct Flann;
   struct Hnsw;
   void AddToFlann(cv::Mat block);
   void AddToHnsw(const cv::Mat& block, size_t first_point);
+  // Digest of the first `adds` blocks (owner, rows, bytes): what a snapshot covers.
+  uint64_t ContentDigest(size_t adds) const;
+  // Loads the tree of the snapshot at `path` if it covers a prefix of blocks_; the number of
+  // blocks it covers (and `timing`, the time each step took), or the reason it cannot be used.
+  StatusOr<size_t> LoadSnapshot(const std::string& path, std::string* timing);
 
   DescriptorIndexOptions options_;
   std::unique_ptr<Flann> flann_;
   std::unique_ptr<Hnsw> hnsw_;
-  std::vector<cv::Mat> blocks_;  // keeps the descriptor memory FLANN points into alive
+  std::vector<cv::Mat> blocks_;  // one per kFlann Add: the descriptor memory FLANN points into
+  bool deferred_ = false;        // DeferInsertion: blocks_ not yet in the tree
   std::vector<int32_t> point_owner_;
   std::vector<int32_t> point_row_;
 };

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <climits>
 #include <limits>
+#include <utility>
 
 #include "common/features/features.h"
 #include "common/util/logging.h"
@@ -29,7 +30,7 @@ bool LandmarkIndexOptions::Check(std::string* error) const {
 LandmarkIndex::LandmarkIndex(const LandmarkIndexOptions& options)
     : options_(options), descriptors_(options.flann) {}
 
-void LandmarkIndex::Add(const Landmark& landmark) {
+void LandmarkIndex::Add(Landmark&& landmark) {
   CHECK(landmark.id.IsValid());
   CHECK(landmark.place.IsValid());
   CHECK(place_info_.count(landmark.place) > 0) << "AddPlace(" << landmark.place << ") first";
@@ -37,14 +38,15 @@ void LandmarkIndex::Add(const Landmark& landmark) {
         (landmark.descriptors.type() == CV_8U && landmark.descriptors.cols == kDescriptorSize));
   CHECK_EQ(static_cast<int>(landmark.keypoints.size()), landmark.descriptors.rows);
   const int32_t slot = static_cast<int32_t>(landmarks_.size());
-  landmarks_.push_back(landmark);
-  const auto id = static_cast<size_t>(landmark.id.value());
+  landmarks_.push_back(std::move(landmark));
+  const Landmark& stored = landmarks_.back();
+  const auto id = static_cast<size_t>(stored.id.value());
   if (slot_of_id_.size() <= id) slot_of_id_.resize(id + 1, -1);
   slot_of_id_[id] = slot;
-  by_count_.Insert(landmark.sift_count, slot);
-  slots_of_place_[landmark.place].push_back(slot);
-  descriptors_.Add(slot, landmark.descriptors);
-  num_descriptors_ += landmark.descriptors.rows;
+  by_count_.Insert(stored.sift_count, slot);
+  slots_of_place_[stored.place].push_back(slot);
+  descriptors_.Add(slot, stored.descriptors);
+  num_descriptors_ += stored.descriptors.rows;
 }
 
 void LandmarkIndex::AddPlace(const Place& place) {

@@ -114,7 +114,12 @@ class LandmarkIndex {
 
   // Adds a stored landmark (valid id and place, descriptors CV_8U x 128 with one keypoint per
   // row). Keeps a reference to the descriptor matrix.
-  void Add(const Landmark& landmark);
+  void Add(const Landmark& landmark) { Add(Landmark(landmark)); }
+  void Add(Landmark&& landmark);
+  // Makes room for this many landmarks in all (opening a map): saves the copies of every
+  // landmark held that growing one at a time makes (cv::Mat cannot be moved without a possible
+  // exception, so std::vector copies its landmarks when it grows).
+  void Reserve(size_t landmarks) { landmarks_.reserve(landmarks); }
 
   // Matches each query object against the stored landmarks of places for which
   // `place_allowed` is true.
@@ -130,8 +135,16 @@ class LandmarkIndex {
   // Slots of a place's landmarks (empty for an unknown place or one without landmarks).
   std::vector<int32_t> SlotsOfPlace(PlaceId place) const;
 
-  // The nearest-neighbour index over every stored descriptor (for measurements).
+  // The nearest-neighbour index over every stored descriptor (for measurements, and
+  // DescriptorIndex::SaveSnapshot).
   const DescriptorIndex& descriptor_index() const { return descriptors_; }
+  // Opening a map: Add records descriptors without indexing them until FinishDescriptors, which
+  // starts from the snapshot at `snapshot_path` if it fits (DescriptorIndex::FinishDeferred).
+  // Query must not run in between.
+  void DeferDescriptors() { descriptors_.DeferInsertion(); }
+  SnapshotLoad FinishDescriptors(const std::string& snapshot_path) {
+    return descriptors_.FinishDeferred(snapshot_path);
+  }
 
   size_t num_landmarks() const { return landmarks_.size(); }
   size_t num_descriptors() const { return num_descriptors_; }

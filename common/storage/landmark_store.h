@@ -61,6 +61,11 @@ class LandmarkStore {
 
   // Where the map lives, e.g. "sqlite:/var/lib/placerec/site.db".
   virtual std::string Describe() const = 0;
+
+  // The file that holds the snapshot of the map's descriptor index (DescriptorIndex::
+  // SaveSnapshot), beside the map; empty when the store keeps none (it is then indexed from
+  // scratch on every open).
+  virtual std::string IndexSnapshotPath() const { return ""; }
 };
 
 }  // namespace placerec

@@ -165,6 +165,11 @@ class SqliteStore final : public LandmarkStore {
   StatusOr<StoreCounts> Counts() const override;
   StatusOr<uint64_t> Checksum() const override;
   std::string Describe() const override { return "sqlite:" + path_; }
+  // "MAP.index" beside the map file: a cache rewritten whole (never part of a transaction, so
+  // writing it neither blocks the map's writers nor grows its WAL), and removed with the map.
+  std::string IndexSnapshotPath() const override {
+    return path_.empty() || path_ == ":memory:" ? "" : path_ + ".index";
+  }
 
  private:
   Status Error(const std::string& what, int rc) const {

@@ -30,7 +30,7 @@ class TempMap {
 
  private:
   void Remove() const {
-    for (const char* suffix : {"", "-wal", "-shm", "-journal"}) {
+    for (const char* suffix : {"", "-wal", "-shm", "-journal", ".index"}) {
       std::remove((path_ + suffix).c_str());
     }
   }
