@@ -150,7 +150,15 @@ TEST_F(MapFollowerTest, AnInsertReturnsWithItsPlaceIndexedThroughTheFollower) {
   EXPECT_EQ(map_->Counts().places, 3);
   EXPECT_EQ(map_->Counts().landmarks, 2 + 2 + 1);
   {
-    std::lock_guard lock(mutex_);
+    // The follower reports a place after indexing it, so Insert may return (its place indexed)
+    // just before the report of it arrives.
+    const auto deadline = Clock::now() + std::chrono::seconds(1);
+    std::unique_lock lock(mutex_);
+    while (added_.size() < 2 && Clock::now() < deadline) {
+      lock.unlock();
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      lock.lock();
+    }
     ASSERT_EQ(added_.size(), 2u);  // the follower added both, in id order
     EXPECT_EQ(added_[0].robot, "other");
     EXPECT_EQ(added_[1].robot, "mine");
