@@ -25,9 +25,9 @@ struct ChangeOptions {
   // A frame that is no loop closure is still compared with its best place when the geometric
   // verification kept at least this many inlier point pairs with it (a revisit whose score the
   // change itself, or the sequence, kept under the loop threshold); 0: only at loop closures.
-  // 20: the loop decision's min_score (loop_decision.h, pipeline step 9, seed §5.7), counted
-  // on this frame's own inliers rather than on the sequence-averaged score.
-  int min_inliers_without_loop = 20;
+  // 12: min_points, the pairs the detector's own homography needs; its rules (inlier share,
+  // plausible scale) then decide whether the views are compared.
+  int min_inliers_without_loop = 12;
   // How readily a difference becomes an alarm, in (0, 1]: the appearance difference a region
   // needs is max_difference - sensitivity * (max_difference - min_difference) CIE Lab units.
   double sensitivity = 0.5;
