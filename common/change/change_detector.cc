@@ -182,6 +182,10 @@ bool FitHomography(const ChangeReference& reference, int frame_width, const Chan
   return true;
 }
 
+// The flow's patches (6 pixels) need a thumbnail at least twice as high and wide; a thinner one
+// is compared as the homography maps it.
+constexpr int kMinFlowSide = 12;
+
 // Moves the warped stored view (and where it is valid) so that each frame pixel shows what the
 // dense optical flow from the frame to the stored view finds there.
 void AlignByFlow(const cv::Mat& frame, cv::Mat* warped, cv::Mat* valid) {
@@ -263,7 +267,10 @@ bool SeenElsewhere(const cv::Mat& frame, const cv::Rect& box, const cv::Mat& reg
       if (cv::countNonZero(resized_region) < kMinRegionPixels) continue;
       cv::matchTemplate(thumbnail(around_box), resized, scores, cv::TM_CCOEFF_NORMED,
                         resized_region);
+      // A flat stored window makes the masked correlation divide by nearly nothing: NaN, an
+      // infinity or a value above 1 say nothing about the region and count as no match.
       cv::patchNaNs(scores, 0.0);
+      cv::threshold(scores, scores, 1.0, 0.0, cv::THRESH_TOZERO_INV);
       double best = 0;
       cv::minMaxLoc(scores, nullptr, &best);
       if (best >= similarity) return true;
@@ -368,7 +375,9 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
       if (result.why_not.empty()) result.why_not = "the views share too little";
       continue;
     }
-    if (options.flow_alignment) AlignByFlow(frame_thumbnail, &warped, &valid);
+    if (options.flow_alignment && std::min(width, height) >= kMinFlowSide) {
+      AlignByFlow(frame_thumbnail, &warped, &valid);
+    }
     const cv::Mat stored_lab = MatchExposure(ToLab(warped), frame_lab, valid);
     cv::Mat outside = OutsideRange(frame_lab, stored_lab, radius);
     if (options.texture_weight > 0) {

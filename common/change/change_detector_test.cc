@@ -61,6 +61,10 @@ TEST(ChangeOptionsTest, DefaultsPass) {
   bad.sensitivity = 0;
   EXPECT_FALSE(bad.Check(&error));
   EXPECT_NE(error.find("sensitivity"), std::string::npos);
+  bad = ChangeOptions();
+  bad.max_elsewhere_similarity = 0;
+  EXPECT_FALSE(bad.Check(&error));
+  EXPECT_NE(error.find("elsewhere"), std::string::npos);
 }
 
 TEST(ChangeDetectorTest, UnchangedSceneRaisesNothing) {
@@ -153,6 +157,40 @@ TEST(ChangeDetectorTest, ContentTheStoredViewShowsElsewhereIsNotAChange) {
   EXPECT_TRUE(
       DetectChanges(Thumbnail(frame), frame.size(), {Reference(scene, kOffset, block)}, options)
           .changes.empty());
+}
+
+TEST(ChangeDetectorTest, ObjectBeforeAPlainStoredAreaIsFound) {
+  // Where the stored view is flat (a blown-out window), correlating with it says nothing: the
+  // object pasted there is still a change.
+  cv::Mat scene = Scene();
+  const cv::Rect object(300, 200, 100, 120);
+  scene(cv::Rect(object.tl() + kOffset - cv::Point(60, 60), object.size() + cv::Size(120, 120)))
+      .setTo(cv::Scalar(255, 255, 255));
+  cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+  cv::Mat coarse(12, 10, CV_8UC3), textured;
+  cv::RNG(5).fill(coarse, cv::RNG::UNIFORM, cv::Scalar::all(0), cv::Scalar::all(200));
+  cv::resize(coarse, textured, object.size(), 0, 0, cv::INTER_NEAREST);
+  textured.copyTo(frame(object));
+  const ChangeResult result = DetectChanges(Thumbnail(frame), frame.size(),
+                                            {Reference(scene, kOffset, object)}, ChangeOptions());
+  ASSERT_TRUE(result.checked);
+  ASSERT_EQ(result.changes.size(), 1u);
+  EXPECT_GT(IoU(result.changes[0].box, object), 0.5) << result.changes[0].box;
+}
+
+TEST(ChangeDetectorTest, AThinFrameIsComparedWithoutFlow) {
+  // Thumbnails too small for the flow's patches: compared as the homography maps them.
+  const cv::Mat scene = Scene();
+  const cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, 24))).clone();
+  ChangeReference reference = Reference(scene, kOffset);
+  reference.thumbnail = Thumbnail(scene(cv::Rect(0, 0, kWidth, 24)));
+  std::vector<std::pair<cv::Point2f, cv::Point2f>> pairs;
+  for (int x = 10; x < kWidth - kOffset.x; x += 20) {
+    pairs.emplace_back(cv::Point2f(x, 4 + (x / 20) % 3),
+                       cv::Point2f(x + kOffset.x, 4 + (x / 20) % 3));
+  }
+  reference.point_pairs = pairs;
+  EXPECT_NO_THROW(DetectChanges(Thumbnail(frame), frame.size(), {reference}, ChangeOptions()));
 }
 
 TEST(ChangeDetectorTest, RegionWithVerifiedMatchesIsNotAChange) {
