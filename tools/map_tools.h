@@ -200,7 +200,8 @@ struct IndexSnapshotReport {
 
 // Opens the map as the server does (must exist; from its descriptor index snapshot when one
 // fits) and writes the snapshot beside it, so that the next server start loads the FLANN tree
-// instead of growing it point by point. Reads the map only.
+// instead of growing it point by point. Opens the map as the server does (upgrading an older
+// schema); a place committed while it reads can make it fail ("refers to missing place").
 StatusOr<IndexSnapshotReport> WriteIndexSnapshot(const std::string& path);
 
 }  // namespace placerec

@@ -217,8 +217,9 @@ int IndexCommand(int argc, char** argv) {
       "start loads the tree instead of growing it point by point (at a million landmark\n"
       "objects, most of the time a start takes). The server writes it itself on a clean\n"
       "shutdown; a snapshot that does not match the map (places added since, a pruned or\n"
-      "merged map, damage) is ignored or extended on open, never trusted. Reads the map only:\n"
-      "it may run while a server has the map open (the snapshot then covers the places it read).\n"
+      "merged map, damage) is ignored or extended on open, never trusted. It may run while a\n"
+      "server has the map open (the snapshot then covers the places it read); a place committed\n"
+      "while it reads can make it fail: run it again.\n"
       "Needs the memory of the server holding the map.");
   parser.AddRequired("db", &db, "map file");
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-map index")) {

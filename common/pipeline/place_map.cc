@@ -1,6 +1,7 @@
 #include "common/pipeline/place_map.h"
 
 #include <algorithm>
+#include <exception>
 #include <mutex>
 #include <utility>
 
@@ -24,9 +25,16 @@ StatusOr<std::unique_ptr<PlaceMap>> PlaceMap::Open(std::unique_ptr<LandmarkStore
     map->index_.AddPlace(place);
     for (const LandmarkId seen : place.seen_landmarks) map->seen_at_[seen].push_back(place.id);
   }));
+  // Room for the landmarks the places announce. A damaged count must not stop the map from
+  // opening: the reservation is only a hint, and a failed one leaves the index to grow as it goes.
   size_t landmarks = 0;
   for (const auto& [id, place] : map->places_) landmarks += std::max(place.num_landmarks, 0);
-  map->index_.Reserve(landmarks);
+  try {
+    map->index_.Reserve(landmarks);
+  } catch (const std::exception& e) {
+    LOG(WARNING) << "cannot reserve room for " << landmarks << " landmarks (" << e.what()
+                 << "): the places' landmark counts may be damaged";
+  }
   Status status;
   PLACEREC_RETURN_IF_ERROR(map->store_->LoadLandmarks([&map, &status](Landmark&& landmark) {
     if (!status.ok()) return;

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 
 #include "common/recognition/recognition_test_util.h"
 #include "common/storage/sqlite_store.h"
@@ -181,6 +182,26 @@ std::string Answers(const PlaceMap& map, int seeds) {
     text << "\n";
   }
   return text.str();
+}
+
+TEST(PlaceMapTest, DamagedLandmarkCountsDoNotStopTheMapFromOpening) {
+  MapFile file;
+  {
+    std::unique_ptr<PlaceMap> map = OpenMap(file.path(), LandmarkIndexOptions());
+    for (int p = 0; p < 3; ++p) InsertPlace(p, map.get());
+  }
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(file.path().c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(
+      sqlite3_exec(db, "UPDATE places SET num_landmarks = 2147483647", nullptr, nullptr, nullptr),
+      SQLITE_OK);
+  sqlite3_close(db);
+  StatusOr<std::unique_ptr<LandmarkStore>> store =
+      OpenSqliteStore(file.path(), SqliteStoreOptions());
+  ASSERT_TRUE(store.ok()) << store.status().message();
+  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), {});
+  ASSERT_TRUE(map.ok()) << map.status().message();
+  EXPECT_EQ((*map)->Counts().landmarks, 9);
 }
 
 TEST(PlaceMapTest, ReopensFromItsIndexSnapshotWithTheSameAnswers) {

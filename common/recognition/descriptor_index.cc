@@ -1,5 +1,7 @@
 #include "common/recognition/descriptor_index.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -376,6 +378,8 @@ void DescriptorIndex::Add(int32_t owner, const cv::Mat& descriptors) {
 }
 
 void DescriptorIndex::DeferInsertion() {
+  // FinishDeferred inserts every block from the first: none may be in the tree already.
+  CHECK(blocks_.empty()) << "DeferInsertion after Add";
   if (options_.method == DescriptorSearch::kFlann) deferred_ = true;
 }
 
@@ -464,8 +468,10 @@ StatusOr<size_t> DescriptorIndex::LoadSnapshot(const std::string& path, std::str
                                    " descriptor blocks are not the ones it covers");
   }
   struct stat info;
-  if (fstat(fileno(file.get()), &info) != 0 ||
-      static_cast<uint64_t>(info.st_size) != SnapshotHeader::kBytes + header->payload_bytes) {
+  if (fstat(fileno(file.get()), &info) != 0) {
+    return Status::IoError(std::string("cannot stat it: ") + std::strerror(errno));
+  }
+  if (static_cast<uint64_t>(info.st_size) != SnapshotHeader::kBytes + header->payload_bytes) {
     return Status::InvalidArgument("it is " + std::to_string(info.st_size) + " bytes, not " +
                                    std::to_string(SnapshotHeader::kBytes + header->payload_bytes));
   }
@@ -523,11 +529,25 @@ Status DescriptorIndex::SaveSnapshot(const std::string& path) const {
   CHECK(!deferred_) << "SaveSnapshot between DeferInsertion and FinishDeferred";
   if (!flann_) return Status::InvalidArgument("the descriptor index is empty: nothing to save");
   // One fixed name: a file left by a process killed while writing is overwritten by the next
-  // save rather than piling up. Two processes saving at once can mix their bytes in it; the
-  // checksums make such a file one that is ignored, never one that is used.
+  // save rather than piling up. A save holds a lock on it while writing: a second process that
+  // saves at the same moment (a server stopping while `placerec-map index` runs) is refused
+  // rather than writing into it.
   const std::string temporary = path + ".tmp";
-  File file(std::fopen(temporary.c_str(), "wb"));
+  const int fd = open(temporary.c_str(), O_WRONLY | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) return Status::IoError("cannot write " + temporary + ": " + std::strerror(errno));
+  File file(fdopen(fd, "wb"));
   if (!file) {
+    close(fd);
+    return Status::IoError("cannot write " + temporary + ": " + std::strerror(errno));
+  }
+  struct stat held, named;
+  if (flock(fd, LOCK_EX | LOCK_NB) != 0 || fstat(fd, &held) != 0 ||
+      stat(temporary.c_str(), &named) != 0 || held.st_ino != named.st_ino ||
+      held.st_dev != named.st_dev) {
+    // Locked by another save, or renamed by one that finished since this one opened it.
+    return Status::IoError("another process is writing " + temporary + ": try again");
+  }
+  if (ftruncate(fd, 0) != 0) {
     return Status::IoError("cannot write " + temporary + ": " + std::strerror(errno));
   }
   auto fail = [&](const std::string& what) {

@@ -99,8 +99,9 @@ class DescriptorIndex {
   SnapshotLoad FinishDeferred(const std::string& snapshot_path);
   // Writes a snapshot of the whole index to `path`: to `path`.tmp, flushed to disk, then renamed
   // over `path`, so a reader sees the old snapshot or the new one, never half of one. kFlann only;
-  // may run alongside Search, not alongside Add. The snapshot holds the tree only (about 9 bytes
-  // per descriptor), not the descriptors.
+  // may run alongside Search, not alongside Add. The snapshot holds the tree only (9 bytes per
+  // node, 2n - 1 nodes for n descriptors), not the descriptors. A second save while one is
+  // writing `path`.tmp (another process) is refused with an error and touches nothing.
   Status SaveSnapshot(const std::string& path) const;
 
  private:

@@ -2,6 +2,8 @@
 // as the tree grown by insertion; a stale, foreign or damaged snapshot is ignored.
 #include "common/recognition/descriptor_index.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -303,6 +305,28 @@ TEST_F(DescriptorSnapshotTest, LeftoverTemporaryFileIsOverwritten) {
   const std::unique_ptr<DescriptorIndex> index = Reopen(&load);
   EXPECT_TRUE(load.used) << load.message;
   EXPECT_EQ(Answers(*index, queries_), GrownAnswers());
+}
+
+TEST_F(DescriptorSnapshotTest, ASaveWhileAnotherIsWritingIsRefusedAndTouchesNothing) {
+  SaveGrown(blocks_.size());
+  const std::string snapshot = ReadFile();
+  // Another process is writing the temporary file (it holds the lock on it).
+  const std::string other_bytes = "another save's bytes";
+  std::ofstream(path_ + ".tmp") << other_bytes;
+  const int other = open((path_ + ".tmp").c_str(), O_RDWR);
+  ASSERT_GE(other, 0);
+  ASSERT_EQ(flock(other, LOCK_EX), 0);
+  DescriptorIndex smaller(FewChecks());
+  AddBlocks(blocks_, 0, 5, &smaller);
+  const Status refused = smaller.SaveSnapshot(path_);
+  EXPECT_FALSE(refused.ok());
+  EXPECT_NE(refused.message().find("another process"), std::string::npos) << refused.message();
+  std::ifstream temporary(path_ + ".tmp");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(temporary), {}), other_bytes);
+  EXPECT_EQ(ReadFile(), snapshot);
+  close(other);
+  // Once the other save is gone, saving works.
+  EXPECT_TRUE(smaller.SaveSnapshot(path_).ok());
 }
 
 TEST_F(DescriptorSnapshotTest, SaveFailsCleanly) {
