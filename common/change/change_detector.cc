@@ -188,9 +188,8 @@ constexpr int kMinFlowSide = 12;
 
 // Moves the warped stored view (and where it is valid) so that each frame pixel shows what the
 // dense optical flow from the frame to the stored view finds there.
-void AlignByFlow(const cv::Mat& frame, cv::Mat* warped, cv::Mat* valid) {
-  cv::Mat frame_grey, stored_grey;
-  cv::cvtColor(frame, frame_grey, cv::COLOR_BGR2GRAY);
+void AlignByFlow(const cv::Mat& frame_grey, cv::Mat* warped, cv::Mat* valid) {
+  cv::Mat stored_grey;
   cv::cvtColor(*warped, stored_grey, cv::COLOR_BGR2GRAY);
   // Outside the stored view the frame's own pixels, so that the flow is not pulled to black.
   frame_grey.copyTo(stored_grey, *valid == 0);
@@ -376,7 +375,7 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
       continue;
     }
     if (options.flow_alignment && std::min(width, height) >= kMinFlowSide) {
-      AlignByFlow(frame_thumbnail, &warped, &valid);
+      AlignByFlow(frame_grey, &warped, &valid);
     }
     const cv::Mat stored_lab = MatchExposure(ToLab(warped), frame_lab, valid);
     cv::Mat outside = OutsideRange(frame_lab, stored_lab, radius);
