@@ -8,7 +8,7 @@ packages=(
   libopencv-dev libopencv-contrib-dev
   libeigen3-dev
   liblcm-dev liblcm-bin libglib2.0-dev
-  libflann-dev libhnswlib-dev liblz4-dev
+  libflann-dev libhnswlib-dev liblz4-dev libxxhash-dev
   libsqlite3-dev sqlite3
   libpq-dev postgresql-15
   libgoogle-glog-dev libboost-program-options-dev nlohmann-json3-dev

@@ -15,6 +15,7 @@
 #include <stdexcept>
 
 #include <hnswlib/hnswlib.h>
+#include <xxhash.h>
 #include <flann/flann.hpp>
 
 #include "common/features/features.h"
@@ -42,65 +43,24 @@ class DescriptorSpace : public hnswlib::SpaceInterface<int> {
 // graph in every process.
 constexpr size_t kHnswSeed = 100;
 
-// A 64-bit hash of a byte stream with XXH64's round and avalanche (Collet): fast enough to
-// cover every stored descriptor when a map opens, and good at telling apart damaged or
-// different contents (it is no protection against a deliberate forgery).
+// XXH64 (libxxhash) of a byte stream: fast enough to cover every stored descriptor when a map
+// opens, and good at telling apart damaged or different contents (no protection against a
+// deliberate forgery).
 class Hash64 {
  public:
-  void Update(const void* data, size_t size) {
-    if (size == 0) return;
-    const uint8_t* p = static_cast<const uint8_t*>(data);
-    total_ += size;
-    if (buffered_ > 0) {
-      const size_t take = std::min(size, sizeof(buffer_) - buffered_);
-      std::memcpy(buffer_ + buffered_, p, take);
-      buffered_ += take;
-      p += take;
-      size -= take;
-      if (buffered_ < sizeof(buffer_)) return;
-      Stripe(buffer_);
-      buffered_ = 0;
-    }
-    for (; size >= sizeof(buffer_); p += sizeof(buffer_), size -= sizeof(buffer_)) Stripe(p);
-    std::memcpy(buffer_, p, size);
-    buffered_ = size;
+  Hash64() : state_(XXH64_createState()) {
+    CHECK(state_ != nullptr);
+    XXH64_reset(state_, 0);
   }
-  uint64_t Digest() const {
-    uint64_t h =
-        Rotl(lanes_[0], 1) + Rotl(lanes_[1], 7) + Rotl(lanes_[2], 12) + Rotl(lanes_[3], 18);
-    for (const uint64_t lane : lanes_) h = (h ^ Round(0, lane)) * kP1 + kP4;
-    h += total_;
-    size_t i = 0;
-    for (; i + 8 <= buffered_; i += 8) h = Rotl(h ^ Round(0, Word(buffer_ + i)), 27) * kP1 + kP4;
-    for (; i < buffered_; ++i) h = Rotl(h ^ (buffer_[i] * kP5), 11) * kP1;
-    h ^= h >> 33;
-    h *= kP2;
-    h ^= h >> 29;
-    h *= kP3;
-    return h ^ (h >> 32);
-  }
+  ~Hash64() { XXH64_freeState(state_); }
+  Hash64(const Hash64&) = delete;
+  Hash64& operator=(const Hash64&) = delete;
+
+  void Update(const void* data, size_t size) { XXH64_update(state_, data, size); }
+  uint64_t Digest() const { return XXH64_digest(state_); }
 
  private:
-  static constexpr uint64_t kP1 = 11400714785074694791ULL;
-  static constexpr uint64_t kP2 = 14029467366897019727ULL;
-  static constexpr uint64_t kP3 = 1609587929392839161ULL;
-  static constexpr uint64_t kP4 = 9650029242287828579ULL;
-  static constexpr uint64_t kP5 = 2870177450012600261ULL;
-  static uint64_t Rotl(uint64_t x, int r) { return (x << r) | (x >> (64 - r)); }
-  static uint64_t Round(uint64_t acc, uint64_t input) { return Rotl(acc + input * kP2, 31) * kP1; }
-  static uint64_t Word(const uint8_t* p) {
-    uint64_t w;
-    std::memcpy(&w, p, sizeof(w));
-    return w;
-  }
-  void Stripe(const uint8_t* p) {
-    for (int lane = 0; lane < 4; ++lane) lanes_[lane] = Round(lanes_[lane], Word(p + 8 * lane));
-  }
-
-  uint64_t lanes_[4] = {kP1 + kP2, kP2, 0, 0 - kP1};
-  uint8_t buffer_[32] = {};
-  size_t buffered_ = 0;
-  uint64_t total_ = 0;
+  XXH64_state_t* state_;
 };
 
 // The snapshot file: a fixed header, then FLANN's own serialization of the tree (NNIndex and
