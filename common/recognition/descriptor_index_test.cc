@@ -11,6 +11,7 @@
 #include <fstream>
 #include <functional>
 #include <iterator>
+#include <limits>
 #include <memory>
 #include <random>
 #include <sstream>
@@ -19,6 +20,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <flann/flann.hpp>
 
 #include "common/recognition/recognition_test_util.h"
 
@@ -128,6 +130,61 @@ class DescriptorSnapshotTest : public ::testing::Test {
   std::vector<cv::Mat> blocks_;
   cv::Mat queries_;
 };
+
+// The index computes FLANN's distances with its own vector code: the answers (neighbours, their
+// order and distances) must be those of a FLANN tree with FLANN's own L2, grown the same way.
+TEST(DescriptorIndexTest, AnswersAsATreeWithFlannsOwnDistance) {
+  const std::vector<cv::Mat> blocks = MakeBlocks(80, 11);
+  const cv::Mat queries = Queries(blocks, 12);
+  for (const int checks : {4, 32}) {
+    DescriptorIndexOptions options;
+    options.checks = checks;
+    DescriptorIndex index(options);
+    AddBlocks(blocks, 0, blocks.size(), &index);
+    std::vector<std::vector<DescriptorIndex::Neighbour>> ours;
+    index.Search(queries, 5, &ours);
+
+    // FLANN alone: a one-point tree, then every other point inserted without rebuilds.
+    cv::Mat all;
+    for (const cv::Mat& block : blocks) all.push_back(block);
+    std::vector<std::pair<int32_t, int32_t>> owner_row;
+    for (size_t b = 0; b < blocks.size(); ++b) {
+      for (int r = 0; r < blocks[b].rows; ++r) owner_row.emplace_back(100 + b, r);
+    }
+    flann::KDTreeIndex<flann::L2<unsigned char>> tree(
+        flann::Matrix<unsigned char>(all.data, 1, 128), flann::KDTreeIndexParams(1));
+    tree.buildIndex();
+    size_t first = 1;
+    for (const cv::Mat& block : blocks) {
+      const size_t rows = static_cast<size_t>(block.rows);
+      const size_t start = first == 1 ? 1 : 0;  // the first block's first row is in already
+      if (rows > start) {
+        tree.addPoints(flann::Matrix<unsigned char>(const_cast<unsigned char*>(block.ptr(start)),
+                                                    rows - start, 128),
+                       std::numeric_limits<float>::max());
+      }
+      first = 0;
+    }
+    std::vector<size_t> indices(queries.rows * 5);
+    std::vector<float> distances(queries.rows * 5);
+    flann::Matrix<size_t> index_matrix(indices.data(), queries.rows, 5);
+    flann::Matrix<float> distance_matrix(distances.data(), queries.rows, 5);
+    flann::SearchParams params(checks);
+    params.cores = 1;
+    tree.knnSearch(flann::Matrix<unsigned char>(queries.data, queries.rows, 128), index_matrix,
+                   distance_matrix, 5, params);
+    ASSERT_EQ(ours.size(), static_cast<size_t>(queries.rows));
+    for (int q = 0; q < queries.rows; ++q) {
+      ASSERT_EQ(ours[q].size(), 5u) << "query " << q;
+      for (int j = 0; j < 5; ++j) {
+        const auto [owner, row] = owner_row[index_matrix[q][j]];
+        EXPECT_EQ(ours[q][j].owner, owner) << "checks " << checks << " query " << q << " #" << j;
+        EXPECT_EQ(ours[q][j].row, row) << "checks " << checks << " query " << q << " #" << j;
+        EXPECT_EQ(ours[q][j].distance, distance_matrix[q][j]);
+      }
+    }
+  }
+}
 
 TEST_F(DescriptorSnapshotTest, TheEqualityCheckSeesTheShapeOfTheTree) {
   // Grown in another order, the same points answer differently with few checks: equal answers
