@@ -18,9 +18,9 @@ namespace {
 class SharedSegmenter : public Segmenter {
  public:
   explicit SharedSegmenter(const Segmenter* segmenter) : segmenter_(segmenter) {}
-  SceneSegmentation Segment(const WorkingImage& image,
-                            cv::Mat* filter_bank = nullptr) const override {
-    return segmenter_->Segment(image, filter_bank);
+  SceneSegmentation Segment(const WorkingImage& image, cv::Mat* filter_bank = nullptr,
+                            TextonMap* textons = nullptr) const override {
+    return segmenter_->Segment(image, filter_bank, textons);
   }
   std::string name() const override { return segmenter_->name(); }
   int working_width() const override { return segmenter_->working_width(); }

@@ -132,7 +132,8 @@ cv::Mat SceneOrganizer::Appearance(const cv::Mat& features, const cv::Mat& label
 SceneSegmentation SceneOrganizer::ClassifiedSuperpixels(const WorkingImage& image,
                                                         cv::Mat* features_out,
                                                         StageTimings* timings,
-                                                        cv::Mat* appearance_out) const {
+                                                        cv::Mat* appearance_out,
+                                                        TextonMap* textons_out) const {
   Timer timer;
   SceneSegmentation superpixels = ComputeSuperpixels(image, options_.superpixels);
   if (timings != nullptr) timings->emplace_back("superpixels", timer.ElapsedMs());
@@ -176,6 +177,7 @@ SceneSegmentation SceneOrganizer::ClassifiedSuperpixels(const WorkingImage& imag
   if (timings != nullptr) timings->emplace_back("classifiers", timer.ElapsedMs());
   if (features_out != nullptr) *features_out = features;
   if (appearance_out != nullptr) *appearance_out = appearance;
+  if (textons_out != nullptr) *textons_out = map;
   return superpixels;
 }
 
@@ -199,11 +201,12 @@ SceneSegmentation SceneOrganizer::MergeParts(const SceneSegmentation& parts,
 }
 
 SceneSegmentation SceneOrganizer::Segment(const WorkingImage& image, SceneOrganizerSummary* summary,
-                                          cv::Mat* filter_bank) const {
+                                          cv::Mat* filter_bank, TextonMap* textons) const {
   SceneOrganizerSummary stats;
   cv::Mat appearance;
   cv::Mat features;
-  SceneSegmentation parts = ClassifiedSuperpixels(image, &features, &stats.timings, &appearance);
+  SceneSegmentation parts =
+      ClassifiedSuperpixels(image, &features, &stats.timings, &appearance, textons);
   stats.superpixels = parts.size();
   for (const SegmentClass c : parts.classes) stats.background_superpixels += IsBackground(c);
   Timer timer;

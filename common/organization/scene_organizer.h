@@ -115,9 +115,10 @@ class SceneOrganizer {
                  std::shared_ptr<const BackgroundModel> model);
 
   // Segments a working image. Thread-safe. `filter_bank` (may be null) receives the image's
-  // filter-bank features (Features(image)), which the segmentation computes anyway.
+  // filter-bank features (Features(image)) and `textons` (may be null) their texton map on the
+  // grid of options().texton_stride, both of which the segmentation computes anyway.
   SceneSegmentation Segment(const WorkingImage& image, SceneOrganizerSummary* summary = nullptr,
-                            cv::Mat* filter_bank = nullptr) const;
+                            cv::Mat* filter_bank = nullptr, TextonMap* textons = nullptr) const;
 
   // The stages on their own, for evaluation and training.
   // 20-d filter-bank features of the working image (CV_32FC(20)).
@@ -126,10 +127,12 @@ class SceneOrganizer {
   // from features.
   cv::Mat Appearance(const cv::Mat& features, const cv::Mat& labels, int num_regions) const;
   // Superpixels classified: the initial partition with background classes, before grouping;
-  // optionally with the filter-bank features and the superpixels' RegionAppearance rows.
+  // optionally with the filter-bank features, the superpixels' RegionAppearance rows and the
+  // texton map they were counted from.
   SceneSegmentation ClassifiedSuperpixels(const WorkingImage& image, cv::Mat* features = nullptr,
                                           StageTimings* timings = nullptr,
-                                          cv::Mat* appearance = nullptr) const;
+                                          cv::Mat* appearance = nullptr,
+                                          TextonMap* textons = nullptr) const;
   // The learned boundary scores on the cracks of `parts` (BoundaryModel::ScoreMap) from the
   // filter-bank features; an empty matrix when the grouping model does not read them.
   cv::Mat BoundaryScores(const SceneSegmentation& parts, const cv::Mat& features) const;

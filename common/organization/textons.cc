@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
+#include <string>
 
 #include <glog/logging.h>
 #include <opencv2/core/persistence.hpp>
@@ -109,7 +111,34 @@ TextonAssigner::TextonAssigner(const TextonModel& model) {
     }
     half_norms_[c] = static_cast<float>(0.5 * norm);
   }
+  std::string values;
+  auto append = [&values](const void* data, size_t bytes) {
+    values.append(static_cast<const char*>(data), bytes);
+  };
+  append(&k_, sizeof(k_));
+  append(mean_.data(), mean_.size() * sizeof(float));
+  append(inv_std_.data(), inv_std_.size() * sizeof(float));
+  append(transposed_.data(), transposed_.size() * sizeof(float));
+  digest_ = std::hash<std::string>()(values);
 }
+
+namespace {
+
+// scores[c] = half_norms[c] - z.c for the `padded` centres, z the standardised feature. Compiled
+// twice, for AVX2 and for the baseline, and chosen by the processor at load: the same additions
+// and multiplications in the same order (no fused multiply-add), so the same scores either way.
+__attribute__((target_clones("avx2", "default"))) void TextonScores(
+    const float* feature, const float* mean, const float* inv_std, const float* transposed,
+    const float* half_norms, int padded, float* scores) {
+  for (int c = 0; c < padded; ++c) scores[c] = half_norms[c];
+  for (int d = 0; d < kTextonFeatureSize; ++d) {
+    const float z = (feature[d] - mean[d]) * inv_std[d];
+    const float* column = transposed + static_cast<size_t>(d) * padded;
+    for (int c = 0; c < padded; ++c) scores[c] -= z * column[c];
+  }
+}
+
+}  // namespace
 
 int TextonAssigner::Assign(const float* feature) const {
   // distance^2 / 2 - ||z||^2 / 2 = ||c||^2 / 2 - z.c, minimised over c.
@@ -120,13 +149,8 @@ int TextonAssigner::Assign(const float* feature) const {
     heap_scores.resize(static_cast<size_t>(padded_));
     scores = heap_scores.data();
   }
-  std::copy(half_norms_.begin(), half_norms_.end(), scores);
-  const int padded = padded_;
-  for (int d = 0; d < kTextonFeatureSize; ++d) {
-    const float z = (feature[d] - mean_[d]) * inv_std_[d];
-    const float* column = transposed_.data() + static_cast<size_t>(d) * padded;
-    for (int c = 0; c < padded; ++c) scores[c] -= z * column[c];
-  }
+  TextonScores(feature, mean_.data(), inv_std_.data(), transposed_.data(), half_norms_.data(),
+               padded_, scores);
   int best = 0;
   float best_score = scores[0];
   for (int c = 1; c < k_; ++c) {
@@ -143,6 +167,7 @@ TextonMap ComputeTextonMap(const cv::Mat& features, const TextonAssigner& assign
   CHECK_GE(stride, 1);
   TextonMap map;
   map.stride = stride;
+  map.model = assigner.digest();
   const int rows = (features.rows + stride - 1) / stride;
   const int cols = (features.cols + stride - 1) / stride;
   map.ids.create(rows, cols, CV_16U);

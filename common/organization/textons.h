@@ -62,10 +62,14 @@ class TextonAssigner {
   // Nearest texton of a raw 20-d feature.
   int Assign(const float* feature) const;
   int size() const { return k_; }
+  // Identifies the model within this process (a hash of its values): a texton map computed with
+  // an assigner of the same digest holds exactly the ids this one would assign.
+  uint64_t digest() const { return digest_; }
 
  private:
   int k_ = 0;
   int padded_ = 0;
+  uint64_t digest_ = 0;
   std::vector<float> mean_;
   std::vector<float> inv_std_;
   std::vector<float> transposed_;  // 20 x padded_, centre c in column c
@@ -77,6 +81,7 @@ class TextonAssigner {
 struct TextonMap {
   cv::Mat ids;  // CV_16U
   int stride = 1;
+  uint64_t model = 0;  // digest() of the assigner that computed it
 };
 
 // `features` is ComputeFilterBank's CV_32FC(20) image; stride >= 1.

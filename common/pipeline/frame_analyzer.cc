@@ -10,9 +10,10 @@
 
 namespace placerec {
 
-SceneSegmentation SuperpixelSegmenter::Segment(const WorkingImage& image,
-                                               cv::Mat* filter_bank) const {
+SceneSegmentation SuperpixelSegmenter::Segment(const WorkingImage& image, cv::Mat* filter_bank,
+                                               TextonMap* textons) const {
   if (filter_bank != nullptr) filter_bank->release();
+  if (textons != nullptr) *textons = TextonMap();
   return ComputeSuperpixels(image, options_);
 }
 
@@ -107,7 +108,8 @@ FrameObservation FrameAnalyzer::Analyze(const cv::Mat& bgr) const {
   timer.Restart();
   const WorkingImage working = MakeWorkingImage(frame, segmenter_->working_width());
   observation.segmentation =
-      segmenter_->Segment(working, options_.keep_filter_bank ? &observation.filter_bank : nullptr);
+      segmenter_->Segment(working, options_.keep_filter_bank ? &observation.filter_bank : nullptr,
+                          options_.keep_filter_bank ? &observation.textons : nullptr);
   if (options_.keep_filter_bank && observation.filter_bank.empty()) {
     observation.filter_bank = ComputeFilterBank(working.lab);
   }

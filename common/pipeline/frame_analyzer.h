@@ -25,9 +25,10 @@ class Segmenter {
  public:
   virtual ~Segmenter() = default;
   // `filter_bank` (may be null) receives the image's 20-d filter bank (ComputeFilterBank,
-  // CV_32FC(20)) when the segmenter computes one, and is left empty otherwise.
-  virtual SceneSegmentation Segment(const WorkingImage& image,
-                                    cv::Mat* filter_bank = nullptr) const = 0;
+  // CV_32FC(20)) and `textons` (may be null) its texton map when the segmenter computes them,
+  // and are left empty otherwise.
+  virtual SceneSegmentation Segment(const WorkingImage& image, cv::Mat* filter_bank = nullptr,
+                                    TextonMap* textons = nullptr) const = 0;
   virtual std::string name() const = 0;
   // Width of the working image Segment expects (pixels; 0: the frame's own).
   virtual int working_width() const = 0;
@@ -37,8 +38,8 @@ class Segmenter {
 class SuperpixelSegmenter : public Segmenter {
  public:
   explicit SuperpixelSegmenter(const SuperpixelOptions& options) : options_(options) {}
-  SceneSegmentation Segment(const WorkingImage& image,
-                            cv::Mat* filter_bank = nullptr) const override;
+  SceneSegmentation Segment(const WorkingImage& image, cv::Mat* filter_bank = nullptr,
+                            TextonMap* textons = nullptr) const override;
   std::string name() const override { return "superpixels"; }
   int working_width() const override { return options_.working_width; }
 
@@ -52,9 +53,9 @@ class SuperpixelSegmenter : public Segmenter {
 class OrganizationSegmenter : public Segmenter {
  public:
   explicit OrganizationSegmenter(SceneOrganizer organizer) : organizer_(std::move(organizer)) {}
-  SceneSegmentation Segment(const WorkingImage& image,
-                            cv::Mat* filter_bank = nullptr) const override {
-    return organizer_.Segment(image, nullptr, filter_bank);
+  SceneSegmentation Segment(const WorkingImage& image, cv::Mat* filter_bank = nullptr,
+                            TextonMap* textons = nullptr) const override {
+    return organizer_.Segment(image, nullptr, filter_bank, textons);
   }
   std::string name() const override { return "organization"; }
   int working_width() const override { return organizer_.options().superpixels.working_width; }
@@ -128,6 +129,9 @@ struct FrameObservation {
   // The working image's filter bank (CV_32FC(20), ComputeFilterBank) for object classification:
   // the segmentation's own, or computed when keep_filter_bank asks for it.
   cv::Mat filter_bank;
+  // The segmentation's texton map of that filter bank (kept with it; empty when the segmenter
+  // computes none): classification reads its ids instead of assigning them again.
+  TextonMap textons;
   std::vector<SceneObject> objects;  // boxes in processed pixels
   bool colourless = false;
   // The processed frame scaled to thumbnail_width and preview_width (BGR; empty when 0).

@@ -98,8 +98,8 @@ StatusOr<std::unique_ptr<ObjectClassLabeler>> ObjectClassLabeler::Load(
       new ObjectClassLabeler(options, std::move(*classifier), *textons));
 }
 
-ObjectLabel ObjectClassLabeler::Classify(const cv::Mat& filter_bank,
-                                         const SceneObject& object) const {
+ObjectLabel ObjectClassLabeler::Classify(const cv::Mat& filter_bank, const SceneObject& object,
+                                         const TextonMap* textons) const {
   ObjectLabel label;
   if (filter_bank.empty() || object.mask.empty()) return label;
   const cv::Rect frame(0, 0, filter_bank.cols, filter_bank.rows);
@@ -110,6 +110,8 @@ ObjectLabel ObjectClassLabeler::Classify(const cv::Mat& filter_bank,
   const int stride = options_.texton_stride;
   const cv::Size grid((filter_bank.cols + stride - 1) / stride,
                       (filter_bank.rows + stride - 1) / stride);
+  const bool read_map = textons != nullptr && textons->model == textons_.digest() &&
+                        textons->stride == stride && textons->ids.size() == grid;
   cv::Mat ids = cv::Mat::zeros(grid, CV_16U);
   cv::Mat grid_mask = cv::Mat::zeros(grid, CV_8U);
   bool any = false;
@@ -120,7 +122,9 @@ ObjectLabel ObjectClassLabeler::Classify(const cv::Mat& filter_bank,
       if (m[x - box.x] == 0) continue;
       grid_mask.at<uint8_t>(y / stride, x / stride) = 255;
       ids.at<uint16_t>(y / stride, x / stride) =
-          static_cast<uint16_t>(textons_.Assign(f + static_cast<size_t>(x) * kTextonFeatureSize));
+          read_map ? textons->ids.at<uint16_t>(y / stride, x / stride)
+                   : static_cast<uint16_t>(
+                         textons_.Assign(f + static_cast<size_t>(x) * kTextonFeatureSize));
       any = true;
     }
   }

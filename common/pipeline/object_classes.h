@@ -72,8 +72,11 @@ class ObjectClassLabeler {
   // most confident of the classes that are not background (one-per-class, seed §6.2.1). The
   // confidence is 1 / (1 + exp(-2 F)) of the class's boosted sum F: Gentle AdaBoost's sum
   // estimates half the log-odds [Friedman00]. An object whose description fails (an empty mask)
-  // gets no class.
-  ObjectLabel Classify(const cv::Mat& filter_bank, const SceneObject& object) const;
+  // gets no class. `textons` (may be null or empty) is the segmentation's texton map of the
+  // same filter bank: where it was computed with these textons on this grid its ids are read
+  // instead of assigned again (the same ids, the same class).
+  ObjectLabel Classify(const cv::Mat& filter_bank, const SceneObject& object,
+                       const TextonMap* textons = nullptr) const;
 
   // Whether the map should leave out a landmark of this label (drop_movable).
   bool LeaveOut(const ObjectLabel& label) const;

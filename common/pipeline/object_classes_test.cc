@@ -132,6 +132,39 @@ TEST(ObjectClassesTest, FullResolutionLabelIsTheTrainedDescriptionsDecision) {
   }
 }
 
+// The segmentation's texton map (same textons, same grid) gives the label the labeler's own
+// assignment gives; a map of other textons or another grid is not read.
+TEST(ObjectClassesTest, TheSegmentationsTextonMapIsReadWhereItFits) {
+  const std::unique_ptr<ObjectClassLabeler> labeler = LoadShipped(ObjectClassOptions());
+  ASSERT_NE(labeler, nullptr);
+  const Scene scene;
+  const SceneObject object = scene.Object({60, 40, 120, 100}, SegmentClass::kStructured);
+  StatusOr<TextonModel> model = LoadTextons(DefaultModelsDir() + "/objects/textons.yml");
+  ASSERT_TRUE(model.ok());
+  const TextonAssigner assigner(*model);
+  const int stride = ObjectClassOptions().texton_stride;
+  const TextonMap map = ComputeTextonMap(scene.filter_bank, assigner, stride);
+  const ObjectLabel own = labeler->Classify(scene.filter_bank, object);
+  ASSERT_FALSE(own.name.empty());
+  const ObjectLabel read = labeler->Classify(scene.filter_bank, object, &map);
+  EXPECT_EQ(read.name, own.name);
+  EXPECT_EQ(read.confidence, own.confidence);
+
+  // Every id 0: a map the labeler reads changes the description; one it must not read does not.
+  TextonMap flat = map;
+  flat.ids.setTo(0);
+  const ObjectLabel from_flat = labeler->Classify(scene.filter_bank, object, &flat);
+  EXPECT_NE(from_flat.confidence, own.confidence) << "the fitting map was not read";
+  TextonMap other_model = flat;
+  other_model.model ^= 1;
+  EXPECT_EQ(labeler->Classify(scene.filter_bank, object, &other_model).confidence, own.confidence);
+  TextonMap other_grid = ComputeTextonMap(scene.filter_bank, assigner, stride + 1);
+  other_grid.ids.setTo(0);
+  EXPECT_EQ(labeler->Classify(scene.filter_bank, object, &other_grid).confidence, own.confidence);
+  const TextonMap empty;
+  EXPECT_EQ(labeler->Classify(scene.filter_bank, object, &empty).confidence, own.confidence);
+}
+
 TEST(ObjectClassesTest, OnlySureMovableLabelsAreLeftOutAndOnlyWhenAsked) {
   ObjectClassOptions options;
   const std::unique_ptr<ObjectClassLabeler> keep = LoadShipped(options);

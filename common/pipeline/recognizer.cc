@@ -145,8 +145,8 @@ LandmarkSelection Recognizer::ClassifyLandmarks(const FrameObservation& observat
   }
   LandmarkSelection kept;
   for (size_t i = 0; i < selection.landmarks.size(); ++i) {
-    ObjectLabel label =
-        labeler_->Classify(observation.filter_bank, observation.objects[selection.landmarks[i]]);
+    ObjectLabel label = labeler_->Classify(
+        observation.filter_bank, observation.objects[selection.landmarks[i]], &observation.textons);
     if (labeler_->LeaveOut(label)) continue;
     kept.landmarks.push_back(selection.landmarks[i]);
     kept.tracked_rows.push_back(selection.tracked_rows[i]);
@@ -268,7 +268,8 @@ ChangeReport Recognizer::DetectSceneChanges(const FrameObservation& observation,
         }
       }
       if (cover == nullptr) continue;
-      const ObjectLabel label = labeler_->Classify(observation.filter_bank, *cover);
+      const ObjectLabel label =
+          labeler_->Classify(observation.filter_bank, *cover, &observation.textons);
       change.object_class = label.name;
     }
   }
