@@ -63,7 +63,59 @@ __attribute__((target("avx2"))) int SquaredDistanceAvx2(const uint8_t* a, const 
 }
 #endif
 
+void SquaredDistancesGeneric(SquaredDistanceFunction distance, const uint8_t* query,
+                             const uint8_t* rows, size_t step, int n, int* out) {
+  for (int r = 0; r < n; ++r) out[r] = distance(query, rows + r * step);
+}
+
+#if defined(__x86_64__)
+// SquaredDistanceAvx2 for many rows, the query held in registers.
+__attribute__((target("avx2"))) void SquaredDistancesAvx2(const uint8_t* query,
+                                                          const uint8_t* rows, size_t step, int n,
+                                                          int* out) {
+  static_assert(kDescriptorSize == 128, "four 32-byte registers hold a query");
+  const __m256i zero = _mm256_setzero_si256();
+  __m256i q[4];
+  for (int i = 0; i < 4; ++i) {
+    q[i] = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(query + 32 * i));
+  }
+  for (int r = 0; r < n; ++r) {
+    const uint8_t* row = rows + r * step;
+    __m256i sum = _mm256_setzero_si256();
+    for (int i = 0; i < 4; ++i) {
+      const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row + 32 * i));
+      const __m256i d = _mm256_or_si256(_mm256_subs_epu8(q[i], v), _mm256_subs_epu8(v, q[i]));
+      const __m256i lo = _mm256_unpacklo_epi8(d, zero);
+      const __m256i hi = _mm256_unpackhi_epi8(d, zero);
+      sum = _mm256_add_epi32(
+          sum, _mm256_add_epi32(_mm256_madd_epi16(lo, lo), _mm256_madd_epi16(hi, hi)));
+    }
+    __m128i half = _mm_add_epi32(_mm256_castsi256_si128(sum), _mm256_extracti128_si256(sum, 1));
+    half = _mm_add_epi32(half, _mm_shuffle_epi32(half, _MM_SHUFFLE(1, 0, 3, 2)));
+    half = _mm_add_epi32(half, _mm_shuffle_epi32(half, _MM_SHUFFLE(2, 3, 0, 1)));
+    out[r] = _mm_cvtsi128_si32(half);
+  }
+}
+#endif
+
 }  // namespace
+
+void SquaredDistances(const uint8_t* query, const cv::Mat& rows, int* out) {
+  CHECK(rows.empty() || (rows.type() == CV_8U && rows.cols == kDescriptorSize));
+  if (rows.empty()) return;
+#if defined(__x86_64__)
+  static const bool avx2 = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  if (avx2) {
+    SquaredDistancesAvx2(query, rows.data, rows.step[0], rows.rows, out);
+    return;
+  }
+#endif
+  SquaredDistancesGeneric(SquaredDistanceImplementations().back().second, query, rows.data,
+                          rows.step[0], rows.rows, out);
+}
 
 std::vector<std::pair<std::string, SquaredDistanceFunction>> SquaredDistanceImplementations() {
   std::vector<std::pair<std::string, SquaredDistanceFunction>> all = {
@@ -91,13 +143,14 @@ std::vector<DescriptorMatch> MatchRatioTest(const cv::Mat& query, const cv::Mat&
   const double ratio_squared = ratio * ratio;
   // best[t]: index into `matches` of the match that currently owns train row t.
   std::vector<int> owner(train.rows, -1);
+  std::vector<int> distances(train.rows);
   for (int q = 0; q < query.rows; ++q) {
-    const uint8_t* qd = query.ptr<uint8_t>(q);
+    SquaredDistances(query.ptr<uint8_t>(q), train, distances.data());
     int best = INT_MAX;
     int second = INT_MAX;
     int best_row = -1;
     for (int t = 0; t < train.rows; ++t) {
-      const int d = SquaredDistance(qd, train.ptr<uint8_t>(t));
+      const int d = distances[t];
       if (d < best) {
         second = best;
         best = d;

@@ -15,6 +15,10 @@ namespace placerec {
 // instructions the processor has (chosen once at start).
 int SquaredDistance(const uint8_t* a, const uint8_t* b);
 
+// SquaredDistance from `query` to every row of `rows` (CV_8U, 128 columns, any row step) into
+// out[0..rows.rows): the same values, faster than one call per row.
+void SquaredDistances(const uint8_t* query, const cv::Mat& rows, int* out);
+
 // Every implementation of SquaredDistance this processor runs, by name, from the plain loop to
 // the widest (the one SquaredDistance uses): for tests, which otherwise only see that one.
 using SquaredDistanceFunction = int (*)(const uint8_t*, const uint8_t*);

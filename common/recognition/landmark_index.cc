@@ -261,6 +261,7 @@ IndexResult LandmarkIndex::Query(const std::vector<IndexQuery>& objects,
     const PlaceId place = landmarks_[slot].place;
     return matched_places.count(place) > 0 ? place.value() : -1;
   });
+  std::vector<int> distances;
   for (const auto& [place_value, list] : hits) {
     const PlaceId place(place_value);
     const std::vector<int32_t>& slots = slots_of_place_.at(place);
@@ -270,9 +271,11 @@ IndexResult LandmarkIndex::Query(const std::vector<IndexQuery>& objects,
           const uint8_t* q = query.rows.ptr<uint8_t>(hit.query);
           for (int32_t slot : slots) {
             const cv::Mat& d = landmarks_[slot].descriptors;
+            distances.resize(static_cast<size_t>(d.rows));
+            SquaredDistances(q, d, distances.data());
             for (int t = 0; t < d.rows; ++t) {
               if (slot == hit.owner && t == hit.train) continue;
-              second = std::min(second, static_cast<float>(SquaredDistance(q, d.ptr<uint8_t>(t))));
+              second = std::min(second, static_cast<float>(distances[t]));
             }
           }
           return second;

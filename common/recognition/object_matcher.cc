@@ -136,14 +136,14 @@ std::vector<ObjectPair> MatchObjectPairs(
       while (first + count < query.size() && query.object[first + count] == object) ++count;
       matches = MatchRatioTest(query.rows.rowRange(first, first + count), train, options.ratio);
     } else {
+      std::vector<int> distances;
       const std::vector<GroupHit> passed =
           RatioTestHits(hits.at(key), neighbours, options.ratio, [&](const GroupHit& hit) {
             float second = std::numeric_limits<float>::max();
-            const uint8_t* q = query.rows.ptr<uint8_t>(hit.query);
+            distances.resize(static_cast<size_t>(train.rows));
+            SquaredDistances(query.rows.ptr<uint8_t>(hit.query), train, distances.data());
             for (int t = 0; t < train.rows; ++t) {
-              if (t == hit.train) continue;
-              second =
-                  std::min(second, static_cast<float>(SquaredDistance(q, train.ptr<uint8_t>(t))));
+              if (t != hit.train) second = std::min(second, static_cast<float>(distances[t]));
             }
             return second;
           });

@@ -71,6 +71,31 @@ TEST(DescriptorMatchingTest, EveryImplementationIsExact) {
   }
 }
 
+// The many-rows form gives every row's SquaredDistance, on a continuous matrix, on a column
+// range of a wider one (a row step other than 128) and with extreme values.
+TEST(DescriptorMatchingTest, DistancesToManyRowsAreEachRowsDistance) {
+  std::mt19937 rng(13);
+  const cv::Mat rows = RandomDescriptors(37, &rng);
+  cv::Mat wide(40, 128 + 48, CV_8U);
+  cv::randu(wide, cv::Scalar::all(0), cv::Scalar::all(256));
+  wide.row(3).colRange(5, 133).setTo(255);
+  const cv::Mat strided = wide.colRange(5, 133);
+  const cv::Mat query = RandomDescriptors(2, &rng);
+  cv::Mat zeros(1, 128, CV_8U, cv::Scalar(0));
+  for (const cv::Mat& train : {rows, strided}) {
+    for (const cv::Mat& q : {query.row(0), query.row(1), zeros}) {
+      std::vector<int> out(static_cast<size_t>(train.rows), -1);
+      SquaredDistances(q.ptr<uint8_t>(0), train, out.data());
+      for (int r = 0; r < train.rows; ++r) {
+        EXPECT_EQ(out[r], SquaredDistance(q.ptr<uint8_t>(0), train.ptr<uint8_t>(r))) << r;
+      }
+    }
+  }
+  std::vector<int> out(1, -1);
+  SquaredDistances(zeros.ptr<uint8_t>(0), strided.row(3), out.data());
+  EXPECT_EQ(out[0], 128 * 255 * 255);
+}
+
 TEST(DescriptorMatchingTest, RatioTestFindsTrueMatchesAndRejectsAmbiguousOnes) {
   std::mt19937 rng(1);
   const cv::Mat train = RandomDescriptors(30, &rng);
