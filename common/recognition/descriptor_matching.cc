@@ -70,9 +70,8 @@ void SquaredDistancesGeneric(SquaredDistanceFunction distance, const uint8_t* qu
 
 #if defined(__x86_64__)
 // SquaredDistanceAvx2 for many rows, the query held in registers.
-__attribute__((target("avx2"))) void SquaredDistancesAvx2(const uint8_t* query,
-                                                          const uint8_t* rows, size_t step, int n,
-                                                          int* out) {
+__attribute__((target("avx2"))) void SquaredDistancesAvx2(const uint8_t* query, const uint8_t* rows,
+                                                          size_t step, int n, int* out) {
   static_assert(kDescriptorSize == 128, "four 32-byte registers hold a query");
   const __m256i zero = _mm256_setzero_si256();
   __m256i q[4];
