@@ -177,13 +177,29 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
         truth = PasteObject(object, share, x, y, &query);
         what = object.class_name + " from " + object.source;
       } else if (removal) {
-        // Paint over the frame's largest object of 1-10 % of the frame (a landmark gone).
+        // Paint over a stored landmark where the frame shows it (a landmark gone): of the frame's
+        // objects of 1-10 % of the frame holding at least 3 verified points of the place the
+        // unchanged frame is matched to (its counterparts of the place's landmarks), the one
+        // holding the most.
+        FrameRequest plain_query = request;
+        plain_query.insert = false;
+        const RecognitionResult plain = recognizer.Recognize(plain_query, observation);
         const double frame_area = static_cast<double>(observation.processed_size.area());
         const SceneObject* chosen = nullptr;
-        for (const SceneObject& object : observation.objects) {
-          const double share = object.box.area() / frame_area;
-          if (share < eval.min_area_share || share > eval.max_area_share) continue;
-          if (chosen == nullptr || object.sift_count() > chosen->sift_count()) chosen = &object;
+        int chosen_points = 0;
+        if (!plain.matches.empty() && plain.matches.front().inliers > 0) {
+          for (const SceneObject& object : observation.objects) {
+            const double share = object.box.area() / frame_area;
+            if (share < eval.min_area_share || share > eval.max_area_share) continue;
+            int points = 0;
+            for (const auto& [at_frame, at_place] : plain.matches.front().point_pairs) {
+              points += object.box.contains(cv::Point(at_frame)) ? 1 : 0;
+            }
+            if (points >= 3 && points > chosen_points) {
+              chosen = &object;
+              chosen_points = points;
+            }
+          }
         }
         if (chosen != nullptr) {
           query = image->clone();

@@ -1,7 +1,7 @@
 // `placerec-eval change`: scene-change detection (seed §7.2.4) measured with ground truth. A run
 // (../shared/data layout) is fed in order; at each true revisit the frame is first asked as a
 // query, for half of the revisits with a change made to it (a real object cut from a labelled
-// test split pasted in, or a region painted over with its surroundings), then inserted as
+// test split pasted in, or a stored landmark painted over with its surroundings), then inserted as
 // recorded. Writes OUT/change.json (detection recall by object size, false-alarm rate on the
 // unchanged revisits, localisation IoU) and pictures of hits, misses and false alarms.
 #pragma once

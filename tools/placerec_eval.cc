@@ -219,8 +219,10 @@ int ChangeCommand(int argc, char** argv) {
       "with a real object (car, pedestrian, sign, bicyclist) cut by its ground-truth mask from\n"
       "the test split of --objects pasted in at 1-10 % of the frame (random position and size,\n"
       "fixed --seed, feathered colour-matched edges), every --removal-every-th of them instead\n"
-      "with an object of the frame painted over with its surroundings. Then the frame is inserted\n"
-      "as recorded. Writes OUT/change.json (detection_recall by size band with IoU >= 0.3,\n"
+      "with a stored landmark painted over with its surroundings (the frame's object holding the\n"
+      "most verified points of the place the unchanged frame is matched to). Then the frame is\n"
+      "inserted as recorded. Writes OUT/change.json (detection_recall by size band with IoU >= "
+      "0.3,\n"
       "false_alarm_rate on the unchanged revisits, localisation_iou median) and\n"
       "OUT/pictures/{hit,miss,false_alarm}_*.jpg (truth green, alarms red/yellow, stored place\n"
       "right).");
