@@ -124,10 +124,12 @@ TextonAssigner::TextonAssigner(const TextonModel& model) {
 
 namespace {
 
-// scores[c] = half_norms[c] - z.c for the `padded` centres, z the standardised feature. Compiled
-// twice, for AVX2 and for the baseline, and chosen by the processor at load: the same additions
-// and multiplications in the same order (no fused multiply-add), so the same scores either way.
-__attribute__((target_clones("avx2", "default"))) void TextonScores(
+// scores[c] = half_norms[c] - z.c for the `padded` centres, z the standardised feature. The loops
+// are inlined into two functions, one compiled for the baseline and one for AVX2, and the
+// processor chooses once (a plain check rather than an ifunc, which would run before sanitizers
+// start): the same additions and multiplications in the same order (no fused multiply-add), so
+// the same scores either way.
+inline __attribute__((always_inline)) void TextonScoresLoops(
     const float* feature, const float* mean, const float* inv_std, const float* transposed,
     const float* half_norms, int padded, float* scores) {
   for (int c = 0; c < padded; ++c) scores[c] = half_norms[c];
@@ -136,6 +138,36 @@ __attribute__((target_clones("avx2", "default"))) void TextonScores(
     const float* column = transposed + static_cast<size_t>(d) * padded;
     for (int c = 0; c < padded; ++c) scores[c] -= z * column[c];
   }
+}
+
+void TextonScoresBaseline(const float* feature, const float* mean, const float* inv_std,
+                          const float* transposed, const float* half_norms, int padded,
+                          float* scores) {
+  TextonScoresLoops(feature, mean, inv_std, transposed, half_norms, padded, scores);
+}
+
+#if defined(__x86_64__)
+__attribute__((target("avx2"))) void TextonScoresAvx2(const float* feature, const float* mean,
+                                                      const float* inv_std, const float* transposed,
+                                                      const float* half_norms, int padded,
+                                                      float* scores) {
+  TextonScoresLoops(feature, mean, inv_std, transposed, half_norms, padded, scores);
+}
+#endif
+
+void TextonScores(const float* feature, const float* mean, const float* inv_std,
+                  const float* transposed, const float* half_norms, int padded, float* scores) {
+#if defined(__x86_64__)
+  static const bool avx2 = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  if (avx2) {
+    TextonScoresAvx2(feature, mean, inv_std, transposed, half_norms, padded, scores);
+    return;
+  }
+#endif
+  TextonScoresBaseline(feature, mean, inv_std, transposed, half_norms, padded, scores);
 }
 
 }  // namespace

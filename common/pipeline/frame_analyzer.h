@@ -130,7 +130,8 @@ struct FrameObservation {
   // the segmentation's own, or computed when keep_filter_bank asks for it.
   cv::Mat filter_bank;
   // The segmentation's texton map of that filter bank (kept with it; empty when the segmenter
-  // computes none): classification reads its ids instead of assigning them again.
+  // computes none): classification reads its ids instead of assigning them again. Whoever
+  // replaces filter_bank must replace or clear this too.
   TextonMap textons;
   std::vector<SceneObject> objects;  // boxes in processed pixels
   bool colourless = false;

@@ -152,10 +152,10 @@ TEST(ObjectClassesTest, TheSegmentationsTextonMapIsReadWhereItFits) {
 
   // Every id 0: a map the labeler reads changes the description; one it must not read does not.
   TextonMap flat = map;
-  flat.ids.setTo(0);
+  flat.ids = cv::Mat::zeros(map.ids.size(), map.ids.type());
   const ObjectLabel from_flat = labeler->Classify(scene.filter_bank, object, &flat);
   EXPECT_NE(from_flat.confidence, own.confidence) << "the fitting map was not read";
-  TextonMap other_model = flat;
+  TextonMap other_model = flat;  // shares flat's ids, which stay zero
   other_model.model ^= 1;
   EXPECT_EQ(labeler->Classify(scene.filter_bank, object, &other_model).confidence, own.confidence);
   TextonMap other_grid = ComputeTextonMap(scene.filter_bank, assigner, stride + 1);

@@ -112,8 +112,8 @@ void SquaredDistances(const uint8_t* query, const cv::Mat& rows, int* out) {
     return;
   }
 #endif
-  SquaredDistancesGeneric(SquaredDistanceImplementations().back().second, query, rows.data,
-                          rows.step[0], rows.rows, out);
+  static const SquaredDistanceFunction distance = SquaredDistanceImplementations().back().second;
+  SquaredDistancesGeneric(distance, query, rows.data, rows.step[0], rows.rows, out);
 }
 
 std::vector<std::pair<std::string, SquaredDistanceFunction>> SquaredDistanceImplementations() {
