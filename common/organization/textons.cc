@@ -10,6 +10,7 @@
 #include <opencv2/core/persistence.hpp>
 
 #include "common/organization/filter_bank.h"
+#include "common/util/cpu.h"
 
 namespace placerec {
 
@@ -158,11 +159,7 @@ __attribute__((target("avx2"))) void TextonScoresAvx2(const float* feature, cons
 void TextonScores(const float* feature, const float* mean, const float* inv_std,
                   const float* transposed, const float* half_norms, int padded, float* scores) {
 #if defined(__x86_64__)
-  static const bool avx2 = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  if (avx2) {
+  if (CpuHasAvx2()) {
     TextonScoresAvx2(feature, mean, inv_std, transposed, half_norms, padded, scores);
     return;
   }

@@ -264,13 +264,13 @@ class SnapshotReader : public flann::serialization::InputArchive<SnapshotReader>
 // instructions) instead of FLANN's scalar loop. The values are FLANN's own: it sums the integer
 // squares in float, exact while the sum stays below 2^24 (128 * 255^2 is less), so the tree
 // answers exactly as with flann::L2. Its snapshots are the same (the distance is not written).
+// Every point of the tree has kDescriptorSize values (Add and Load check it); the tree never
+// passes FLANN's early-exit bound `worst`.
 struct DescriptorL2 : flann::L2<unsigned char> {
   template <typename Iterator1, typename Iterator2>
-  ResultType operator()(Iterator1 a, Iterator2 b, size_t size, ResultType worst = -1) const {
-    if (size == static_cast<size_t>(kDescriptorSize)) {
-      return static_cast<ResultType>(SquaredDistance(a, b));
-    }
-    return flann::L2<unsigned char>::operator()(a, b, size, worst);
+  ResultType operator()(Iterator1 a, Iterator2 b, size_t size, ResultType /*worst*/ = -1) const {
+    DCHECK_EQ(size, static_cast<size_t>(kDescriptorSize));
+    return static_cast<ResultType>(SquaredDistance(a, b));
   }
 };
 

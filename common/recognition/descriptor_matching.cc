@@ -9,6 +9,7 @@
 #endif
 
 #include "common/features/features.h"
+#include "common/util/cpu.h"
 #include "common/util/logging.h"
 
 namespace placerec {
@@ -44,76 +45,69 @@ int SquaredDistanceSse2(const uint8_t* a, const uint8_t* b) {
   return _mm_cvtsi128_si32(sum);
 }
 
-__attribute__((target("avx2"))) int SquaredDistanceAvx2(const uint8_t* a, const uint8_t* b) {
+// The AVX2 form of the same: |a - b| of 32 bytes, widened, squared and added in pairs into the
+// eight 32-bit lanes of `sum`; and those lanes' total.
+__attribute__((target("avx2"), always_inline)) inline __m256i AddSquaredDifferences(__m256i a,
+                                                                                    __m256i b,
+                                                                                    __m256i sum) {
   const __m256i zero = _mm256_setzero_si256();
-  __m256i sum = _mm256_setzero_si256();
-  for (int i = 0; i < kDescriptorSize; i += 32) {
-    const __m256i va = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(a + i));
-    const __m256i vb = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(b + i));
-    const __m256i d = _mm256_or_si256(_mm256_subs_epu8(va, vb), _mm256_subs_epu8(vb, va));
-    const __m256i lo = _mm256_unpacklo_epi8(d, zero);
-    const __m256i hi = _mm256_unpackhi_epi8(d, zero);
-    sum = _mm256_add_epi32(sum,
-                           _mm256_add_epi32(_mm256_madd_epi16(lo, lo), _mm256_madd_epi16(hi, hi)));
-  }
+  const __m256i d = _mm256_or_si256(_mm256_subs_epu8(a, b), _mm256_subs_epu8(b, a));
+  const __m256i lo = _mm256_unpacklo_epi8(d, zero);
+  const __m256i hi = _mm256_unpackhi_epi8(d, zero);
+  return _mm256_add_epi32(sum,
+                          _mm256_add_epi32(_mm256_madd_epi16(lo, lo), _mm256_madd_epi16(hi, hi)));
+}
+
+__attribute__((target("avx2"), always_inline)) inline int LaneTotal(__m256i sum) {
   __m128i half = _mm_add_epi32(_mm256_castsi256_si128(sum), _mm256_extracti128_si256(sum, 1));
   half = _mm_add_epi32(half, _mm_shuffle_epi32(half, _MM_SHUFFLE(1, 0, 3, 2)));
   half = _mm_add_epi32(half, _mm_shuffle_epi32(half, _MM_SHUFFLE(2, 3, 0, 1)));
   return _mm_cvtsi128_si32(half);
 }
-#endif
 
-void SquaredDistancesGeneric(SquaredDistanceFunction distance, const uint8_t* query,
-                             const uint8_t* rows, size_t step, int n, int* out) {
-  for (int r = 0; r < n; ++r) out[r] = distance(query, rows + r * step);
+__attribute__((target("avx2"), always_inline)) inline __m256i Load32(const uint8_t* p) {
+  return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p));
 }
 
-#if defined(__x86_64__)
+__attribute__((target("avx2"))) int SquaredDistanceAvx2(const uint8_t* a, const uint8_t* b) {
+  __m256i sum = _mm256_setzero_si256();
+  for (int i = 0; i < kDescriptorSize; i += 32)
+    sum = AddSquaredDifferences(Load32(a + i), Load32(b + i), sum);
+  return LaneTotal(sum);
+}
+
 // SquaredDistanceAvx2 for many rows, the query held in registers.
 __attribute__((target("avx2"))) void SquaredDistancesAvx2(const uint8_t* query, const uint8_t* rows,
                                                           size_t step, int n, int* out) {
   static_assert(kDescriptorSize == 128, "four 32-byte registers hold a query");
-  const __m256i zero = _mm256_setzero_si256();
-  __m256i q[4];
-  for (int i = 0; i < 4; ++i) {
-    q[i] = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(query + 32 * i));
-  }
+  const __m256i q[4] = {Load32(query), Load32(query + 32), Load32(query + 64), Load32(query + 96)};
   for (int r = 0; r < n; ++r) {
     const uint8_t* row = rows + r * step;
     __m256i sum = _mm256_setzero_si256();
-    for (int i = 0; i < 4; ++i) {
-      const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(row + 32 * i));
-      const __m256i d = _mm256_or_si256(_mm256_subs_epu8(q[i], v), _mm256_subs_epu8(v, q[i]));
-      const __m256i lo = _mm256_unpacklo_epi8(d, zero);
-      const __m256i hi = _mm256_unpackhi_epi8(d, zero);
-      sum = _mm256_add_epi32(
-          sum, _mm256_add_epi32(_mm256_madd_epi16(lo, lo), _mm256_madd_epi16(hi, hi)));
-    }
-    __m128i half = _mm_add_epi32(_mm256_castsi256_si128(sum), _mm256_extracti128_si256(sum, 1));
-    half = _mm_add_epi32(half, _mm_shuffle_epi32(half, _MM_SHUFFLE(1, 0, 3, 2)));
-    half = _mm_add_epi32(half, _mm_shuffle_epi32(half, _MM_SHUFFLE(2, 3, 0, 1)));
-    out[r] = _mm_cvtsi128_si32(half);
+    for (int i = 0; i < 4; ++i) sum = AddSquaredDifferences(q[i], Load32(row + 32 * i), sum);
+    out[r] = LaneTotal(sum);
   }
 }
 #endif
+
+// The widest implementation this processor runs, chosen once.
+SquaredDistanceFunction Widest() {
+  static const SquaredDistanceFunction widest = SquaredDistanceImplementations().back().second;
+  return widest;
+}
 
 }  // namespace
 
 void SquaredDistances(const uint8_t* query, const cv::Mat& rows, int* out) {
   CHECK(rows.empty() || (rows.type() == CV_8U && rows.cols == kDescriptorSize));
-  if (rows.empty()) return;
 #if defined(__x86_64__)
-  static const bool avx2 = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  if (avx2) {
+  if (CpuHasAvx2()) {
     SquaredDistancesAvx2(query, rows.data, rows.step[0], rows.rows, out);
     return;
   }
 #endif
-  static const SquaredDistanceFunction distance = SquaredDistanceImplementations().back().second;
-  SquaredDistancesGeneric(distance, query, rows.data, rows.step[0], rows.rows, out);
+  const SquaredDistanceFunction distance = Widest();
+  for (int r = 0; r < rows.rows; ++r) out[r] = distance(query, rows.ptr<uint8_t>(r));
 }
 
 std::vector<std::pair<std::string, SquaredDistanceFunction>> SquaredDistanceImplementations() {
@@ -121,17 +115,12 @@ std::vector<std::pair<std::string, SquaredDistanceFunction>> SquaredDistanceImpl
       {"scalar", &SquaredDistanceScalar}};
 #if defined(__x86_64__)
   all.emplace_back("sse2", &SquaredDistanceSse2);
-  __builtin_cpu_init();
-  if (__builtin_cpu_supports("avx2")) all.emplace_back("avx2", &SquaredDistanceAvx2);
+  if (CpuHasAvx2()) all.emplace_back("avx2", &SquaredDistanceAvx2);
 #endif
   return all;
 }
 
-int SquaredDistance(const uint8_t* a, const uint8_t* b) {
-  // The widest implementation, chosen once.
-  static const SquaredDistanceFunction distance = SquaredDistanceImplementations().back().second;
-  return distance(a, b);
-}
+int SquaredDistance(const uint8_t* a, const uint8_t* b) { return Widest()(a, b); }
 
 std::vector<DescriptorMatch> MatchRatioTest(const cv::Mat& query, const cv::Mat& train,
                                             double ratio) {
