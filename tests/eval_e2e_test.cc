@@ -1,10 +1,12 @@
 // End-to-end: the whole pipeline on a real run from ../shared/data, scored as placerec-eval
 // scores it. The floors are set honestly below what was measured (docs/results.md).
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -148,12 +150,45 @@ TEST(EndToEndTest, CorridorLoopSceneChanges) {
   std::string line;
   int removed = 0;
   int unchanged = 0;
+  // Fields split at commas outside double quotes.
+  const auto fields_of = [](const std::string& text) {
+    std::vector<std::string> fields(1);
+    bool quoted = false;
+    for (const char c : text) {
+      if (c == '"') {
+        quoted = !quoted;
+      } else if (c == ',' && !quoted) {
+        fields.emplace_back();
+      } else {
+        fields.back() += c;
+      }
+    }
+    return fields;
+  };
+  ASSERT_TRUE(std::getline(cases, line));
+  const std::vector<std::string> header = fields_of(line);
+  const auto column = [&header](const std::string& name) {
+    return static_cast<size_t>(std::find(header.begin(), header.end(), name) - header.begin());
+  };
+  const size_t best_iou = column("best_iou"), in_view = column("truth_in_view"),
+               difference = column("truth_difference");
+  ASSERT_LT(difference, header.size());
+  int hits = 0;
   while (std::getline(cases, line)) {
     removed += line.find(",removed,") != std::string::npos;
     unchanged += line.find(",unchanged,") != std::string::npos;
+    const std::vector<std::string> fields = fields_of(line);
+    ASSERT_EQ(fields.size(), header.size()) << line;
+    // A change found on the true box lies where the frame was compared, and differs there.
+    if (std::stod(fields[best_iou]) >= 0.3) {
+      ++hits;
+      EXPECT_GT(std::stod(fields[in_view]), 0.3) << line;
+      EXPECT_GT(std::stod(fields[difference]), 0.1) << line;
+    }
   }
   EXPECT_EQ(removed, j["removed"]["cases"].get<int>());
   EXPECT_EQ(unchanged, j["unchanged"].get<int>());
+  EXPECT_EQ(hits, j["appeared"]["found"].get<int>() + j["removed"]["found"].get<int>());
 }
 
 }  // namespace

@@ -65,6 +65,36 @@ nlohmann::json TallyJson(const Tally& t) {
   return j;
 }
 
+// Where a case's true box lay for the detector: the share of it inside the compared view, and
+// its mean difference there as a multiple of the frame's threshold (a miss below 1 differed too
+// little; above 1 it was dropped by a rule or found with the wrong box).
+struct TruthInView {
+  double share = 0;
+  double difference = 0;
+};
+
+TruthInView TruthSeen(const ChangeReport& report, const cv::Rect& truth, double image_scale,
+                      const cv::Size& processed) {
+  TruthInView seen;
+  if (truth.empty() || report.shared.empty() || report.difference.empty() ||
+      report.threshold <= 0 || processed.width <= 0) {
+    return seen;
+  }
+  // Input pixels -> processed pixels -> the thumbnail's.
+  const double to_thumb = image_scale * report.shared.cols / processed.width;
+  const cv::Rect box = cv::Rect(cv::Point(static_cast<int>(truth.x * to_thumb),
+                                          static_cast<int>(truth.y * to_thumb)),
+                                cv::Point(static_cast<int>(std::ceil(truth.br().x * to_thumb)),
+                                          static_cast<int>(std::ceil(truth.br().y * to_thumb)))) &
+                       cv::Rect(0, 0, report.shared.cols, report.shared.rows);
+  if (box.area() <= 0) return seen;
+  const cv::Mat inside = report.shared(box) != 0;
+  const int count = cv::countNonZero(inside);
+  seen.share = static_cast<double>(count) / box.area();
+  if (count > 0) seen.difference = cv::mean(report.difference(box), inside)[0] / report.threshold;
+  return seen;
+}
+
 // Frame with the true box (green), the changes found (red / yellow) and the stored thumbnail.
 cv::Mat Picture(const cv::Mat& frame, const cv::Size& processed, double image_scale,
                 const cv::Rect& truth, const ChangeReport& report) {
@@ -153,7 +183,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   ProgressLine progress(static_cast<size_t>(frames), 50);
   std::ofstream cases(eval.out_dir + "/revisits.csv");
   cases << "frame,case,truth_x,truth_y,truth_w,truth_h,loop_closure,best_inliers,compared,why_not,"
-           "changes,best_iou,boxes\n";
+           "changes,best_iou,boxes,truth_in_view,truth_difference,threshold\n";
   for (int i = 0; i < frames; ++i) {
     const RunFrame& frame = run.frames[i];
     StatusOr<cv::Mat> image = ReadImageFile(frame.image);
@@ -266,11 +296,13 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
                    std::to_string(box.y) + " " + std::to_string(box.width) + " " +
                    std::to_string(box.height) + " " + std::to_string(change.confidence);
         }
+        const TruthInView in_view = TruthSeen(report, truth, asked.scale, processed);
         cases << frame.frame << ',' << what_case << ',' << truth.x << ',' << truth.y << ','
               << truth.width << ',' << truth.height << ',' << answer.loop_closure << ','
               << (answer.matches.empty() ? -1 : answer.matches.front().inliers) << ','
               << report.checked << ",\"" << report.why_not << "\"," << report.changes.size() << ','
-              << best << ",\"" << boxes << "\"\n";
+              << best << ",\"" << boxes << "\"," << in_view.share << ',' << in_view.difference
+              << ',' << report.threshold << "\n";
       }
       if (!kind.empty()) {
         char name[256];

@@ -421,6 +421,7 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
   result.shared_view = static_cast<double>(shared_pixels) / (width * height);
   difference.setTo(0, shared == 0);
   result.difference = difference;
+  result.shared = shared;
 
   // Regions that differ beyond the threshold: the sensitivity's, or more in a frame whose shared
   // view differs throughout (a poor alignment, a changed light): the median difference plus

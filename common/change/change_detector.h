@@ -122,6 +122,7 @@ struct ChangeResult {
   int references = 0;                // places compared against
   std::vector<SceneChange> changes;  // most confident first
   cv::Mat difference;  // CV_32F per pixel of the frame's thumbnail (Lab units; 0 outside)
+  cv::Mat shared;      // CV_8U per pixel of the frame's thumbnail: 255 where it was compared
 };
 
 // Compares the frame (its thumbnail and the size of its processed frame) with the references,

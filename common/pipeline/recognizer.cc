@@ -253,6 +253,8 @@ ChangeReport Recognizer::DetectSceneChanges(const FrameObservation& observation,
   report.why_not = found.why_not;
   report.changes = std::move(found.changes);
   report.difference = found.difference;
+  report.threshold = found.threshold;
+  report.shared = found.shared;
   if (report.changes.empty()) return report;
   // The class of an object that appeared: the frame's object that covers it best.
   if (labeler_) {

@@ -105,6 +105,8 @@ struct ChangeReport {
   // Per pixel of the frame's thumbnail, how much it differs from the stored view (CIE Lab units,
   // ChangeResult::difference), for pictures of the evaluation.
   cv::Mat difference;
+  double threshold = 0;  // the difference a change needed in this frame (ChangeResult)
+  cv::Mat shared;        // where the frame was compared (ChangeResult::shared)
 };
 
 struct RecognitionResult {
