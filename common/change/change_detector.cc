@@ -55,6 +55,13 @@ bool ChangeOptions::Check(std::string* error) const {
   if (!(max_elsewhere_similarity > 0.0 && max_elsewhere_similarity <= 1.0)) {
     return fail("change elsewhere similarity must be in (0, 1]");
   }
+  if (!(segment_difference >= 0.0)) return fail("change segment difference must be >= 0");
+  if (!(segment_min_shared > 0.0 && segment_min_shared <= 1.0)) {
+    return fail("change segment min shared must be in (0, 1]");
+  }
+  if (!(segment_min_side >= 0.0 && segment_min_side < 1.0)) {
+    return fail("change segment min side must be in [0, 1) of the frame width");
+  }
   if (max_changes < 1) return fail("change max_changes must be at least 1");
   if (max_references < 1) return fail("change max_references must be at least 1");
   if (!(reference_window_seconds >= 0.0)) return fail("change reference window must be >= 0");
@@ -278,6 +285,47 @@ bool SeenElsewhere(const cv::Mat& frame, const cv::Rect& box, const cv::Mat& reg
   return false;
 }
 
+// Per segment seen by this reference on at least options.segment_min_shared of its pixels: how
+// far its mean Lab colour, or its mean local contrast times texture_weight, lies from the
+// stored view's under the same pixels; each segment keeps the smallest over the references.
+void SegmentDifferences(const cv::Mat& frame_lab, const cv::Mat& stored_lab,
+                        const cv::Mat& frame_contrast, const cv::Mat& stored_contrast,
+                        const cv::Mat& valid, const cv::Mat& segment_labels,
+                        const std::vector<int>& segment_pixels, const ChangeOptions& options,
+                        std::vector<double>* differences) {
+  const size_t n = segment_pixels.size();
+  std::vector<cv::Vec3d> frame_sum(n), stored_sum(n);
+  std::vector<double> frame_texture(n, 0.0), stored_texture(n, 0.0);
+  std::vector<int> seen(n, 0);
+  for (int y = 0; y < segment_labels.rows; ++y) {
+    const int* label = segment_labels.ptr<int>(y);
+    const uint8_t* in_view = valid.ptr<uint8_t>(y);
+    const cv::Vec3f* f = frame_lab.ptr<cv::Vec3f>(y);
+    const cv::Vec3f* st = stored_lab.ptr<cv::Vec3f>(y);
+    const float* fc = frame_contrast.ptr<float>(y);
+    const float* sc = stored_contrast.ptr<float>(y);
+    for (int x = 0; x < segment_labels.cols; ++x) {
+      const int s = label[x];
+      if (s < 0 || in_view[x] == 0) continue;
+      frame_sum[s] += cv::Vec3d(f[x]);
+      stored_sum[s] += cv::Vec3d(st[x]);
+      frame_texture[s] += fc[x];
+      stored_texture[s] += sc[x];
+      ++seen[s];
+    }
+  }
+  for (size_t s = 0; s < n; ++s) {
+    if (seen[s] == 0 || seen[s] < options.segment_min_shared * segment_pixels[s]) continue;
+    const double count = seen[s];
+    const double colour = cv::norm((frame_sum[s] - stored_sum[s]) / count);
+    const double texture =
+        std::abs(frame_texture[s] - stored_texture[s]) / count * options.texture_weight;
+    const double difference = std::max(colour, texture);
+    double& kept = (*differences)[s];
+    kept = kept < 0 ? difference : std::min(kept, difference);
+  }
+}
+
 cv::Rect Scaled(const cv::Rect& box, double scale) {
   return cv::Rect(cv::Point(static_cast<int>(std::floor(box.x * scale)),
                             static_cast<int>(std::floor(box.y * scale))),
@@ -295,7 +343,7 @@ double IoU(const cv::Rect& a, const cv::Rect& b) {
 
 ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame_size,
                            const std::vector<ChangeReference>& references,
-                           const ChangeOptions& options) {
+                           const ChangeOptions& options, const cv::Mat& segments) {
   ChangeResult result;
   if (frame_thumbnail.empty() || frame_thumbnail.type() != CV_8UC3 || frame_size.width <= 0 ||
       frame_size.height <= 0) {
@@ -324,6 +372,24 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
   std::vector<std::pair<cv::Mat, cv::Mat>> compared;
   // Stored landmarks mapped into the frame (thumbnail pixels) that the frame did not match.
   std::vector<std::pair<cv::Rect, std::string>> unmatched_landmarks;
+  // The frame's segments at the thumbnail's size, and per segment the smallest difference of its
+  // means over the references that see enough of it (negative: none does).
+  cv::Mat segment_labels;
+  int segment_count = 0;
+  if (options.segment_difference > 0 && !segments.empty() && segments.type() == CV_32S) {
+    cv::resize(segments, segment_labels, frame_thumbnail.size(), 0, 0, cv::INTER_NEAREST);
+    double most = 0;
+    cv::minMaxLoc(segment_labels, nullptr, &most);
+    segment_count = static_cast<int>(most) + 1;
+  }
+  std::vector<double> segment_difference(static_cast<size_t>(segment_count), -1.0);
+  std::vector<int> segment_pixels(static_cast<size_t>(segment_count), 0);
+  for (int y = 0; y < segment_labels.rows; ++y) {
+    for (int x = 0; x < segment_labels.cols; ++x) {
+      const int s = segment_labels.at<int>(y, x);
+      if (s >= 0) ++segment_pixels[s];
+    }
+  }
   for (const ChangeReference& reference : references) {
     if (static_cast<int>(result.references) >= options.max_references) break;
     if (reference.thumbnail.empty() || reference.thumbnail.type() != CV_8UC3 ||
@@ -383,6 +449,11 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
       cv::Mat texture;
       cv::absdiff(frame_contrast, LocalContrast(stored_lab, contrast_window), texture);
       outside = cv::max(outside, texture * options.texture_weight);
+    }
+    if (segment_count > 0) {
+      SegmentDifferences(frame_lab, stored_lab, frame_contrast,
+                         LocalContrast(stored_lab, contrast_window), valid, segment_labels,
+                         segment_pixels, options, &segment_difference);
     }
     // Per pixel the smallest difference among the references that see it.
     cv::Mat inside_valid;
@@ -461,35 +532,34 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
   const double density =
       shared_pixels > 0 ? static_cast<double>(matched_points.size()) / shared_pixels : 0.0;
   const double frame_area = static_cast<double>(width) * height;
-  for (int c = 1; c < count; ++c) {
-    const int area = stats.at<int>(c, cv::CC_STAT_AREA);
-    const cv::Rect box(stats.at<int>(c, cv::CC_STAT_LEFT), stats.at<int>(c, cv::CC_STAT_TOP),
-                       stats.at<int>(c, cv::CC_STAT_WIDTH), stats.at<int>(c, cv::CC_STAT_HEIGHT));
-    if (!seeded[c] || area < options.min_area * frame_area ||
-        box.area() > options.max_area * frame_area) {
-      continue;
+  // Whether a candidate (its pixels `in_component`, `area` of them, within `box`) is explained by
+  // the robot's motion or was seen at the place; otherwise the change it makes.
+  const auto judge = [&](const cv::Mat& in_component, const cv::Rect& box, int area, double mean,
+                         double needed, std::vector<SceneChange>* changes) {
+    if (area < options.min_area * frame_area || box.area() > options.max_area * frame_area) {
+      return;
     }
     // Along the edge of the shared view: what the motion brought into view, or the parallax of
     // near objects there.
-    const cv::Mat in_component = labels == c;
     if (cv::countNonZero(in_component & (to_edge < edge_band)) > options.max_edge_share * area) {
-      continue;
+      return;
     }
     // Matched content inside: what is there was seen at the place.
     int inside = 0;
     for (const cv::Point2f& p : matched_points) {
       const int x = static_cast<int>(p.x), y = static_cast<int>(p.y);
-      if (x >= 0 && y >= 0 && x < width && y < height && labels.at<int>(y, x) == c) ++inside;
+      if (x >= 0 && y >= 0 && x < width && y < height && in_component.at<uint8_t>(y, x) != 0) {
+        ++inside;
+      }
     }
-    if (inside > 0 && inside >= options.max_match_density * density * area) continue;
+    if (inside > 0 && inside >= options.max_match_density * density * area) return;
     if (options.max_elsewhere_similarity < 1.0 &&
         SeenElsewhere(frame_grey, box, in_component(box), compared,
                       options.max_elsewhere_similarity)) {
-      continue;
+      return;
     }
-    const double mean = cv::mean(difference, in_component)[0];
-    // Confidence: how far beyond the threshold the region differs, and how large it is.
-    const double strength = std::clamp((mean - threshold) / threshold, 0.0, 1.0);
+    // Confidence: how far beyond what it needed the candidate differs, and how large it is.
+    const double strength = std::clamp((mean - needed) / needed, 0.0, 1.0);
     const double size = std::clamp(area / (0.02 * frame_area), 0.0, 1.0);
     SceneChange change;
     change.confidence = static_cast<float>(0.5 + 0.25 * strength + 0.25 * size);
@@ -504,7 +574,32 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
         change.object_class = name;
       }
     }
-    result.changes.push_back(change);
+    changes->push_back(change);
+  };
+  for (int c = 1; c < count; ++c) {
+    if (!seeded[c]) continue;
+    const cv::Rect box(stats.at<int>(c, cv::CC_STAT_LEFT), stats.at<int>(c, cv::CC_STAT_TOP),
+                       stats.at<int>(c, cv::CC_STAT_WIDTH), stats.at<int>(c, cv::CC_STAT_HEIGHT));
+    const cv::Mat in_component = labels == c;
+    judge(in_component, box, stats.at<int>(c, cv::CC_STAT_AREA),
+          cv::mean(difference, in_component)[0], threshold, &result.changes);
+  }
+  // Whole segments whose means differ, where no region found them already.
+  std::vector<SceneChange> by_segment;
+  for (int s = 0; s < segment_count; ++s) {
+    if (segment_difference[s] < options.segment_difference) continue;
+    const cv::Mat in_segment = (segment_labels == s) & shared;
+    const int area = cv::countNonZero(in_segment);
+    if (area == 0) continue;
+    const cv::Rect box = cv::boundingRect(in_segment);
+    if (std::min(box.width, box.height) < options.segment_min_side * width) continue;
+    judge(in_segment, box, area, segment_difference[s], options.segment_difference, &by_segment);
+  }
+  for (const SceneChange& change : by_segment) {
+    bool known = false;
+    for (const SceneChange& found : result.changes)
+      known = known || IoU(found.box, change.box) >= 0.3;
+    if (!known) result.changes.push_back(change);
   }
   std::sort(result.changes.begin(), result.changes.end(),
             [](const SceneChange& a, const SceneChange& b) { return a.confidence > b.confidence; });

@@ -79,6 +79,18 @@ struct ChangeOptions {
   // A region whose content shows in a stored view somewhere near its scale (normalised
   // correlation at least this) was moved there by the robot's motion, not put there (1: off).
   double max_elsewhere_similarity = 0.7;
+  // Whole segments too: the frame's segments (its segmentation, seed Ch. 3) are compared by
+  // their mean colour and mean local contrast against the aligned stored view's under the same
+  // pixels; a segment whose means differ by at least segment_difference Lab units is a change
+  // (the same rules of size, edge, matched points and elsewhere apply). Averaging over a whole
+  // object finds what differs too little per pixel (an object whose colours lie near its
+  // background's). 0: off.
+  double segment_difference = 0.0;
+  // ... when at least this share of the segment lies in the shared view, and its box is at least
+  // segment_min_side of the frame width high and wide (a thin segment along a door frame or a
+  // wall's edge differs where the alignment misses by a pixel, not because something came).
+  double segment_min_shared = 0.7;
+  double segment_min_side = 0.04;
   // At most this many changes per frame, most confident first.
   int max_changes = 5;
   // Matched places of the best place's route (same robot, within this many seconds of it) that
@@ -128,9 +140,11 @@ struct ChangeResult {
 // Compares the frame (its thumbnail and the size of its processed frame) with the references,
 // the first being the matched place. Never throws for bad input: an unusable reference is
 // skipped and the result says why nothing was checked.
+// `segments` (optional): the frame's segment labels (CV_32S, any size covering the frame,
+// e.g. SceneSegmentation::labels), for ChangeOptions::segment_difference.
 ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame_size,
                            const std::vector<ChangeReference>& references,
-                           const ChangeOptions& options);
+                           const ChangeOptions& options, const cv::Mat& segments = cv::Mat());
 
 // Whether a frame is compared with its best place: at a loop closure, or when the best place's
 // verification kept at least options.min_inliers_without_loop inlier pairs (when that is set).

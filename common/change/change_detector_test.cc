@@ -178,6 +178,69 @@ TEST(ChangeDetectorTest, ObjectBeforeAPlainStoredAreaIsFound) {
   EXPECT_GT(IoU(result.changes[0].box, object), 0.5) << result.changes[0].box;
 }
 
+// Shifts the pixels' colours by a dozen Lab units or so (less blue, more green and red).
+void Tint(cv::Mat roi) {
+  cv::Mat tinted;
+  roi.convertTo(tinted, CV_16SC3);
+  tinted += cv::Scalar(-14, 14, 14);
+  tinted.convertTo(roi, CV_8UC3);
+}
+
+TEST(ChangeDetectorTest, ASegmentThatDiffersLittlePerPixelIsFoundAsAWhole) {
+  // A plain object before a plain wall of nearly its colour (a dozen Lab units apart): no pixel
+  // differs by the threshold, the whole segment's mean does.
+  cv::Mat scene = Scene();
+  const cv::Rect object(300, 200, 100, 120);
+  scene(cv::Rect(object.tl() + kOffset - cv::Point(40, 40), object.size() + cv::Size(80, 80)))
+      .setTo(cv::Scalar(128, 128, 128));
+  cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+  Tint(frame(object));
+  // The frame's segmentation at half its resolution: the object, and the rest of the frame.
+  cv::Mat segments(kHeight / 2, kWidth / 2, CV_32S, cv::Scalar(0));
+  segments(cv::Rect(object.x / 2, object.y / 2, object.width / 2, object.height / 2)).setTo(1);
+  const ChangeReference reference = Reference(scene, kOffset, object);
+  ChangeOptions options;
+  const ChangeResult per_pixel =
+      DetectChanges(Thumbnail(frame), frame.size(), {reference}, options, segments);
+  ASSERT_TRUE(per_pixel.checked);
+  EXPECT_TRUE(per_pixel.changes.empty());
+  options.segment_difference = 8;
+  const ChangeResult whole =
+      DetectChanges(Thumbnail(frame), frame.size(), {reference}, options, segments);
+  ASSERT_EQ(whole.changes.size(), 1u);
+  EXPECT_EQ(whole.changes[0].kind, SceneChange::Kind::kAppeared);
+  EXPECT_GT(IoU(whole.changes[0].box, object), 0.6) << whole.changes[0].box;
+  // Without the frame's segments there is nothing to average over.
+  EXPECT_TRUE(DetectChanges(Thumbnail(frame), frame.size(), {reference}, options).changes.empty());
+  // The unchanged frame's segments match the stored view's.
+  const cv::Mat unchanged = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+  EXPECT_TRUE(DetectChanges(Thumbnail(unchanged), unchanged.size(), {Reference(scene, kOffset)},
+                            options, segments)
+                  .changes.empty());
+}
+
+TEST(ChangeDetectorTest, AThinSegmentIsNoChange) {
+  // A segment a few pixels wide (a door frame) differs where the alignment misses by a pixel.
+  const cv::Mat scene = Scene();
+  cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+  const cv::Rect thin(300, 120, 12, 240);
+  Tint(frame(thin));
+  cv::Mat segments(kHeight, kWidth, CV_32S, cv::Scalar(0));
+  segments(thin).setTo(1);
+  ChangeOptions options;
+  options.segment_difference = 8;
+  options.min_area = 0.001;
+  const ChangeReference reference = Reference(scene, kOffset, thin);
+  options.segment_min_side = 0;
+  const ChangeResult kept =
+      DetectChanges(Thumbnail(frame), frame.size(), {reference}, options, segments);
+  options.segment_min_side = ChangeOptions().segment_min_side;
+  const ChangeResult dropped =
+      DetectChanges(Thumbnail(frame), frame.size(), {reference}, options, segments);
+  EXPECT_EQ(kept.changes.size(), 1u);
+  EXPECT_TRUE(dropped.changes.empty());
+}
+
 TEST(ChangeDetectorTest, AThinFrameIsComparedWithoutFlow) {
   // Thumbnails too small for the flow's patches: compared as the homography maps them.
   const cv::Mat scene = Scene();

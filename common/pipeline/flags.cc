@@ -300,6 +300,11 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add("change-grow-fraction", &o->change.grow_fraction,
          "a change grows from pixels above the threshold through neighbours above this fraction "
          "of it");
+  p->Add("change-segment-difference", &o->change.segment_difference,
+         "a segment of the frame whose mean colour or mean local contrast differs from the "
+         "stored view's under it by at least this many Lab units is a change (0: off, the "
+         "default; 10 finds more objects whose colours lie near their background's and raises "
+         "more false alarms, docs/results.md 'Scene changes')");
   p->Add("change-edge-band", &o->change.edge_band,
          "regions lying mostly within this share of the frame width of the shared view's edge "
          "are the robot's motion, not changes");

@@ -247,8 +247,8 @@ ChangeReport Recognizer::DetectSceneChanges(const FrameObservation& observation,
     }
     references.push_back(std::move(reference));
   }
-  ChangeResult found =
-      DetectChanges(observation.thumbnail, observation.processed_size, references, options_.change);
+  ChangeResult found = DetectChanges(observation.thumbnail, observation.processed_size, references,
+                                     options_.change, observation.segmentation.labels);
   report.checked = found.checked;
   report.why_not = found.why_not;
   report.changes = std::move(found.changes);
