@@ -65,9 +65,17 @@ nlohmann::json TallyJson(const Tally& t) {
   return j;
 }
 
+// A double as text that reads back as the same value (whether a case is a hit is decided on it).
+std::string ExactText(double value) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.17g", value);
+  return text;
+}
+
 // Where a case's true box lay for the detector: the share of it inside the compared view, and
-// its mean difference there as a multiple of the frame's threshold (a miss below 1 differed too
-// little; above 1 it was dropped by a rule or found with the wrong box).
+// its mean difference there as a multiple of the frame's threshold (the box holds background
+// too: hits lie near 0.4-0.8; a miss far below differed too little, one within that range was
+// dropped by a rule or found with the wrong box).
 struct TruthInView {
   double share = 0;
   double difference = 0;
@@ -301,8 +309,8 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
               << truth.width << ',' << truth.height << ',' << answer.loop_closure << ','
               << (answer.matches.empty() ? -1 : answer.matches.front().inliers) << ','
               << report.checked << ",\"" << report.why_not << "\"," << report.changes.size() << ','
-              << best << ",\"" << boxes << "\"," << in_view.share << ',' << in_view.difference
-              << ',' << report.threshold << "\n";
+              << ExactText(best) << ",\"" << boxes << "\"," << in_view.share << ','
+              << in_view.difference << ',' << report.threshold << "\n";
       }
       if (!kind.empty()) {
         char name[256];
@@ -330,7 +338,8 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   j["change_options"] = {{"sensitivity", options.change.sensitivity},
                          {"threshold_lab", options.change.Threshold()},
                          {"min_area", options.change.min_area},
-                         {"min_inliers_without_loop", options.change.min_inliers_without_loop}};
+                         {"min_inliers_without_loop", options.change.min_inliers_without_loop},
+                         {"segment_difference", options.change.segment_difference}};
   j["appeared"] = TallyJson(pasted);
   j["removed"] = TallyJson(removed);
   j["detection_recall"] = j["appeared"]["detection_recall"];

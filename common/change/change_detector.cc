@@ -380,7 +380,13 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
     cv::resize(segments, segment_labels, frame_thumbnail.size(), 0, 0, cv::INTER_NEAREST);
     double most = 0;
     cv::minMaxLoc(segment_labels, nullptr, &most);
-    segment_count = static_cast<int>(most) + 1;
+    // Labels are 0..n-1 (negative ones belong to no segment); ids beyond one per thumbnail pixel
+    // are no segmentation of this frame and are not compared.
+    if (most >= 0 && most < static_cast<double>(segment_labels.total())) {
+      segment_count = static_cast<int>(most) + 1;
+    } else {
+      segment_labels.release();
+    }
   }
   std::vector<double> segment_difference(static_cast<size_t>(segment_count), -1.0);
   std::vector<int> segment_pixels(static_cast<size_t>(segment_count), 0);
@@ -445,15 +451,18 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
     }
     const cv::Mat stored_lab = MatchExposure(ToLab(warped), frame_lab, valid);
     cv::Mat outside = OutsideRange(frame_lab, stored_lab, radius);
+    cv::Mat stored_contrast;
+    if (options.texture_weight > 0 || segment_count > 0) {
+      stored_contrast = LocalContrast(stored_lab, contrast_window);
+    }
     if (options.texture_weight > 0) {
       cv::Mat texture;
-      cv::absdiff(frame_contrast, LocalContrast(stored_lab, contrast_window), texture);
+      cv::absdiff(frame_contrast, stored_contrast, texture);
       outside = cv::max(outside, texture * options.texture_weight);
     }
     if (segment_count > 0) {
-      SegmentDifferences(frame_lab, stored_lab, frame_contrast,
-                         LocalContrast(stored_lab, contrast_window), valid, segment_labels,
-                         segment_pixels, options, &segment_difference);
+      SegmentDifferences(frame_lab, stored_lab, frame_contrast, stored_contrast, valid,
+                         segment_labels, segment_pixels, options, &segment_difference);
     }
     // Per pixel the smallest difference among the references that see it.
     cv::Mat inside_valid;

@@ -1,5 +1,6 @@
 #include "common/change/change_detector.h"
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -217,6 +218,23 @@ TEST(ChangeDetectorTest, ASegmentThatDiffersLittlePerPixelIsFoundAsAWhole) {
   EXPECT_TRUE(DetectChanges(Thumbnail(unchanged), unchanged.size(), {Reference(scene, kOffset)},
                             options, segments)
                   .changes.empty());
+}
+
+TEST(ChangeDetectorTest, LabelsOfNoSegmentationAreNotCompared) {
+  // Negative labels only, or an id far beyond one per pixel: no segment is compared, and
+  // nothing throws.
+  const cv::Mat scene = Scene();
+  const cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+  ChangeOptions options;
+  options.segment_difference = 1;
+  for (const int label : {-5, std::numeric_limits<int>::max()}) {
+    cv::Mat segments(kHeight / 2, kWidth / 2, CV_32S, cv::Scalar(label));
+    ChangeResult result;
+    EXPECT_NO_THROW(result = DetectChanges(Thumbnail(frame), frame.size(),
+                                           {Reference(scene, kOffset)}, options, segments));
+    EXPECT_TRUE(result.checked);
+    EXPECT_TRUE(result.changes.empty());
+  }
 }
 
 TEST(ChangeDetectorTest, AThinSegmentIsNoChange) {
