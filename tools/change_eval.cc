@@ -74,8 +74,9 @@ std::string ExactText(double value) {
 
 // Where a case's true box lay for the detector: the share of it inside the compared view, and
 // its mean difference there as a multiple of the frame's threshold (the box holds background
-// too: hits lie near 0.4-0.8; a miss far below differed too little, one within that range was
-// dropped by a rule or found with the wrong box).
+// too, so even a found object's value lies below 1; compare a miss's value with the hits' of
+// the same run: far below them it differed too little, among them it was dropped by a rule or
+// found with the wrong box).
 struct TruthInView {
   double share = 0;
   double difference = 0;

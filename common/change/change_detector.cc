@@ -605,9 +605,9 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
     judge(in_segment, box, area, segment_difference[s], options.segment_difference, &by_segment);
   }
   for (const SceneChange& change : by_segment) {
-    bool known = false;
-    for (const SceneChange& found : result.changes)
-      known = known || IoU(found.box, change.box) >= 0.3;
+    const bool known = std::any_of(
+        result.changes.begin(), result.changes.end(),
+        [&change](const SceneChange& found) { return IoU(found.box, change.box) >= 0.3; });
     if (!known) result.changes.push_back(change);
   }
   std::sort(result.changes.begin(), result.changes.end(),
