@@ -33,7 +33,8 @@ function(placerec_add_executable name)
 endfunction()
 
 # placerec_add_test(NAME SRCS a_test.cc ... [DEPS ...] [LABELS ...] [TIMEOUT seconds])
-# A GoogleTest executable; each TEST becomes a CTest test.
+# A GoogleTest executable (main() from tests/test_main.cc: a temporary folder per process);
+# each TEST becomes a CTest test.
 function(placerec_add_test name)
   if(NOT PLACEREC_BUILD_TESTS)
     return()
@@ -43,7 +44,7 @@ function(placerec_add_test name)
     set(ARG_TIMEOUT 600)
   endif()
   add_executable(${name} ${ARG_SRCS})
-  target_link_libraries(${name} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
+  target_link_libraries(${name} PRIVATE ${ARG_DEPS} GTest::gtest placerec_test_main)
   target_compile_definitions(${name} PRIVATE
     PLACEREC_DEFAULT_DATA_DIR="${PLACEREC_DEFAULT_DATA_DIR}"
     PLACEREC_MODELS_DIR="${PLACEREC_MODELS_DIR}"
