@@ -943,5 +943,10 @@ int main(int argc, char** argv) {
     std::printf("\nRetrieval growth 10,000 -> 100,000 landmark objects: %.2fx\n",
                 r100k->second / r10k->second);
   }
+  const auto r1m = t.find("BM_Retrieval/1000000");
+  if (r100k != t.end() && r1m != t.end() && r100k->second > 0) {
+    std::printf("Retrieval growth 100,000 -> 1,000,000 landmark objects: %.2fx (target <= 1.5x)\n",
+                r1m->second / r100k->second);
+  }
   return 0;
 }

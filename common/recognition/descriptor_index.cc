@@ -16,10 +16,10 @@
 
 #include <hnswlib/hnswlib.h>
 #include <xxhash.h>
-#include <flann/flann.hpp>
 
 #include "common/features/features.h"
 #include "common/recognition/descriptor_matching.h"
+#include "common/recognition/kd_tree.h"
 #include "common/util/logging.h"
 #include "common/util/timer.h"
 
@@ -63,18 +63,21 @@ class Hash64 {
   XXH64_state_t* state_;
 };
 
-// The snapshot file: a fixed header, then FLANN's own serialization of the tree (NNIndex and
-// KDTreeIndex::serialize, without the points) as raw native-endian values. A snapshot is a cache
-// of one machine's map, not an exchange format.
+// The snapshot file: a fixed header, then the tree's nodes (GrownKdTree::Save) as raw
+// native-endian values. A snapshot is a cache of one machine's map, not an exchange format.
 constexpr char kSnapshotMagic[16] = "placerec-dindex";
-// Version 1: the header below; the payload of FLANN 1.9's KDTreeIndex serialize.
-constexpr uint32_t kSnapshotVersion = 1;
+// Version 2: the header below; the nodes of GrownKdTree::Save. (Version 1 held FLANN 1.9's
+// KDTreeIndex serialization; such a snapshot is ignored and the tree grown again.)
+constexpr uint32_t kSnapshotVersion = 2;
 constexpr uint32_t kSnapshotFlann = 1;  // the method field: kFlann's k-d tree
 
-// The payload is FLANN's layout on this kind of machine: another FLANN version (its serialize may
-// change) or another word size reads it otherwise, so both must match.
+// The payload's values are written as this machine holds them: one of another byte order reads
+// them otherwise, so the byte order must match.
 std::string PayloadLayout() {
-  return std::string("flann ") + FLANN_VERSION_ + " size_t " + std::to_string(sizeof(size_t));
+  const uint32_t one = 1;
+  uint8_t first_byte;
+  std::memcpy(&first_byte, &one, 1);
+  return std::string("kd-tree i32 f32 u8 ") + (first_byte == 1 ? "le" : "be");
 }
 
 struct SnapshotHeader {
@@ -164,21 +167,13 @@ struct FileCloser {
 };
 using File = std::unique_ptr<std::FILE, FileCloser>;
 
-// FLANN archives (flann/util/serialization.h) that write and read raw values through a large
-// buffer, hashing what passes, instead of FLANN's own LZ4-HC archive (slow to write, and it
-// trusts whatever it reads). Pointers are skipped, as in FLANN's archives.
-class SnapshotWriter : public flann::serialization::OutputArchive<SnapshotWriter> {
+// Archives that write and read raw values through a large buffer, hashing what passes.
+class SnapshotWriter {
  public:
   explicit SnapshotWriter(std::FILE* file) : file_(file) { buffer_.reserve(kBufferBytes); }
   template <typename T>
   void save(const T& value) {
     Write(&value, sizeof(value));
-  }
-  template <typename T>
-  void save(T* const& /*pointer*/) {}
-  template <typename T>
-  void save_binary(T* data, size_t size) {
-    Write(data, size);
   }
   // Writes out what is buffered; false if any write failed.
   bool Flush() {
@@ -207,7 +202,7 @@ class SnapshotWriter : public flann::serialization::OutputArchive<SnapshotWriter
   bool failed_ = false;
 };
 
-class SnapshotReader : public flann::serialization::InputArchive<SnapshotReader> {
+class SnapshotReader {
  public:
   // Reads at most `limit` bytes of `file` from its current position.
   SnapshotReader(std::FILE* file, uint64_t limit) : file_(file), left_in_file_(limit) {}
@@ -219,14 +214,6 @@ class SnapshotReader : public flann::serialization::InputArchive<SnapshotReader>
     } else {
       Read(&value, sizeof(value));
     }
-  }
-  template <typename T>
-  void load(T*& pointer) {
-    pointer = nullptr;
-  }
-  template <typename T>
-  void load_binary(T* data, size_t size) {
-    Read(data, size);
   }
   // Bytes of the limit not read.
   uint64_t unread() const { return left_in_file_ + (end_ - next_); }
@@ -260,51 +247,7 @@ class SnapshotReader : public flann::serialization::InputArchive<SnapshotReader>
   size_t end_ = 0;
 };
 
-// FLANN's squared Euclidean distance, computed for SIFT's 128 bytes by SquaredDistance (vector
-// instructions) instead of FLANN's scalar loop. The values are FLANN's own: it sums the integer
-// squares in float, exact while the sum stays below 2^24 (128 * 255^2 is less), so the tree
-// answers exactly as with flann::L2. Its snapshots are the same (the distance is not written).
-// Every point of the tree has kDescriptorSize values (Add and Load check it); the tree never
-// passes FLANN's early-exit bound `worst`.
-struct DescriptorL2 : flann::L2<unsigned char> {
-  template <typename Iterator1, typename Iterator2>
-  ResultType operator()(Iterator1 a, Iterator2 b, size_t size, ResultType /*worst*/ = -1) const {
-    DCHECK_EQ(size, static_cast<size_t>(kDescriptorSize));
-    return static_cast<ResultType>(SquaredDistance(a, b));
-  }
-};
-
-// The k-d tree, with the access to FLANN's point table that loading a snapshot needs.
-class GrownTree : public flann::KDTreeIndex<DescriptorL2> {
- public:
-  using Base = flann::KDTreeIndex<DescriptorL2>;
-  GrownTree() : Base(flann::KDTreeIndexParams(1)) {}
-  // A one-point tree: the batch build has nothing to shuffle, so it is deterministic.
-  explicit GrownTree(const flann::Matrix<unsigned char>& first_point)
-      : Base(first_point, flann::KDTreeIndexParams(1)) {
-    buildIndex();
-  }
-  // Reads the tree of a snapshot whose points are `points` (the snapshot holds their indices,
-  // FLANN's serialize looks the pointers up here). Throws on a short or inconsistent tree.
-  void Load(std::vector<unsigned char*> points, SnapshotReader* reader) {
-    const size_t expected = points.size();
-    // KDTreeIndex redeclares its base's members private; the base's own name reaches them.
-    this->flann::NNIndex<DescriptorL2>::points_ = std::move(points);
-    *reader& static_cast<Base&>(*this);
-    if (size() != expected || veclen() != kDescriptorSize) {
-      throw std::runtime_error("the tree holds " + std::to_string(size()) + " points of " +
-                               std::to_string(veclen()) + " values");
-    }
-  }
-};
-
 }  // namespace
-
-struct DescriptorIndex::Flann {
-  explicit Flann(const flann::Matrix<unsigned char>& first_point) : index(first_point) {}
-  Flann() = default;
-  GrownTree index;
-};
 
 struct DescriptorIndex::Hnsw {
   explicit Hnsw(const DescriptorIndexOptions& options)
@@ -347,7 +290,7 @@ void DescriptorIndex::Add(int32_t owner, const cv::Mat& descriptors) {
     AddToHnsw(block, first_point);
   } else {
     blocks_.push_back(block);
-    if (!deferred_) AddToFlann(block);
+    if (!deferred_) AddToTree(block);
   }
 }
 
@@ -394,7 +337,7 @@ SnapshotLoad DescriptorIndex::FinishDeferred(const std::string& snapshot_path) {
                        std::to_string(blocks_.size()) + " descriptor blocks; " + timing + ")";
       LOG(INFO) << "descriptor index: " << result.message;
     } else {
-      flann_.reset();
+      tree_.reset();
       result.message = "ignored " + snapshot_path + ": " + covered.status().message();
       // A missing snapshot is the normal first open; anything else is worth a warning.
       if (covered.status().code() == StatusCode::kNotFound) {
@@ -407,7 +350,7 @@ SnapshotLoad DescriptorIndex::FinishDeferred(const std::string& snapshot_path) {
   result.load_ms = timer.ElapsedMs();
   Timer insert_timer;
   for (size_t b = first_block; b < blocks_.size(); ++b) {
-    AddToFlann(blocks_[b]);
+    AddToTree(blocks_[b]);
     result.inserted_points += blocks_[b].rows;
   }
   result.insert_ms = insert_timer.ElapsedMs();
@@ -471,15 +414,15 @@ StatusOr<size_t> DescriptorIndex::LoadSnapshot(const std::string& path, std::str
   }
   const double check_ms = check_timer.ElapsedMs();
   Timer tree_timer;
-  std::vector<unsigned char*> point_table;
+  std::vector<const uint8_t*> point_table;
   point_table.reserve(points);
   for (size_t b = 0; b < adds; ++b) {
-    for (int r = 0; r < blocks_[b].rows; ++r) point_table.push_back(blocks_[b].ptr<uchar>(r));
+    for (int r = 0; r < blocks_[b].rows; ++r) point_table.push_back(blocks_[b].ptr<uint8_t>(r));
   }
-  auto flann = std::make_unique<Flann>();
+  auto tree = std::make_unique<GrownKdTree>();
   SnapshotReader reader(file.get(), header->payload_bytes);
   try {
-    flann->index.Load(std::move(point_table), &reader);
+    tree->Load(std::move(point_table), &reader);
   } catch (const std::exception& e) {
     return Status::InvalidArgument(std::string("its tree cannot be read: ") + e.what());
   }
@@ -487,7 +430,7 @@ StatusOr<size_t> DescriptorIndex::LoadSnapshot(const std::string& path, std::str
     return Status::InvalidArgument("its tree is followed by " + std::to_string(reader.unread()) +
                                    " stray bytes");
   }
-  flann_ = std::move(flann);
+  tree_ = std::move(tree);
   std::ostringstream text;
   text.precision(3);
   text << "digest " << digest_ms / 1000 << " s, checksum " << check_ms / 1000 << " s, tree "
@@ -501,7 +444,7 @@ Status DescriptorIndex::SaveSnapshot(const std::string& path) const {
     return Status::InvalidArgument("only the FLANN descriptor index has snapshots");
   }
   CHECK(!deferred_) << "SaveSnapshot between DeferInsertion and FinishDeferred";
-  if (!flann_) return Status::InvalidArgument("the descriptor index is empty: nothing to save");
+  if (!tree_) return Status::InvalidArgument("the descriptor index is empty: nothing to save");
   // One fixed name: a file left by a process killed while writing is overwritten by the next
   // save rather than piling up. A save holds a lock on it while writing: a second process that
   // saves at the same moment (a server stopping while `placerec-map index` runs) is refused
@@ -540,7 +483,7 @@ Status DescriptorIndex::SaveSnapshot(const std::string& path) const {
     return fail("header");
   }
   SnapshotWriter writer(file.get());
-  writer& static_cast<const GrownTree::Base&>(flann_->index);
+  tree_->Save(&writer);
   if (!writer.Flush()) return fail("tree");
   header.payload_bytes = writer.bytes();
   header.payload_hash = writer.hash();
@@ -559,18 +502,9 @@ Status DescriptorIndex::SaveSnapshot(const std::string& path) const {
   return Status::Ok();
 }
 
-void DescriptorIndex::AddToFlann(cv::Mat block) {
-  size_t first = 0;
-  if (!flann_) {
-    flann_ = std::make_unique<Flann>(flann::Matrix<unsigned char>(block.data, 1, kDescriptorSize));
-    first = 1;
-  }
-  if (first < static_cast<size_t>(block.rows)) {
-    // Insert only: a threshold no size reaches keeps FLANN from rebuilding.
-    flann_->index.addPoints(flann::Matrix<unsigned char>(block.ptr<unsigned char>(first),
-                                                         block.rows - first, kDescriptorSize),
-                            std::numeric_limits<float>::max());
-  }
+void DescriptorIndex::AddToTree(const cv::Mat& block) {
+  if (!tree_) tree_ = std::make_unique<GrownKdTree>();
+  for (int r = 0; r < block.rows; ++r) tree_->Add(block.ptr<uint8_t>(r));
 }
 
 void DescriptorIndex::AddToHnsw(const cv::Mat& block, size_t first_point) {
@@ -607,21 +541,14 @@ void DescriptorIndex::Search(const cv::Mat& queries, int knn,
     }
     return;
   }
-  std::vector<size_t> index_data(query_block.rows * k);
-  std::vector<float> distance_data(query_block.rows * k);
-  flann::Matrix<unsigned char> query_matrix(query_block.data, query_block.rows, kDescriptorSize);
-  flann::Matrix<size_t> indices(index_data.data(), query_block.rows, k);
-  flann::Matrix<float> distances(distance_data.data(), query_block.rows, k);
-  flann::SearchParams params(options_.checks);
-  params.cores = 1;
-  flann_->index.knnSearch(query_matrix, indices, distances, k, params);
+  std::vector<GrownKdTree::Branch> heap;
+  std::vector<GrownKdTree::Found> found;
   for (int q = 0; q < query_block.rows; ++q) {
+    tree_->Search(query_block.ptr<uint8_t>(q), static_cast<int>(k), options_.checks, &heap, &found);
     std::vector<Neighbour>& out = (*neighbours)[q];
-    out.reserve(k);
-    for (size_t j = 0; j < k; ++j) {
-      const size_t point = indices[q][j];
-      if (point >= point_owner_.size()) continue;  // FLANN fills missing neighbours with -1
-      out.push_back({point_owner_[point], point_row_[point], distances[q][j]});
+    out.reserve(found.size());
+    for (const GrownKdTree::Found& f : found) {
+      out.push_back({point_owner_[f.point], point_row_[f.point], f.distance});
     }
   }
 }

@@ -2,12 +2,13 @@
 // insertion only, so that two processes fed the same descriptors in the same order answer alike
 // and no rebuild ever stalls a lookup. Two methods:
 //
-// - kFlann (the default): FLANN's k-d tree (libflann), grown point by point. FLANN's batch build
-//   shuffles its points with std::random_device (answers would differ between processes); a
-//   grown tree is deterministic. Inserting is cheaper than into the graph, and a reopened map
-//   loads the tree from its snapshot (below) instead of growing it again; but its search
-//   clears a bit per stored point for every query, so search cost grows with the map, and with
-//   a fixed number of checks it finds fewer of the exact nearest neighbours as the map grows.
+// - kFlann (the default): FLANN's k-d tree grown point by point and searched with a budget of
+//   leaf checks (kd_tree.h: FLANN 1.9's algorithm and answers, without its per-query cost in
+//   proportion to the map). FLANN's batch build shuffles its points with std::random_device
+//   (answers would differ between processes); a grown tree is deterministic. Inserting is
+//   cheaper than into the graph, and a reopened map loads the tree from its snapshot (below)
+//   instead of growing it again; but with a fixed number of checks it finds fewer of the exact
+//   nearest neighbours as the map grows.
 // - kHnsw: a hierarchical navigable small-world graph (hnswlib, Malkov and Yashunin 2018): far
 //   closer to exact search than the tree with the default settings, search cost growing with
 //   the logarithm of the map, but inserting costs far more (a reopened map is indexed again:
@@ -36,6 +37,8 @@
 #include "common/util/status.h"
 
 namespace placerec {
+
+class GrownKdTree;
 
 enum class DescriptorSearch { kHnsw, kFlann };
 
@@ -105,9 +108,8 @@ class DescriptorIndex {
   Status SaveSnapshot(const std::string& path) const;
 
  private:
-  struct Flann;
   struct Hnsw;
-  void AddToFlann(cv::Mat block);
+  void AddToTree(const cv::Mat& block);
   void AddToHnsw(const cv::Mat& block, size_t first_point);
   // Digest of the first `adds` blocks (owner, rows, bytes): what a snapshot covers.
   uint64_t ContentDigest(size_t adds) const;
@@ -116,9 +118,9 @@ class DescriptorIndex {
   StatusOr<size_t> LoadSnapshot(const std::string& path, std::string* timing);
 
   DescriptorIndexOptions options_;
-  std::unique_ptr<Flann> flann_;
+  std::unique_ptr<GrownKdTree> tree_;  // kFlann
   std::unique_ptr<Hnsw> hnsw_;
-  std::vector<cv::Mat> blocks_;  // one per kFlann Add: the descriptor memory FLANN points into
+  std::vector<cv::Mat> blocks_;  // one per kFlann Add: the descriptor memory the tree points into
   bool deferred_ = false;        // DeferInsertion: blocks_ not yet in the tree
   std::vector<int32_t> point_owner_;
   std::vector<int32_t> point_row_;

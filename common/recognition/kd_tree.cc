@@ -1,0 +1,112 @@
+#include "common/recognition/kd_tree.h"
+
+#include <algorithm>
+#include <cstdlib>
+
+#include <flann/util/result_set.h>
+
+#include "common/recognition/descriptor_matching.h"
+
+namespace placerec {
+namespace {
+
+constexpr int kDimensions = 128;
+
+// The order of FLANN's Heap<BranchSt>: std::push_heap and std::pop_heap with this comparison,
+// so that equally distant branches leave the heap in FLANN's order.
+struct FartherFirst {
+  bool operator()(const GrownKdTree::Branch& a, const GrownKdTree::Branch& b) const {
+    return b.mindist < a.mindist;
+  }
+};
+
+}  // namespace
+
+int32_t GrownKdTree::NewNode(int32_t feature, float value) {
+  nodes_.push_back(Node{feature, value, kNone, kNone});
+  return static_cast<int32_t>(nodes_.size() - 1);
+}
+
+void GrownKdTree::Add(const uint8_t* point) {
+  const int32_t index = static_cast<int32_t>(points_.size());
+  points_.push_back(point);
+  if (nodes_.empty()) {
+    NewNode(index, 0);
+    return;
+  }
+  // Down to the leaf the point falls in (FLANN: point[divfeat] < divval goes to child1).
+  int32_t at = 0;
+  while (!nodes_[at].leaf()) {
+    const Node& node = nodes_[at];
+    at = point[node.feature] < node.value ? node.child1 : node.child2;
+  }
+  // The leaf splits on the first dimension where the two points differ most, at the integer
+  // mean of their values; the smaller goes to child1.
+  const int32_t leaf_index = nodes_[at].feature;
+  const uint8_t* leaf_point = points_[leaf_index];
+  int max_span = 0;
+  int feature = 0;
+  for (int d = 0; d < kDimensions; ++d) {
+    const int span = std::abs(point[d] - leaf_point[d]);
+    if (span > max_span) {
+      max_span = span;
+      feature = d;
+    }
+  }
+  const bool new_below = point[feature] < leaf_point[feature];
+  const int32_t child1 = NewNode(new_below ? index : leaf_index, 0);
+  const int32_t child2 = NewNode(new_below ? leaf_index : index, 0);
+  nodes_[at] = Node{feature, static_cast<float>((point[feature] + leaf_point[feature]) / 2),
+                    child1, child2};
+}
+
+void GrownKdTree::Search(const uint8_t* query, int k, int checks, std::vector<Branch>* heap,
+                         std::vector<Found>* found) const {
+  found->clear();
+  if (nodes_.empty() || k <= 0) return;
+  flann::KNNSimpleResultSet<float> result(static_cast<size_t>(k));
+  heap->clear();
+  int checked = 0;
+  // FLANN's searchLevel, its tail recursion as a loop: down from `at`, each untaken branch
+  // kept on the heap while it may hold a nearer point, the leaf reached compared.
+  auto search_from = [&](int32_t at, float mindist) {
+    while (true) {
+      if (result.worstDist() < mindist) return;
+      const Node& node = nodes_[at];
+      if (node.leaf()) {
+        if (checked >= checks && result.full()) return;
+        ++checked;
+        result.addPoint(static_cast<float>(SquaredDistance(points_[node.feature], query)),
+                        static_cast<size_t>(node.feature));
+        return;
+      }
+      const uint8_t value = query[node.feature];
+      const float diff = value - node.value;
+      const int32_t best = diff < 0 ? node.child1 : node.child2;
+      const int32_t other = diff < 0 ? node.child2 : node.child1;
+      const float new_distsq = mindist + (value - node.value) * (value - node.value);
+      if (new_distsq < result.worstDist() || !result.full()) {
+        heap->push_back(Branch{other, new_distsq});
+        std::push_heap(heap->begin(), heap->end(), FartherFirst());
+      }
+      at = best;
+    }
+  };
+  search_from(0, 0);
+  while (!heap->empty() && (checked < checks || !result.full())) {
+    const Branch branch = heap->front();
+    std::pop_heap(heap->begin(), heap->end(), FartherFirst());
+    heap->pop_back();
+    search_from(branch.node, branch.mindist);
+  }
+  const size_t n = result.size();
+  std::vector<size_t> indices(n);
+  std::vector<float> distances(n);
+  result.copy(indices.data(), distances.data(), n);
+  found->resize(n);
+  for (size_t i = 0; i < n; ++i) {
+    (*found)[i] = Found{static_cast<int32_t>(indices[i]), distances[i]};
+  }
+}
+
+}  // namespace placerec
