@@ -1,5 +1,6 @@
 #include "server/server.h"
 
+#include <malloc.h>
 #include <poll.h>
 
 #include <algorithm>
@@ -163,8 +164,9 @@ Server::Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map,
   for (const std::string& url : urls) {
     networks_.push_back(std::make_unique<Network>(this, networks_.size(), url));
   }
-  queue_ = std::make_unique<LaneWorkQueue<Job>>(options_.workers, options_.queue_capacity,
-                                                [this](Job& job) { Work(job); });
+  queue_ = std::make_unique<LaneWorkQueue<Job>>(
+      options_.workers, options_.queue_capacity, [this](Job& job) { Work(job); },
+      [this] { idle_since_.store(std::chrono::steady_clock::now().time_since_epoch().count()); });
 }
 
 Server::~Server() {
@@ -219,6 +221,7 @@ Status Server::Run() {
       }
     }
     const auto now = std::chrono::steady_clock::now();
+    TrimWhenIdle(now);
     if (now >= next_status) {
       PublishStatus();
       next_status += period;
@@ -459,6 +462,19 @@ void Server::Publish(result_t* answer, bool processed, size_t network, const Sig
   }
   stats_.Answered(processed, answer->status != result_t::STATUS_OK,
                   answer->status == result_t::STATUS_OVERLOADED);
+}
+
+void Server::TrimWhenIdle(std::chrono::steady_clock::time_point now) {
+  // glibc keeps the memory a frame's analysis freed in its per-thread arenas, so without this
+  // resident memory stays at the high-water mark of the busiest moment and says little about
+  // what the map holds. Not after every frame: the next frame would fault the pages in again.
+  constexpr std::chrono::seconds kIdleBeforeTrim(5);
+  int64_t since = idle_since_.load();
+  if (since == kNotIdle) return;
+  const std::chrono::steady_clock::time_point idle(std::chrono::steady_clock::duration{since});
+  if (now - idle < kIdleBeforeTrim || queue_->running() > 0 || queue_->depth() > 0) return;
+  // A burst that ended since sets a later time: then wait for that one.
+  if (idle_since_.compare_exchange_strong(since, kNotIdle)) malloc_trim(0);
 }
 
 status_t Server::CurrentStatus() {

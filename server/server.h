@@ -7,6 +7,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -127,6 +128,8 @@ class Server {
          Authenticator auth);
   void OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer, const std::string& channel);
   void Work(Job& job);
+  // Gives the heap's free pages back to the system once the queue has had no work for 5 s.
+  void TrimWhenIdle(std::chrono::steady_clock::time_point now);
   // Publishes `answer` on its robot's channel of network `network`, signed with `key` (unsigned
   // when null); `processed` says whether a worker ran the frame.
   void Publish(result_t* answer, bool processed, size_t network, const SigningKey* key);
@@ -152,6 +155,10 @@ class Server {
   AnswerRecord answers_;
   std::atomic<bool> stop_requested_{false};
   std::atomic<bool> reload_requested_{false};
+  // When the queue last ran out of work (steady clock ticks), kNotIdle once the heap was trimmed
+  // after it (TrimWhenIdle: free heap pages go back to the system after 5 s without work).
+  static constexpr int64_t kNotIdle = -1;
+  std::atomic<int64_t> idle_since_{kNotIdle};
   // Used by the receive loop only.
   Authenticator auth_;
   int64_t dropped_logged_ = 0;

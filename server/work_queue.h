@@ -28,9 +28,11 @@ class LaneWorkQueue {
  public:
   using Handler = std::function<void(Job&)>;
 
-  // Starts `workers` threads that call `handler` for each job. `handler` must not throw.
-  LaneWorkQueue(int workers, int capacity, Handler handler)
-      : capacity_(capacity), handler_(std::move(handler)) {
+  // Starts `workers` threads that call `handler` for each job. `handler` must not throw. `idle`
+  // (may be empty, must not throw) runs on the worker that finished the last job when no other
+  // job runs or waits: once per burst of work, never while a job waits for it.
+  LaneWorkQueue(int workers, int capacity, Handler handler, std::function<void()> idle = {})
+      : capacity_(capacity), handler_(std::move(handler)), idle_(std::move(idle)) {
     CHECK_GE(workers, 1);
     CHECK_GE(capacity, 1);
     for (int i = 0; i < workers; ++i) threads_.emplace_back([this] { WorkerLoop(); });
@@ -162,11 +164,17 @@ class LaneWorkQueue {
           lanes_.erase(it);
         }
       }
+      if (idle_ && running_ == 0 && depth_ == 0 && !stopping_) {
+        lock.unlock();
+        idle_();
+        lock.lock();
+      }
     }
   }
 
   const int capacity_;
   Handler handler_;
+  std::function<void()> idle_;
   mutable std::mutex mutex_;
   std::condition_variable wake_;
   std::unordered_map<std::string, Lane> lanes_;

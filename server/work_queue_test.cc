@@ -263,5 +263,48 @@ TEST(LaneWorkQueueTest, ShutdownReturnsWhatNeverStarted) {
   EXPECT_TRUE(queue.Shutdown().empty());
 }
 
+// The idle hook runs once when a burst of work is done, on no job's time: not while another job
+// runs or waits.
+TEST(LaneWorkQueueTest, IdleRunsOnceWhenTheLastJobOfABurstIsDone) {
+  Gate gate;
+  Counter started, finished, idle;
+  std::atomic<int> busy_when_idle{0};
+  std::atomic<int> running{0};
+  LaneWorkQueue<TestJob> queue(
+      2, 16,
+      [&](TestJob&) {
+        ++running;
+        started.Increment();
+        gate.Wait();
+        --running;
+        finished.Increment();
+      },
+      [&] {
+        if (running != 0) ++busy_when_idle;
+        idle.Increment();
+      });
+  for (int i = 0; i < 6; ++i) {
+    const std::string lane = i % 2 == 0 ? "a" : "b";
+    TestJob job{lane, i};
+    ASSERT_TRUE(queue.Push(lane, &job).queued);
+  }
+  ASSERT_TRUE(started.WaitFor(2));
+  EXPECT_EQ(idle.value(), 0);  // two jobs run, four wait
+  gate.Open();
+  ASSERT_TRUE(finished.WaitFor(6));
+  ASSERT_TRUE(idle.WaitFor(1));
+  ASSERT_TRUE(Eventually([&] { return queue.running() == 0; }, "the workers to finish"));
+  // Of two workers finishing their last jobs together, only the one that finishes second (under
+  // the queue's lock) finds nothing running.
+  EXPECT_EQ(idle.value(), 1);
+  EXPECT_EQ(busy_when_idle, 0);
+  // A second burst: the hook again.
+  const int before = idle.value();
+  TestJob job{"c", 7};
+  ASSERT_TRUE(queue.Push("c", &job).queued);
+  ASSERT_TRUE(finished.WaitFor(7));
+  ASSERT_TRUE(idle.WaitFor(before + 1));
+}
+
 }  // namespace
 }  // namespace placerec
