@@ -56,8 +56,8 @@ void GrownKdTree::Add(const uint8_t* point) {
   const bool new_below = point[feature] < leaf_point[feature];
   const int32_t child1 = NewNode(new_below ? index : leaf_index, 0);
   const int32_t child2 = NewNode(new_below ? leaf_index : index, 0);
-  nodes_[at] = Node{feature, static_cast<float>((point[feature] + leaf_point[feature]) / 2),
-                    child1, child2};
+  nodes_[at] =
+      Node{feature, static_cast<float>((point[feature] + leaf_point[feature]) / 2), child1, child2};
 }
 
 void GrownKdTree::Search(const uint8_t* query, int k, int checks, std::vector<Branch>* heap,

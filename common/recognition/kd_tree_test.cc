@@ -5,8 +5,8 @@
 #include <stdexcept>
 #include <vector>
 
-#include <flann/flann.hpp>
 #include <gtest/gtest.h>
+#include <flann/flann.hpp>
 
 namespace placerec {
 namespace {
