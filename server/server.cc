@@ -2,10 +2,12 @@
 
 #include <malloc.h>
 #include <poll.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <utility>
 #include <vector>
@@ -28,6 +30,16 @@ constexpr std::chrono::milliseconds kFollowerIndexTimeout(2000);
 
 // Frames LCM may hold for the receive loop (see Run); bounds memory at this many messages.
 constexpr int kLcmFrameQueue = 1024;
+
+// This process's resident memory in MiB (/proc/self/statm), 0 when it cannot be read.
+double ResidentMiB() {
+  std::FILE* file = std::fopen("/proc/self/statm", "r");
+  if (file == nullptr) return 0;
+  long size = 0, resident = 0;
+  const bool read = std::fscanf(file, "%ld %ld", &size, &resident) == 2;
+  std::fclose(file);
+  return read ? static_cast<double>(resident) * sysconf(_SC_PAGESIZE) / (1024.0 * 1024.0) : 0;
+}
 
 int64_t NowUtime() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
@@ -474,7 +486,12 @@ void Server::TrimWhenIdle(std::chrono::steady_clock::time_point now) {
   const std::chrono::steady_clock::time_point idle(std::chrono::steady_clock::duration{since});
   if (now - idle < kIdleBeforeTrim || queue_->running() > 0 || queue_->depth() > 0) return;
   // A burst that ended since sets a later time: then wait for that one.
-  if (idle_since_.compare_exchange_strong(since, kNotIdle)) malloc_trim(0);
+  if (!idle_since_.compare_exchange_strong(since, kNotIdle)) return;
+  const double before = ResidentMiB();
+  malloc_trim(0);
+  LOG(INFO) << "no work for " << kIdleBeforeTrim.count()
+            << " s: free heap memory returned to the system (resident " << before << " -> "
+            << ResidentMiB() << " MiB)";
 }
 
 status_t Server::CurrentStatus() {

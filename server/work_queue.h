@@ -29,8 +29,9 @@ class LaneWorkQueue {
   using Handler = std::function<void(Job&)>;
 
   // Starts `workers` threads that call `handler` for each job. `handler` must not throw. `idle`
-  // (may be empty, must not throw) runs on the worker that finished the last job when no other
-  // job runs or waits: once per burst of work, never while a job waits for it.
+  // (may be empty, must not throw) runs on the worker that finished a job when no other job
+  // runs or waits: once per burst of work. A job pushed meanwhile may start on another worker
+  // (or wait for this one), so `idle` must be quick and must not assume the queue stays empty.
   LaneWorkQueue(int workers, int capacity, Handler handler, std::function<void()> idle = {})
       : capacity_(capacity), handler_(std::move(handler)), idle_(std::move(idle)) {
     CHECK_GE(workers, 1);

@@ -126,8 +126,8 @@ TEST(EndToEndTest, CorridorLoopSceneChanges) {
   }
   StatusOr<placerec::Run> run = LoadOrSkip("rtabmap_indoor", "corridor_loop");
   ASSERT_TRUE(run.ok()) << run.status().ToString();
-  char pattern[] = "/tmp/placerec_change_eval_XXXXXX";
-  ASSERT_NE(mkdtemp(pattern), nullptr);
+  std::string pattern = ::testing::TempDir() + "placerec_change_eval_XXXXXX";
+  ASSERT_NE(mkdtemp(pattern.data()), nullptr);
   const std::string out = pattern;
   struct RemoveAtEnd {
     ~RemoveAtEnd() { std::filesystem::remove_all(dir); }

@@ -12,7 +12,7 @@
 // - The last 30 % of the time query-only frames on a map that no longer changes.
 // - The server's resident memory sampled every second, and read with no frame in work early in
 //   the query-only phase and at its end (the robots hold their frames until all are answered and
-//   the server has had 7 s without work: it gives its free heap pages back after 5).
+//   the server logs that it gave its free heap pages back, after 5 s without work).
 //
 // Checked: every frame is answered exactly once (one answer published per request id, none lost
 // across the restart); the only failures are inserts answered "storage error" during the
@@ -74,8 +74,9 @@ constexpr double kDiskFullFor = 0.05;      // share of the soak's time (at least
 constexpr double kKillAt = 0.4;            // share of the soak's time
 constexpr double kQueryOnlyFrom = 0.7;     // share of the soak's time
 constexpr double kTailSettleShare = 0.25;  // of the query-only phase, before memory is compared
-constexpr int kIdleWaitSeconds = 7;        // without work before an idle reading (the server
-                                           // trims its heap after 5: Server::TrimWhenIdle)
+// What the server logs when it gives its free heap memory back (Server::TrimWhenIdle).
+constexpr char kTrimmedLine[] = "free heap memory returned to the system";
+constexpr int kTrimWaitSeconds = 60;  // for that line once the robots hold their frames
 
 double SoakSeconds() {
   const char* env = std::getenv("PLACEREC_SOAK_SECONDS");
@@ -85,6 +86,14 @@ double SoakSeconds() {
 
 double SecondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// Lines of the file at `path` that contain `text`.
+int CountLinesWith(const std::string& path, const std::string& text) {
+  std::ifstream in(path);
+  int count = 0;
+  for (std::string line; std::getline(in, line);) count += line.find(text) != std::string::npos;
+  return count;
 }
 
 // Resident memory of `pid` in KiB (VmRSS), 0 when it cannot be read.
@@ -300,7 +309,10 @@ TEST_F(SoakTest, EightRobotsWithARestartAndAFullDisk) {
     while (!stop) {
       const pid_t pid = server_pid;
       const int64_t rss = pid > 0 ? ResidentKib(pid) : 0;
-      if (rss > 0) memory.push_back({SecondsSince(start), static_cast<Phase>(phase.load()), rss});
+      // Busy samples only: the idle readings are taken apart (idle_rss_kib).
+      if (rss > 0 && !paused) {
+        memory.push_back({SecondsSince(start), static_cast<Phase>(phase.load()), rss});
+      }
       std::this_thread::sleep_for(std::chrono::seconds(1));
     }
   });
@@ -407,12 +419,21 @@ TEST_F(SoakTest, EightRobotsWithARestartAndAFullDisk) {
   sleep_until(kQueryOnlyFrom * duration_s);
   phase = static_cast<int>(Phase::kQueryOnly);
   const double query_only_begin = SecondsSince(start);
-  // Resident memory of the idle server: every frame answered, kIdleWaitSeconds without work, the
-  // least of three readings.
+  // Resident memory of the idle server: every frame answered, the server's log saying it gave
+  // its free heap memory back since the robots were paused, then the least of three readings;
+  // 0 when the server never said so.
   auto idle_rss_kib = [&]() {
+    const int trimmed_before = CountLinesWith(server_->log_path(), kTrimmedLine);
     paused = true;
     while (in_flight > 0) std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    std::this_thread::sleep_for(std::chrono::seconds(kIdleWaitSeconds));
+    const double waited_from = SecondsSince(start);
+    while (CountLinesWith(server_->log_path(), kTrimmedLine) == trimmed_before) {
+      if (SecondsSince(start) - waited_from > kTrimWaitSeconds) {
+        paused = false;
+        return 0.0;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    }
     int64_t least = std::numeric_limits<int64_t>::max();
     for (int i = 0; i < 3; ++i) {
       least = std::min(least, ResidentKib(server_pid));
@@ -512,8 +533,12 @@ TEST_F(SoakTest, EightRobotsWithARestartAndAFullDisk) {
   // it and at its end (with frames in work resident memory saw-tooths by tens of MiB, a frame's
   // working set, so busy readings say little). Retained memory raises the second reading. The
   // least-squares slope of the once-a-second samples is reported too.
-  ASSERT_GT(early, 0) << "no reading of the server's memory";
-  ASSERT_GT(late, 0) << "no reading of the server's memory at the end";
+  ASSERT_GT(early, 0) << "the idle server did not log that it trimmed its heap, or its memory "
+                         "could not be read: "
+                      << Tail(server_->log_path());
+  ASSERT_GT(late, 0) << "the idle server did not log that it trimmed its heap at the end, or its "
+                        "memory could not be read: "
+                     << Tail(server_->log_path());
   std::vector<MemorySample> tail;
   const double settle_until = query_only_begin + kTailSettleShare * (duration_s - query_only_begin);
   for (const MemorySample& s : memory) {

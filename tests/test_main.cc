@@ -1,9 +1,11 @@
 // The main() of every placerec test executable: GoogleTest's, run inside a temporary folder of
-// the process's own. TEST_TMPDIR and TMPDIR point into it, so ::testing::TempDir() and every
-// child process a test starts (servers, chromium, PostgreSQL's initdb) write their temporary
+// the process's own. TEST_TMPDIR and TMPDIR point into it, so ::testing::TempDir() and the
+// child processes a test starts (servers, tools, chromium and its driver) write their temporary
 // files there, and the folder is removed when the process ends with every test passed; after a
 // failure it is kept and its path printed for inspection. Without it each run left its key
-// files, model round trips and browser profiles behind in /tmp.
+// files, model round trips and browser profiles behind in /tmp. (A process killed by a timeout
+// or a crash leaves its folder; the PostgreSQL test clusters live in /tmp folders of their own,
+// which their postgres user can write.)
 #include <stdlib.h>
 #include <sys/stat.h>
 
@@ -28,7 +30,9 @@ int main(int argc, char** argv) {
                  base.c_str());
   } else {
     dir = made;
-    chmod(made, 0755);  // enterable by other users, as /tmp is (a PostgreSQL cluster's owner)
+    // Enterable by other users, as /tmp is: a test's child that runs as `nobody` opens a map in
+    // it (SqliteStoreTest.ReadOnlyMapIsRefusedAtOpen).
+    if (chmod(made, 0755) != 0) std::perror("chmod of the temporary folder");
     setenv("TEST_TMPDIR", dir.c_str(), 1);
     setenv("TMPDIR", dir.c_str(), 1);
   }

@@ -121,8 +121,8 @@ TEST(PlaceMapTest, LookupsGoOnWhileAnInsertCommits) {
 class MapFile {
  public:
   MapFile() {
-    char pattern[] = "/tmp/placerec_place_map_XXXXXX";
-    CHECK(mkdtemp(pattern) != nullptr);
+    std::string pattern = ::testing::TempDir() + "placerec_place_map_XXXXXX";
+    CHECK(mkdtemp(pattern.data()) != nullptr);
     dir_ = pattern;
   }
   ~MapFile() { std::system(("rm -rf " + dir_).c_str()); }

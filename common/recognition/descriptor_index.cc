@@ -349,6 +349,10 @@ SnapshotLoad DescriptorIndex::FinishDeferred(const std::string& snapshot_path) {
   }
   result.load_ms = timer.ElapsedMs();
   Timer insert_timer;
+  if (first_block < blocks_.size()) {
+    if (!tree_) tree_ = std::make_unique<GrownKdTree>();
+    tree_->Reserve(point_owner_.size());  // no copy of the nodes while they grow
+  }
   for (size_t b = first_block; b < blocks_.size(); ++b) {
     AddToTree(blocks_[b]);
     result.inserted_points += blocks_[b].rows;
@@ -392,7 +396,8 @@ StatusOr<size_t> DescriptorIndex::LoadSnapshot(const std::string& path, std::str
     return Status::InvalidArgument("it is " + std::to_string(info.st_size) + " bytes, not " +
                                    std::to_string(SnapshotHeader::kBytes + header->payload_bytes));
   }
-  // The whole tree is checked before FLANN reads any of it: FLANN trusts the indices it reads.
+  // The whole tree is checked against its hash before any of it is read (reading also checks
+  // every index it meets).
   Timer check_timer;
   {
     Hash64 hash;

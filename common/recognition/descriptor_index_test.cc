@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <functional>
 #include <iterator>
@@ -20,6 +21,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <xxhash.h>
 #include <flann/flann.hpp>
 
 #include "common/recognition/recognition_test_util.h"
@@ -84,8 +86,8 @@ DescriptorIndexOptions FewChecks() {
 class DescriptorSnapshotTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    char pattern[] = "/tmp/placerec_snapshot_XXXXXX";
-    ASSERT_NE(mkdtemp(pattern), nullptr);
+    std::string pattern = ::testing::TempDir() + "placerec_snapshot_XXXXXX";
+    ASSERT_NE(mkdtemp(pattern.data()), nullptr);
     dir_ = pattern;
     path_ = dir_ + "/map.db.index";
     blocks_ = MakeBlocks(60, 7);
@@ -351,6 +353,25 @@ TEST_F(DescriptorSnapshotTest, DamagedSnapshotsAreIgnoredWithAReason) {
   const std::unique_ptr<DescriptorIndex> index = Reopen(&load);
   EXPECT_FALSE(load.used);
   EXPECT_EQ(Answers(*index, queries_), expected);
+}
+
+// A snapshot of another format version (version 1 held FLANN's own serialization) with an
+// intact header: refused for its version, the tree grown instead.
+TEST_F(DescriptorSnapshotTest, AnotherFormatVersionIsIgnoredWithAReason) {
+  SaveGrown(blocks_.size());
+  std::string bytes = ReadFile();
+  constexpr size_t kHeaderBytes = 112;  // magic 16, four u32, five u64, layout 32, hash 8
+  ASSERT_GT(bytes.size(), kHeaderBytes);
+  const uint32_t version = 1;
+  std::memcpy(&bytes[16], &version, 4);
+  const uint64_t header_hash = XXH64(bytes.data(), kHeaderBytes - 8, 0);
+  std::memcpy(&bytes[kHeaderBytes - 8], &header_hash, 8);
+  WriteFile(bytes);
+  SnapshotLoad load;
+  const std::unique_ptr<DescriptorIndex> index = Reopen(&load);
+  EXPECT_FALSE(load.used);
+  EXPECT_NE(load.message.find("format version 1"), std::string::npos) << load.message;
+  EXPECT_EQ(Answers(*index, queries_), GrownAnswers());
 }
 
 TEST_F(DescriptorSnapshotTest, LeftoverTemporaryFileIsOverwritten) {

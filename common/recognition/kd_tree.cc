@@ -6,6 +6,7 @@
 #include <flann/util/result_set.h>
 
 #include "common/recognition/descriptor_matching.h"
+#include "common/util/logging.h"
 
 namespace placerec {
 namespace {
@@ -27,7 +28,14 @@ int32_t GrownKdTree::NewNode(int32_t feature, float value) {
   return static_cast<int32_t>(nodes_.size() - 1);
 }
 
+void GrownKdTree::Reserve(size_t points) {
+  CHECK_LE(points, kMaxPoints);
+  points_.reserve(points);
+  nodes_.reserve(points > 0 ? 2 * points - 1 : 0);
+}
+
 void GrownKdTree::Add(const uint8_t* point) {
+  CHECK_LT(points_.size(), kMaxPoints) << "a k-d tree of more than 2^30 points";
   const int32_t index = static_cast<int32_t>(points_.size());
   points_.push_back(point);
   if (nodes_.empty()) {
@@ -60,24 +68,30 @@ void GrownKdTree::Add(const uint8_t* point) {
       Node{feature, static_cast<float>((point[feature] + leaf_point[feature]) / 2), child1, child2};
 }
 
-void GrownKdTree::Search(const uint8_t* query, int k, int checks, std::vector<Branch>* heap,
-                         std::vector<Found>* found) const {
-  found->clear();
-  if (nodes_.empty() || k <= 0) return;
-  flann::KNNSimpleResultSet<float> result(static_cast<size_t>(k));
+namespace {
+
+// FLANN's knnSearch keeps the k nearest in a KNNSimpleResultSet up to KNN_HEAP_THRESHOLD (250)
+// and in a KNNResultSet2 above it; the two break ties between equally distant points apart.
+constexpr int kFlannHeapThreshold = 250;
+
+}  // namespace
+
+template <typename ResultSet>
+void GrownKdTree::SearchWith(const uint8_t* query, int checks, ResultSet* result,
+                             std::vector<Branch>* heap) const {
   heap->clear();
   int checked = 0;
   // FLANN's searchLevel, its tail recursion as a loop: down from `at`, each untaken branch
   // kept on the heap while it may hold a nearer point, the leaf reached compared.
   auto search_from = [&](int32_t at, float mindist) {
     while (true) {
-      if (result.worstDist() < mindist) return;
+      if (result->worstDist() < mindist) return;
       const Node& node = nodes_[at];
       if (node.leaf()) {
-        if (checked >= checks && result.full()) return;
+        if (checked >= checks && result->full()) return;
         ++checked;
-        result.addPoint(static_cast<float>(SquaredDistance(points_[node.feature], query)),
-                        static_cast<size_t>(node.feature));
+        result->addPoint(static_cast<float>(SquaredDistance(points_[node.feature], query)),
+                         static_cast<size_t>(node.feature));
         return;
       }
       const uint8_t value = query[node.feature];
@@ -85,7 +99,7 @@ void GrownKdTree::Search(const uint8_t* query, int k, int checks, std::vector<Br
       const int32_t best = diff < 0 ? node.child1 : node.child2;
       const int32_t other = diff < 0 ? node.child2 : node.child1;
       const float new_distsq = mindist + (value - node.value) * (value - node.value);
-      if (new_distsq < result.worstDist() || !result.full()) {
+      if (new_distsq < result->worstDist() || !result->full()) {
         heap->push_back(Branch{other, new_distsq});
         std::push_heap(heap->begin(), heap->end(), FartherFirst());
       }
@@ -93,18 +107,36 @@ void GrownKdTree::Search(const uint8_t* query, int k, int checks, std::vector<Br
     }
   };
   search_from(0, 0);
-  while (!heap->empty() && (checked < checks || !result.full())) {
+  while (!heap->empty() && (checked < checks || !result->full())) {
     const Branch branch = heap->front();
     std::pop_heap(heap->begin(), heap->end(), FartherFirst());
     heap->pop_back();
     search_from(branch.node, branch.mindist);
   }
-  const size_t n = result.size();
-  std::vector<size_t> indices(n);
-  std::vector<float> distances(n);
-  result.copy(indices.data(), distances.data(), n);
-  found->resize(n);
-  for (size_t i = 0; i < n; ++i) {
+}
+
+void GrownKdTree::Search(const uint8_t* query, int k, int checks, std::vector<Branch>* heap,
+                         std::vector<Found>* found) const {
+  found->clear();
+  if (nodes_.empty() || k <= 0) return;
+  std::vector<size_t> indices;
+  std::vector<float> distances;
+  auto run = [&](auto* result) {
+    SearchWith(query, checks, result, heap);
+    const size_t n = result->size();
+    indices.resize(n);
+    distances.resize(n);
+    result->copy(indices.data(), distances.data(), n, /*sorted=*/true);
+  };
+  if (k > kFlannHeapThreshold) {
+    flann::KNNResultSet2<float> result(static_cast<size_t>(k));
+    run(&result);
+  } else {
+    flann::KNNSimpleResultSet<float> result(static_cast<size_t>(k));
+    run(&result);
+  }
+  found->resize(indices.size());
+  for (size_t i = 0; i < indices.size(); ++i) {
     (*found)[i] = Found{static_cast<int32_t>(indices[i]), distances[i]};
   }
 }

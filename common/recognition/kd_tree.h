@@ -12,6 +12,7 @@
 // const and may run on several threads at once.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -35,16 +36,16 @@ class GrownKdTree {
 
   // Adds `point` (128 bytes, kept alive by the caller while the tree is used) as point size().
   void Add(const uint8_t* point);
+  // Makes room for `points` points in all, so that growing to them copies nothing.
+  void Reserve(size_t points);
 
   size_t size() const { return points_.size(); }
-  // Memory held by the tree (nodes and the point table), bytes.
-  size_t MemoryBytes() const {
-    return nodes_.capacity() * sizeof(Node) + points_.capacity() * sizeof(points_[0]);
-  }
 
   // The up to `k` nearest points of `query` into `found`, closest first. The search compares
   // `checks` leaves (more while fewer than k were found) and follows the closest untaken branches
-  // first (FLANN SearchParams::checks; eps 0). `heap` is scratch space, reused between calls.
+  // first (FLANN SearchParams::checks; eps 0). Points at equal distances are kept and ordered as
+  // FLANN's knnSearch keeps them (which result set it uses depends on k). `heap` is scratch
+  // space, reused between calls.
   void Search(const uint8_t* query, int k, int checks, std::vector<Branch>* heap,
               std::vector<Found>* found) const;
 
@@ -54,13 +55,15 @@ class GrownKdTree {
   template <typename Writer>
   void Save(Writer* writer) const;
   // Replaces this tree with one Save wrote over `points` (the same points, in the same order).
-  // Throws std::runtime_error when what is read is no such tree (an index out of range, a point
-  // that is no leaf or a leaf twice, a short read thrown by the reader).
+  // Throws std::runtime_error when what is read is no such tree (an index out of range, a split
+  // value no grown tree has, a leaf flag other than 0 or 1, a point that is no leaf or a leaf
+  // twice, more than 2n - 1 nodes, a short read thrown by the reader).
   template <typename Reader>
   void Load(std::vector<const uint8_t*> points, Reader* reader);
 
  private:
   static constexpr int32_t kNone = -1;
+  static constexpr size_t kMaxPoints = INT32_MAX / 2;  // 2n - 1 nodes must have int32 indices
   struct Node {
     int32_t feature;  // an inner node's split dimension; a leaf's point index
     float value;      // an inner node's split value: points below it go to child1
@@ -69,6 +72,10 @@ class GrownKdTree {
     bool leaf() const { return child1 == kNone; }
   };
   int32_t NewNode(int32_t feature, float value);
+  // FLANN's getNeighbors with one tree, into `result` (one of FLANN's k-nearest result sets).
+  template <typename ResultSet>
+  void SearchWith(const uint8_t* query, int checks, ResultSet* result,
+                  std::vector<Branch>* heap) const;
 
   std::vector<Node> nodes_;  // nodes_[0] is the root
   std::vector<const uint8_t*> points_;
@@ -81,7 +88,7 @@ void GrownKdTree::Save(Writer* writer) const {
   while (!stack.empty()) {
     const Node& node = nodes_[stack.back()];
     stack.pop_back();
-    const bool leaf = node.leaf();
+    const uint8_t leaf = node.leaf() ? 1 : 0;
     writer->save(node.feature);
     writer->save(node.value);
     writer->save(leaf);
@@ -98,7 +105,7 @@ void GrownKdTree::Load(std::vector<const uint8_t*> points, Reader* reader) {
   points_ = std::move(points);
   if (points_.empty()) return;
   const size_t n = points_.size();
-  if (n > static_cast<size_t>(INT32_MAX / 2)) throw std::runtime_error("too many points");
+  if (n > kMaxPoints) throw std::runtime_error("too many points");
   nodes_.reserve(2 * n - 1);
   std::vector<bool> seen(n, false);
   size_t leaves = 0;
@@ -108,11 +115,12 @@ void GrownKdTree::Load(std::vector<const uint8_t*> points, Reader* reader) {
     stack.pop_back();
     int32_t feature = 0;
     float value = 0;
-    bool leaf = false;
+    uint8_t leaf = 0;
     reader->load(feature);
     reader->load(value);
     reader->load(leaf);
-    if (leaf) {
+    if (leaf > 1) throw std::runtime_error("a leaf flag of " + std::to_string(leaf));
+    if (leaf == 1) {
       if (feature < 0 || static_cast<size_t>(feature) >= n || seen[feature]) {
         throw std::runtime_error("a leaf holds point " + std::to_string(feature) + " of " +
                                  std::to_string(n) + " (or one seen before)");
@@ -120,12 +128,19 @@ void GrownKdTree::Load(std::vector<const uint8_t*> points, Reader* reader) {
       seen[feature] = true;
       ++leaves;
       nodes_[at].feature = feature;
-      nodes_[at].value = value;
+      nodes_[at].value = 0;  // a leaf's value is never read
       continue;
     }
-    if (feature < 0 || feature >= 128 || nodes_.size() + 2 > 2 * n - 1) {
-      throw std::runtime_error("an inner node splits dimension " + std::to_string(feature) +
-                               " or the tree has more nodes than 2n - 1");
+    if (feature < 0 || feature >= 128) {
+      throw std::runtime_error("an inner node splits dimension " + std::to_string(feature));
+    }
+    // A grown tree splits at the integer mean of two byte values.
+    if (!(value >= 0 && value <= 255 && value == std::floor(value))) {
+      throw std::runtime_error("an inner node splits at " + std::to_string(value));
+    }
+    if (nodes_.size() + 2 > 2 * n - 1) {
+      throw std::runtime_error("the tree has more nodes than 2n - 1 for " + std::to_string(n) +
+                               " points");
     }
     const int32_t child1 = NewNode(0, 0);
     const int32_t child2 = NewNode(0, 0);

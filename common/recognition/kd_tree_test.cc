@@ -1,6 +1,8 @@
 #include "common/recognition/kd_tree.h"
 
+#include <algorithm>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <vector>
@@ -35,6 +37,21 @@ std::vector<uint8_t> Points(int n, uint32_t seed) {
   return points;
 }
 
+// Queries near stored points (as a revisit's descriptors are) and far from all (another place's).
+std::vector<uint8_t> Queries(const std::vector<uint8_t>& points, int n, uint32_t seed) {
+  std::mt19937 random(seed);
+  std::vector<uint8_t> queries = Points(n / 2, seed);
+  const size_t stored = points.size() / kSize;
+  for (int i = n / 2; i < n; ++i) {
+    const uint8_t* near = &points[(random() % stored) * kSize];
+    for (int d = 0; d < kSize; ++d) {
+      const int noisy = near[d] + static_cast<int>(random() % 9) - 4;
+      queries.push_back(static_cast<uint8_t>(std::clamp(noisy, 0, 255)));
+    }
+  }
+  return queries;
+}
+
 // FLANN 1.9's KDTreeIndex with one tree, grown as DescriptorIndex grew it before GrownKdTree:
 // built on the first point, the others inserted without a rebuild.
 struct FlannTree {
@@ -52,7 +69,7 @@ struct FlannTree {
 
 TEST(GrownKdTreeTest, FindsWhatFlannsGrownTreeFinds) {
   std::vector<uint8_t> points = Points(3000, 1);
-  const std::vector<uint8_t> queries = Points(300, 2);
+  const std::vector<uint8_t> queries = Queries(points, 300, 2);
   FlannTree flann_tree(&points);
   GrownKdTree tree;
   for (size_t i = 0; i < points.size() / kSize; ++i) tree.Add(&points[i * kSize]);
@@ -60,8 +77,10 @@ TEST(GrownKdTreeTest, FindsWhatFlannsGrownTreeFinds) {
 
   std::vector<GrownKdTree::Branch> heap;
   std::vector<GrownKdTree::Found> found;
-  for (const int checks : {1, 8, 32, 256}) {
-    for (const int k : {1, 2, 5, 16}) {
+  // k above 250: FLANN keeps the neighbours in another result set, which breaks ties otherwise.
+  // checks above the tree's size: every leaf is compared.
+  for (const int checks : {1, 8, 32, 256, 5000}) {
+    for (const int k : {1, 2, 5, 16, 250, 251, 400}) {
       SCOPED_TRACE("checks " + std::to_string(checks) + ", k " + std::to_string(k));
       const int rows = static_cast<int>(queries.size() / kSize);
       std::vector<size_t> indices(static_cast<size_t>(rows) * k);
@@ -165,39 +184,73 @@ TEST(GrownKdTreeTest, ALoadedTreeAnswersAsTheSavedOne) {
   EXPECT_EQ(again_a.data, again_b.data);
 }
 
+// One node of Save's encoding.
+void PutNode(Bytes* bytes, int32_t feature, float value, uint8_t leaf) {
+  bytes->save(feature);
+  bytes->save(value);
+  bytes->save(leaf);
+}
+
 TEST(GrownKdTreeTest, LoadRefusesWhatIsNoTreeOfThePoints) {
   const std::vector<uint8_t> points = Points(50, 7);
   GrownKdTree tree;
   for (const uint8_t* p : Table(points)) tree.Add(p);
   Bytes good;
   tree.Save(&good);
-  auto load = [&](Bytes bytes, size_t points_given) {
+  // What Load throws for `bytes` over the first `points_given` points; empty when it loads.
+  auto error = [&](Bytes bytes, size_t points_given = 50) -> std::string {
     GrownKdTree loaded;
     std::vector<const uint8_t*> table = Table(points);
     table.resize(points_given);
-    loaded.Load(table, &bytes);
+    try {
+      loaded.Load(table, &bytes);
+    } catch (const std::runtime_error& e) {
+      return e.what();
+    }
+    return "";
   };
-  EXPECT_NO_THROW(load(good, 50));
-  EXPECT_THROW(load(good, 49), std::runtime_error);  // a leaf beyond the points
+  auto contains = [](const std::string& text, const std::string& part) {
+    return text.find(part) != std::string::npos;
+  };
+  EXPECT_EQ(error(good), "");
+  // A leaf beyond the points (a one-point tree, so no node limit comes first).
+  Bytes beyond;
+  PutNode(&beyond, 1, 0, 1);
+  EXPECT_TRUE(contains(error(beyond, 1), "holds point 1 of 1")) << error(beyond, 1);
   Bytes short_read = good;
   short_read.data.resize(good.data.size() - 1);
-  EXPECT_THROW(load(short_read, 50), std::runtime_error);
+  EXPECT_EQ(error(short_read), "short");
   // The first node is the root, an inner node: a split dimension past the descriptor.
   Bytes bad_dimension = good;
   const int32_t dimension = 128;
   std::memcpy(bad_dimension.data.data(), &dimension, 4);
-  EXPECT_THROW(load(bad_dimension, 50), std::runtime_error);
+  EXPECT_TRUE(contains(error(bad_dimension), "splits dimension 128"));
+  // Split values a grown tree never has.
+  for (const float value : {-1.0f, 255.5f, 256.0f, std::numeric_limits<float>::quiet_NaN(),
+                            std::numeric_limits<float>::infinity()}) {
+    Bytes bad_value = good;
+    std::memcpy(bad_value.data.data() + 4, &value, 4);
+    EXPECT_TRUE(contains(error(bad_value), "splits at")) << value;
+  }
+  // A leaf flag other than 0 or 1.
+  Bytes bad_flag = good;
+  bad_flag.data[8] = 2;
+  EXPECT_TRUE(contains(error(bad_flag), "leaf flag of 2"));
   // Every leaf names the first point: a point twice.
   Bytes twice = good;
   for (size_t at = 0; at + 9 <= twice.data.size(); at += 9) {
     if (twice.data[at + 8] == 1) std::memset(&twice.data[at], 0, 4);
   }
-  EXPECT_THROW(load(twice, 50), std::runtime_error);
+  EXPECT_TRUE(contains(error(twice), "or one seen before"));
   // A root that claims to be a leaf leaves the other points out.
   Bytes one_leaf = good;
   one_leaf.data[8] = 1;
   std::memset(one_leaf.data.data(), 0, 4);
-  EXPECT_THROW(load(one_leaf, 50), std::runtime_error);
+  EXPECT_TRUE(contains(error(one_leaf), "holds 1 of 50 points"));
+  // Inner nodes down one side only: more nodes than 50 points have, long before the bytes end.
+  Bytes deep;
+  for (int i = 0; i < 60; ++i) PutNode(&deep, 0, 0, 0);
+  EXPECT_TRUE(contains(error(deep), "more nodes than 2n - 1"));
 }
 
 }  // namespace
