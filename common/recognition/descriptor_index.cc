@@ -546,13 +546,13 @@ void DescriptorIndex::Search(const cv::Mat& queries, int knn,
     }
     return;
   }
-  std::vector<GrownKdTree::Branch> heap;
-  std::vector<GrownKdTree::Found> found;
+  std::vector<std::vector<GrownKdTree::Found>> found;
+  tree_->SearchMany(query_block.data, query_block.rows, query_block.step, static_cast<int>(k),
+                    options_.checks, &found);
   for (int q = 0; q < query_block.rows; ++q) {
-    tree_->Search(query_block.ptr<uint8_t>(q), static_cast<int>(k), options_.checks, &heap, &found);
     std::vector<Neighbour>& out = (*neighbours)[q];
-    out.reserve(found.size());
-    for (const GrownKdTree::Found& f : found) {
+    out.reserve(found[q].size());
+    for (const GrownKdTree::Found& f : found[q]) {
       out.push_back({point_owner_[f.point], point_row_[f.point], f.distance});
     }
   }

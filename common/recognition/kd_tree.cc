@@ -141,4 +141,126 @@ void GrownKdTree::Search(const uint8_t* query, int k, int checks, std::vector<Br
   }
 }
 
+template <typename ResultSet>
+void GrownKdTree::SearchManyWith(const uint8_t* queries, size_t count, size_t stride, int k,
+                                 int checks, std::vector<std::vector<Found>>* found) const {
+  // SearchWith as a state machine, one step (a node, a leaf's distance, a branch from the heap)
+  // at a time, so that kInStep queries can take turns.
+  constexpr size_t kInStep = 8;
+  enum class Next { kNode, kDistance, kBranch, kIdle };
+  struct Slot {
+    explicit Slot(int k) : result(static_cast<size_t>(k)) {}
+    ResultSet result;
+    std::vector<Branch> heap;
+    const uint8_t* query = nullptr;
+    size_t index = 0;
+    int checked = 0;
+    int32_t at = 0;     // kNode: the node to visit; kDistance: the leaf's point
+    float mindist = 0;  // kNode: the bound of the subtree at `at`
+    Next next = Next::kIdle;
+  };
+  std::vector<Slot> slots;
+  slots.reserve(kInStep);
+  for (size_t i = 0; i < kInStep; ++i) slots.emplace_back(k);
+  std::vector<size_t> indices;
+  std::vector<float> distances;
+  size_t next_query = 0;
+  auto start = [&](Slot* slot) {
+    if (next_query == count) {
+      slot->next = Next::kIdle;
+      return false;
+    }
+    slot->index = next_query++;
+    slot->query = queries + slot->index * stride;
+    slot->result.clear();
+    slot->heap.clear();
+    slot->checked = 0;
+    slot->at = 0;
+    slot->mindist = 0;
+    slot->next = Next::kNode;
+    __builtin_prefetch(&nodes_[0]);
+    return true;
+  };
+  auto finish = [&](Slot* slot) {
+    const size_t n = slot->result.size();
+    indices.resize(n);
+    distances.resize(n);
+    slot->result.copy(indices.data(), distances.data(), n, /*sorted=*/true);
+    std::vector<Found>& out = (*found)[slot->index];
+    out.resize(n);
+    for (size_t i = 0; i < n; ++i) out[i] = Found{static_cast<int32_t>(indices[i]), distances[i]};
+  };
+  size_t active = 0;
+  for (Slot& slot : slots) active += start(&slot);
+  while (active > 0) {
+    for (Slot& slot : slots) {
+      switch (slot.next) {
+        case Next::kIdle:
+          break;
+        case Next::kNode: {
+          if (slot.result.worstDist() < slot.mindist) {
+            slot.next = Next::kBranch;
+            break;
+          }
+          const Node& node = nodes_[slot.at];
+          if (node.leaf()) {
+            if (slot.checked >= checks && slot.result.full()) {
+              slot.next = Next::kBranch;
+              break;
+            }
+            ++slot.checked;
+            slot.at = node.feature;
+            __builtin_prefetch(points_[node.feature]);
+            __builtin_prefetch(points_[node.feature] + 64);
+            slot.next = Next::kDistance;
+            break;
+          }
+          const uint8_t value = slot.query[node.feature];
+          const float diff = value - node.value;
+          const int32_t best = diff < 0 ? node.child1 : node.child2;
+          const int32_t other = diff < 0 ? node.child2 : node.child1;
+          const float new_distsq = slot.mindist + (value - node.value) * (value - node.value);
+          if (new_distsq < slot.result.worstDist() || !slot.result.full()) {
+            slot.heap.push_back(Branch{other, new_distsq});
+            std::push_heap(slot.heap.begin(), slot.heap.end(), FartherFirst());
+          }
+          slot.at = best;
+          __builtin_prefetch(&nodes_[best]);
+          break;
+        }
+        case Next::kDistance:
+          slot.result.addPoint(static_cast<float>(SquaredDistance(points_[slot.at], slot.query)),
+                               static_cast<size_t>(slot.at));
+          slot.next = Next::kBranch;
+          break;
+        case Next::kBranch:
+          if (!slot.heap.empty() && (slot.checked < checks || !slot.result.full())) {
+            const Branch branch = slot.heap.front();
+            std::pop_heap(slot.heap.begin(), slot.heap.end(), FartherFirst());
+            slot.heap.pop_back();
+            slot.at = branch.node;
+            slot.mindist = branch.mindist;
+            __builtin_prefetch(&nodes_[branch.node]);
+            slot.next = Next::kNode;
+          } else {
+            finish(&slot);
+            if (!start(&slot)) --active;
+          }
+          break;
+      }
+    }
+  }
+}
+
+void GrownKdTree::SearchMany(const uint8_t* queries, size_t count, size_t stride, int k, int checks,
+                             std::vector<std::vector<Found>>* found) const {
+  found->assign(count, {});
+  if (nodes_.empty() || k <= 0 || count == 0) return;
+  if (k > kFlannHeapThreshold) {
+    SearchManyWith<flann::KNNResultSet2<float>>(queries, count, stride, k, checks, found);
+  } else {
+    SearchManyWith<flann::KNNSimpleResultSet<float>>(queries, count, stride, k, checks, found);
+  }
+}
+
 }  // namespace placerec

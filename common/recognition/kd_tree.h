@@ -48,6 +48,12 @@ class GrownKdTree {
   // space, reused between calls.
   void Search(const uint8_t* query, int k, int checks, std::vector<Branch>* heap,
               std::vector<Found>* found) const;
+  // Search for each of `count` queries (128 bytes each, `stride` bytes apart) into (*found)[i],
+  // with the same answers as one Search per query. Several queries are searched in step, each
+  // asking for the memory its next step reads while the others work: the tree and the
+  // descriptors are far larger than the caches, and one query alone waits on nearly every node.
+  void SearchMany(const uint8_t* queries, size_t count, size_t stride, int k, int checks,
+                  std::vector<std::vector<Found>>* found) const;
 
   // Writes the tree in pre-order through `writer` (`writer->save(value)` for each value): for
   // every node its split dimension (a leaf: its point's index), its split value and whether it is
@@ -76,6 +82,9 @@ class GrownKdTree {
   template <typename ResultSet>
   void SearchWith(const uint8_t* query, int checks, ResultSet* result,
                   std::vector<Branch>* heap) const;
+  template <typename ResultSet>
+  void SearchManyWith(const uint8_t* queries, size_t count, size_t stride, int k, int checks,
+                      std::vector<std::vector<Found>>* found) const;
 
   std::vector<Node> nodes_;  // nodes_[0] is the root
   std::vector<const uint8_t*> points_;

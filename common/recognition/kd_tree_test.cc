@@ -91,7 +91,13 @@ TEST(GrownKdTreeTest, FindsWhatFlannsGrownTreeFinds) {
       flann::SearchParams params(checks);
       params.cores = 1;
       flann_tree.index.knnSearch(query_matrix, index_matrix, distance_matrix, k, params);
+      // One query at a time, and all of them in step (the first 299: a count that does not
+      // fill the last group).
+      std::vector<std::vector<GrownKdTree::Found>> many;
+      tree.SearchMany(queries.data(), rows - 1, kSize, k, checks, &many);
+      ASSERT_EQ(many.size(), static_cast<size_t>(rows - 1));
       int differences = 0;
+      int differences_in_step = 0;
       for (int q = 0; q < rows; ++q) {
         tree.Search(&queries[static_cast<size_t>(q) * kSize], k, checks, &heap, &found);
         ASSERT_EQ(found.size(), static_cast<size_t>(k));
@@ -101,8 +107,17 @@ TEST(GrownKdTreeTest, FindsWhatFlannsGrownTreeFinds) {
             ++differences;
           }
         }
+        if (q == rows - 1) continue;
+        ASSERT_EQ(many[q].size(), static_cast<size_t>(k));
+        for (int j = 0; j < k; ++j) {
+          if (many[q][j].point != static_cast<int32_t>(index_matrix[q][j]) ||
+              many[q][j].distance != distance_matrix[q][j]) {
+            ++differences_in_step;
+          }
+        }
       }
       EXPECT_EQ(differences, 0);
+      EXPECT_EQ(differences_in_step, 0);
     }
   }
 }
@@ -125,6 +140,13 @@ TEST(GrownKdTreeTest, SmallTrees) {
   ASSERT_EQ(found.size(), 3u);
   EXPECT_EQ(found[0].point, 2);
   EXPECT_LE(found[1].distance, found[2].distance);
+  std::vector<std::vector<GrownKdTree::Found>> many;
+  tree.SearchMany(points.data(), 0, kSize, 3, 1, &many);
+  EXPECT_TRUE(many.empty());
+  tree.SearchMany(points.data() + 2 * kSize, 1, kSize, 3, 1, &many);
+  ASSERT_EQ(many.size(), 1u);
+  ASSERT_EQ(many[0].size(), 3u);
+  EXPECT_EQ(many[0][0].point, 2);
 }
 
 // Writes and reads values as the snapshot's archives do.
