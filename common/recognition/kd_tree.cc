@@ -160,8 +160,10 @@ void GrownKdTree::SearchManyWith(const uint8_t* queries, size_t count, size_t st
     Next next = Next::kIdle;
   };
   std::vector<Slot> slots;
-  slots.reserve(kInStep);
-  for (size_t i = 0; i < kInStep; ++i) slots.emplace_back(k);
+  // No more slots than queries: each reserves room for k neighbours.
+  const size_t in_step = std::min(kInStep, count);
+  slots.reserve(in_step);
+  for (size_t i = 0; i < in_step; ++i) slots.emplace_back(k);
   std::vector<size_t> indices;
   std::vector<float> distances;
   size_t next_query = 0;
