@@ -13,14 +13,6 @@ namespace {
 
 constexpr int kDimensions = 128;
 
-// The order of FLANN's Heap<BranchSt>: std::push_heap and std::pop_heap with this comparison,
-// so that equally distant branches leave the heap in FLANN's order.
-struct FartherFirst {
-  bool operator()(const GrownKdTree::Branch& a, const GrownKdTree::Branch& b) const {
-    return b.mindist < a.mindist;
-  }
-};
-
 }  // namespace
 
 int32_t GrownKdTree::NewNode(int32_t feature, float value) {
@@ -76,77 +68,24 @@ constexpr int kFlannHeapThreshold = 250;
 
 }  // namespace
 
-template <typename ResultSet>
-void GrownKdTree::SearchWith(const uint8_t* query, int checks, ResultSet* result,
-                             std::vector<Branch>* heap) const {
-  heap->clear();
-  int checked = 0;
-  // FLANN's searchLevel, its tail recursion as a loop: down from `at`, each untaken branch
-  // kept on the heap while it may hold a nearer point, the leaf reached compared.
-  auto search_from = [&](int32_t at, float mindist) {
-    while (true) {
-      if (result->worstDist() < mindist) return;
-      const Node& node = nodes_[at];
-      if (node.leaf()) {
-        if (checked >= checks && result->full()) return;
-        ++checked;
-        result->addPoint(static_cast<float>(SquaredDistance(points_[node.feature], query)),
-                         static_cast<size_t>(node.feature));
-        return;
-      }
-      const uint8_t value = query[node.feature];
-      const float diff = value - node.value;
-      const int32_t best = diff < 0 ? node.child1 : node.child2;
-      const int32_t other = diff < 0 ? node.child2 : node.child1;
-      const float new_distsq = mindist + (value - node.value) * (value - node.value);
-      if (new_distsq < result->worstDist() || !result->full()) {
-        heap->push_back(Branch{other, new_distsq});
-        std::push_heap(heap->begin(), heap->end(), FartherFirst());
-      }
-      at = best;
-    }
-  };
-  search_from(0, 0);
-  while (!heap->empty() && (checked < checks || !result->full())) {
-    const Branch branch = heap->front();
-    std::pop_heap(heap->begin(), heap->end(), FartherFirst());
-    heap->pop_back();
-    search_from(branch.node, branch.mindist);
-  }
-}
-
-void GrownKdTree::Search(const uint8_t* query, int k, int checks, std::vector<Branch>* heap,
-                         std::vector<Found>* found) const {
-  found->clear();
-  if (nodes_.empty() || k <= 0) return;
-  std::vector<size_t> indices;
-  std::vector<float> distances;
-  auto run = [&](auto* result) {
-    SearchWith(query, checks, result, heap);
-    const size_t n = result->size();
-    indices.resize(n);
-    distances.resize(n);
-    result->copy(indices.data(), distances.data(), n, /*sorted=*/true);
-  };
-  if (k > kFlannHeapThreshold) {
-    flann::KNNResultSet2<float> result(static_cast<size_t>(k));
-    run(&result);
-  } else {
-    flann::KNNSimpleResultSet<float> result(static_cast<size_t>(k));
-    run(&result);
-  }
-  found->resize(indices.size());
-  for (size_t i = 0; i < indices.size(); ++i) {
-    (*found)[i] = Found{static_cast<int32_t>(indices[i]), distances[i]};
-  }
+void GrownKdTree::Search(const uint8_t* query, int k, int checks, std::vector<Found>* found) const {
+  std::vector<std::vector<Found>> one;
+  SearchMany(query, 1, 0, k, checks, &one);
+  *found = std::move(one[0]);
 }
 
 template <typename ResultSet>
 void GrownKdTree::SearchManyWith(const uint8_t* queries, size_t count, size_t stride, int k,
                                  int checks, std::vector<std::vector<Found>>* found) const {
-  // SearchWith as a state machine, one step (a node, a leaf's distance, a branch from the heap)
-  // at a time, so that kInStep queries can take turns.
+  // FLANN's getNeighbors with one tree (its searchLevel's tail recursion a loop) as a state
+  // machine: one step (a node, a leaf's distance, a branch from the heap) at a time, so that
+  // kInStep queries can take turns. A step in a subtree no nearer than the worst neighbour kept
+  // ends its descent; a leaf is compared while fewer than `checks` were (or fewer than k found);
+  // the branch not taken is kept on the heap while it may hold a nearer point.
   constexpr size_t kInStep = 8;
+  // The order of FLANN's Heap<BranchSt>: std::push_heap and std::pop_heap with this comparison,
+  // so that equally distant branches leave the heap in FLANN's order.
+  const auto farther_first = [](const Branch& a, const Branch& b) { return b.mindist < a.mindist; };
   enum class Next { kNode, kDistance, kBranch, kIdle };
   struct Slot {
     explicit Slot(int k) : result(static_cast<size_t>(k)) {}
@@ -224,7 +163,7 @@ void GrownKdTree::SearchManyWith(const uint8_t* queries, size_t count, size_t st
           const float new_distsq = slot.mindist + (value - node.value) * (value - node.value);
           if (new_distsq < slot.result.worstDist() || !slot.result.full()) {
             slot.heap.push_back(Branch{other, new_distsq});
-            std::push_heap(slot.heap.begin(), slot.heap.end(), FartherFirst());
+            std::push_heap(slot.heap.begin(), slot.heap.end(), farther_first);
           }
           slot.at = best;
           __builtin_prefetch(&nodes_[best]);
@@ -238,7 +177,7 @@ void GrownKdTree::SearchManyWith(const uint8_t* queries, size_t count, size_t st
         case Next::kBranch:
           if (!slot.heap.empty() && (slot.checked < checks || !slot.result.full())) {
             const Branch branch = slot.heap.front();
-            std::pop_heap(slot.heap.begin(), slot.heap.end(), FartherFirst());
+            std::pop_heap(slot.heap.begin(), slot.heap.end(), farther_first);
             slot.heap.pop_back();
             slot.at = branch.node;
             slot.mindist = branch.mindist;

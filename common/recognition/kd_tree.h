@@ -23,11 +23,6 @@ namespace placerec {
 
 class GrownKdTree {
  public:
-  // A branch not taken during a search: the subtree at `node`, at least `mindist` away.
-  struct Branch {
-    int32_t node;
-    float mindist;
-  };
   // A neighbour found: the point's index and its squared Euclidean distance.
   struct Found {
     int32_t point;
@@ -44,10 +39,8 @@ class GrownKdTree {
   // The up to `k` nearest points of `query` into `found`, closest first. The search compares
   // `checks` leaves (more while fewer than k were found) and follows the closest untaken branches
   // first (FLANN SearchParams::checks; eps 0). Points at equal distances are kept and ordered as
-  // FLANN's knnSearch keeps them (which result set it uses depends on k). `heap` is scratch
-  // space, reused between calls.
-  void Search(const uint8_t* query, int k, int checks, std::vector<Branch>* heap,
-              std::vector<Found>* found) const;
+  // FLANN's knnSearch keeps them (which result set it uses depends on k).
+  void Search(const uint8_t* query, int k, int checks, std::vector<Found>* found) const;
   // Search for each of `count` queries (128 bytes each, `stride` bytes apart) into (*found)[i],
   // with the same answers as one Search per query. Several queries are searched in step, each
   // asking for the memory its next step reads while the others work: the tree and the
@@ -68,6 +61,11 @@ class GrownKdTree {
   void Load(std::vector<const uint8_t*> points, Reader* reader);
 
  private:
+  // A branch not taken during a search: the subtree at `node`, at least `mindist` away.
+  struct Branch {
+    int32_t node;
+    float mindist;
+  };
   static constexpr int32_t kNone = -1;
   static constexpr size_t kMaxPoints = INT32_MAX / 2;  // 2n - 1 nodes must have int32 indices
   struct Node {
@@ -78,10 +76,7 @@ class GrownKdTree {
     bool leaf() const { return child1 == kNone; }
   };
   int32_t NewNode(int32_t feature, float value);
-  // FLANN's getNeighbors with one tree, into `result` (one of FLANN's k-nearest result sets).
-  template <typename ResultSet>
-  void SearchWith(const uint8_t* query, int checks, ResultSet* result,
-                  std::vector<Branch>* heap) const;
+  // SearchMany, keeping the neighbours in `ResultSet` (one of FLANN's k-nearest result sets).
   template <typename ResultSet>
   void SearchManyWith(const uint8_t* queries, size_t count, size_t stride, int k, int checks,
                       std::vector<std::vector<Found>>* found) const;

@@ -75,7 +75,6 @@ TEST(GrownKdTreeTest, FindsWhatFlannsGrownTreeFinds) {
   for (size_t i = 0; i < points.size() / kSize; ++i) tree.Add(&points[i * kSize]);
   ASSERT_EQ(tree.size(), 3000u);
 
-  std::vector<GrownKdTree::Branch> heap;
   std::vector<GrownKdTree::Found> found;
   // k above 250: FLANN keeps the neighbours in another result set, which breaks ties otherwise.
   // checks above the tree's size: every leaf is compared.
@@ -99,7 +98,7 @@ TEST(GrownKdTreeTest, FindsWhatFlannsGrownTreeFinds) {
       int differences = 0;
       int differences_in_step = 0;
       for (int q = 0; q < rows; ++q) {
-        tree.Search(&queries[static_cast<size_t>(q) * kSize], k, checks, &heap, &found);
+        tree.Search(&queries[static_cast<size_t>(q) * kSize], k, checks, &found);
         ASSERT_EQ(found.size(), static_cast<size_t>(k));
         for (int j = 0; j < k; ++j) {
           if (found[j].point != static_cast<int32_t>(index_matrix[q][j]) ||
@@ -125,18 +124,17 @@ TEST(GrownKdTreeTest, FindsWhatFlannsGrownTreeFinds) {
 TEST(GrownKdTreeTest, SmallTrees) {
   std::vector<uint8_t> points = Points(3, 3);
   GrownKdTree tree;
-  std::vector<GrownKdTree::Branch> heap;
   std::vector<GrownKdTree::Found> found;
-  tree.Search(points.data(), 2, 32, &heap, &found);
+  tree.Search(points.data(), 2, 32, &found);
   EXPECT_TRUE(found.empty());
   tree.Add(points.data());
-  tree.Search(points.data(), 2, 32, &heap, &found);  // fewer points than asked for
+  tree.Search(points.data(), 2, 32, &found);  // fewer points than asked for
   ASSERT_EQ(found.size(), 1u);
   EXPECT_EQ(found[0].point, 0);
   EXPECT_EQ(found[0].distance, 0.0f);
   tree.Add(points.data() + kSize);
   tree.Add(points.data() + 2 * kSize);
-  tree.Search(points.data() + 2 * kSize, 3, 1, &heap, &found);  // goes on until 3 are found
+  tree.Search(points.data() + 2 * kSize, 3, 1, &found);  // goes on until 3 are found
   ASSERT_EQ(found.size(), 3u);
   EXPECT_EQ(found[0].point, 2);
   EXPECT_LE(found[1].distance, found[2].distance);
@@ -183,11 +181,10 @@ TEST(GrownKdTreeTest, ALoadedTreeAnswersAsTheSavedOne) {
   GrownKdTree loaded;
   loaded.Load(Table(points), &bytes);
   EXPECT_EQ(bytes.next, bytes.data.size());
-  std::vector<GrownKdTree::Branch> heap;
   std::vector<GrownKdTree::Found> a, b;
   for (size_t q = 0; q < queries.size() / kSize; ++q) {
-    tree.Search(&queries[q * kSize], 4, 16, &heap, &a);
-    loaded.Search(&queries[q * kSize], 4, 16, &heap, &b);
+    tree.Search(&queries[q * kSize], 4, 16, &a);
+    loaded.Search(&queries[q * kSize], 4, 16, &b);
     ASSERT_EQ(a.size(), b.size());
     for (size_t j = 0; j < a.size(); ++j) {
       EXPECT_EQ(a[j].point, b[j].point);
