@@ -36,6 +36,7 @@
 #include "common/pipeline/recognizer.h"
 #include "common/storage/sqlite_store.h"
 #include "common/util/logging.h"
+#include "common/util/memory.h"
 #include "common/util/paths.h"
 #include "common/util/timer.h"
 #include "proto/auth/signing.h"
@@ -545,18 +546,12 @@ SyntheticMap& MapOf(int landmarks) {
   return entry;
 }
 
-// Resident memory of this process: current and peak (VmRSS, VmHWM in /proc/self/status), MiB.
+// Resident memory of this process: current and peak, MiB (unchanged when it cannot be read).
 void ResidentMiB(double* current, double* peak) {
-  std::ifstream status("/proc/self/status");
-  std::string line;
-  while (std::getline(status, line)) {
-    std::istringstream fields(line);
-    std::string key;
-    double kib = 0;
-    fields >> key >> kib;
-    if (key == "VmRSS:") *current = kib / 1024.0;
-    if (key == "VmHWM:") *peak = kib / 1024.0;
-  }
+  ResidentMemory memory;
+  if (!ReadResidentMemory(0, &memory)) return;
+  *current = memory.current_mib;
+  *peak = memory.peak_mib;
 }
 
 // The places a lookup answers, one line each (id and score), best first.

@@ -2,18 +2,17 @@
 
 #include <malloc.h>
 #include <poll.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
-#include <cstdio>
 #include <cstdlib>
 #include <utility>
 #include <vector>
 
 #include "common/pipeline/object_classes.h"
 #include "common/util/logging.h"
+#include "common/util/memory.h"
 #include "proto/channels.h"
 #include "server/protocol.h"
 
@@ -31,14 +30,10 @@ constexpr std::chrono::milliseconds kFollowerIndexTimeout(2000);
 // Frames LCM may hold for the receive loop (see Run); bounds memory at this many messages.
 constexpr int kLcmFrameQueue = 1024;
 
-// This process's resident memory in MiB (/proc/self/statm), 0 when it cannot be read.
+// This process's resident memory in MiB, 0 when it cannot be read.
 double ResidentMiB() {
-  std::FILE* file = std::fopen("/proc/self/statm", "r");
-  if (file == nullptr) return 0;
-  long size = 0, resident = 0;
-  const bool read = std::fscanf(file, "%ld %ld", &size, &resident) == 2;
-  std::fclose(file);
-  return read ? static_cast<double>(resident) * sysconf(_SC_PAGESIZE) / (1024.0 * 1024.0) : 0;
+  ResidentMemory memory;
+  return ReadResidentMemory(0, &memory) ? memory.current_mib : 0;
 }
 
 int64_t NowUtime() {

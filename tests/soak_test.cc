@@ -52,6 +52,7 @@
 #include "common/eval/stats.h"
 #include "common/recognition/types.h"
 #include "common/storage/sqlite_store.h"
+#include "common/util/memory.h"
 #include "common/util/paths.h"
 #include "placerec/result_t.hpp"
 #include "tests/service_harness.h"
@@ -96,14 +97,10 @@ int CountLinesWith(const std::string& path, const std::string& text) {
   return count;
 }
 
-// Resident memory of `pid` in KiB (VmRSS), 0 when it cannot be read.
+// Resident memory of `pid` in KiB, 0 when it cannot be read.
 int64_t ResidentKib(pid_t pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.rfind("VmRSS:", 0) == 0) return std::atoll(line.c_str() + 6);
-  }
-  return 0;
+  ResidentMemory memory;
+  return ReadResidentMemory(pid, &memory) ? static_cast<int64_t>(memory.current_mib * 1024) : 0;
 }
 
 // One answer as published: what tells a processed frame's answer from a copy of it.

@@ -1,4 +1,7 @@
+#include <unistd.h>
+
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -7,11 +10,38 @@
 
 #include "common/util/csv.h"
 #include "common/util/ids.h"
+#include "common/util/memory.h"
 #include "common/util/options.h"
 #include "common/util/status.h"
 
 namespace placerec {
 namespace {
+
+TEST(MemoryTest, SeesThisProcessGrow) {
+  ResidentMemory before;
+  ASSERT_TRUE(ReadResidentMemory(0, &before));
+  EXPECT_GT(before.current_mib, 0);
+  EXPECT_GE(before.peak_mib, before.current_mib);
+  // 64 MiB, every page written, so that it is resident.
+  std::vector<char> block(64 << 20);
+  std::memset(block.data(), 1, block.size());
+  ResidentMemory after;
+  ASSERT_TRUE(ReadResidentMemory(getpid(), &after));
+  EXPECT_GE(after.current_mib - before.current_mib, 48) << block[block.size() / 2];
+  EXPECT_GE(after.peak_mib, after.current_mib);
+}
+
+TEST(MemoryTest, NoSuchProcessLeavesTheFiguresAlone) {
+  // Process ids stay below pid_max.
+  std::ifstream in("/proc/sys/kernel/pid_max");
+  long pid_max = 0;
+  ASSERT_TRUE(in >> pid_max);
+  ResidentMemory memory;
+  memory.current_mib = 7;
+  EXPECT_FALSE(ReadResidentMemory(static_cast<pid_t>(pid_max), &memory));
+  EXPECT_EQ(memory.current_mib, 7);
+  EXPECT_EQ(memory.peak_mib, 0);
+}
 
 TEST(StatusTest, OkAndErrors) {
   EXPECT_TRUE(Status::Ok().ok());
