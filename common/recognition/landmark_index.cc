@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <climits>
+#include <iterator>
 #include <limits>
 #include <utility>
 
@@ -63,6 +64,30 @@ bool LandmarkIndex::SameLocation(PlaceId a, PlaceId b) const {
   if (ia == place_info_.end() || ib == place_info_.end()) return false;
   return ia->second.robot == ib->second.robot &&
          std::abs(ia->second.utime - ib->second.utime) <= VoteWindowUs();
+}
+
+std::vector<PlaceId> LandmarkIndex::VoteNeighbours(PlaceId place) const {
+  const PlaceInfo& info = place_info_.at(place);
+  const int64_t window = VoteWindowUs();
+  // Outward from the place's own time, one step to whichever side is nearer in time.
+  auto after = place_by_time_.lower_bound({info.robot, info.utime});
+  auto before = after;
+  const auto in_window = [&](decltype(after) it) {
+    return it->first.first == info.robot && std::abs(it->first.second - info.utime) <= window;
+  };
+  std::vector<PlaceId> neighbours;
+  while (static_cast<int>(neighbours.size()) < kMaxVoteNeighbours) {
+    const bool can_after = after != place_by_time_.end() && in_window(after);
+    const bool can_before = before != place_by_time_.begin() && in_window(std::prev(before));
+    if (!can_after && !can_before) break;
+    const PlaceId next =
+        can_after && (!can_before || after->first.second - info.utime <=
+                                         info.utime - std::prev(before)->first.second)
+            ? (after++)->second
+            : (--before)->second;
+    if (next != place) neighbours.push_back(next);
+  }
+  return neighbours;
 }
 
 int32_t LandmarkIndex::SlotOf(LandmarkId id) const {
@@ -245,12 +270,8 @@ IndexResult LandmarkIndex::Query(const std::vector<IndexQuery>& objects,
       const PlaceId place = ranked[i].second;
       matched_places[place] = true;
       // Votes merge neighbouring frames; let the geometric check choose among them.
-      const PlaceInfo& info = place_info_.at(place);
-      for (auto it = place_by_time_.lower_bound({info.robot, info.utime - VoteWindowUs()});
-           it != place_by_time_.end() && it->first.first == info.robot &&
-           it->first.second <= info.utime + VoteWindowUs();
-           ++it) {
-        if (place_allowed(it->second)) matched_places[it->second] = true;
+      for (const PlaceId neighbour : VoteNeighbours(place)) {
+        if (place_allowed(neighbour)) matched_places[neighbour] = true;
       }
     }
   }

@@ -107,6 +107,11 @@ struct IndexResult {
 
 class LandmarkIndex {
  public:
+  // A place chosen by the votes brings at most this many other places of its robot within the
+  // vote window, nearest in time first (a 10 Hz camera's whole window of 3 s on each side): a
+  // faster camera, or a robot whose clock stands still, does not make every place a candidate.
+  static constexpr int kMaxVoteNeighbours = 64;
+
   explicit LandmarkIndex(const LandmarkIndexOptions& options);
 
   // Registers a place before its landmarks are added.
@@ -153,6 +158,9 @@ class LandmarkIndex {
  private:
   bool CandidateByColour(const IndexQuery& object, int32_t slot) const;
   bool SameLocation(PlaceId a, PlaceId b) const;
+  // The other places of `place`'s robot within the vote window, nearest in time first, at most
+  // kMaxVoteNeighbours.
+  std::vector<PlaceId> VoteNeighbours(PlaceId place) const;
   int64_t VoteWindowUs() const { return static_cast<int64_t>(options_.vote_window_seconds * 1e6); }
 
   struct PlaceInfo {

@@ -265,5 +265,36 @@ TEST(LandmarkIndexVotesTest, DescriptorsOutsideObjectsFindTheirPlaceByVotesOnly)
   EXPECT_TRUE(literal.place_points.empty());
 }
 
+// A voted place brings its robot's places within the vote window as candidates, nearest in time
+// first and at most kMaxVoteNeighbours of them: a camera fast enough to fill the window, or a
+// robot whose clock stands still (every place at one time), does not make every place a
+// candidate of every query, and a 10 Hz camera keeps all of its window.
+TEST(LandmarkIndexVotesTest, AVotedPlaceBringsABoundedNeighbourhood) {
+  std::mt19937 rng(31);
+  const auto candidates = [&](int64_t spacing_us) {
+    LandmarkIndex index{LandmarkIndexOptions()};
+    const int places = 600;
+    std::vector<cv::Mat> stored;
+    for (int p = 0; p < places; ++p) {
+      index.AddPlace({PlaceId(p), "robot", p, p * spacing_us, 1});
+      stored.push_back(RandomDescriptors(30, &rng));
+      index.Add(MakeLandmark(p, p, stored.back(), 30, {}));
+    }
+    IndexQuery rest;
+    rest.sift_count = 30;
+    rest.is_object = false;
+    rest.descriptors = Noisy(stored[300].rowRange(0, 20), &rng);
+    const IndexResult found = index.Query({rest}, [](PlaceId) { return true; });
+    EXPECT_EQ(found.place_points.count(PlaceId(300)), 1u);
+    return found.stats.candidate_places;
+  };
+  // 10 Hz: the default window of 3 s on each side holds 61 places, all of them candidates.
+  EXPECT_EQ(candidates(100000), 61);
+  // A clock standing still: every place is "within the window" of the voted one.
+  EXPECT_EQ(candidates(0), LandmarkIndex::kMaxVoteNeighbours + 1);
+  // 100 Hz: 601 places fit the window; the nearest are kept.
+  EXPECT_EQ(candidates(10000), LandmarkIndex::kMaxVoteNeighbours + 1);
+}
+
 }  // namespace
 }  // namespace placerec
