@@ -468,7 +468,9 @@ RecognizerOptions BenchRecognizerOptions() {
 
 // Inserts `landmarks` synthetic landmark objects into `map`, 10 per place, each with 24
 // descriptors (the mean stored on the Gardens Point runs); SIFT counts log-uniform in [9, 400]
-// and one or two dominant colours. The same count always gives the same map.
+// and one or two dominant colours; one place per second of one robot's route (the shared runs'
+// rate), so that the vote window (LandmarkIndexOptions::vote_window_seconds) spans a few places
+// as on a real route. The same count always gives the same map.
 void FillSyntheticMap(int landmarks, PlaceMap* map) {
   const int per_landmark = 24;
   const cv::Mat& pool = DescriptorPool();
@@ -482,6 +484,7 @@ void FillSyntheticMap(int landmarks, PlaceMap* map) {
     Place p;
     p.robot = "synthetic";
     p.sequence = place;
+    p.utime = int64_t{place} * 1000000;
     std::vector<Landmark> batch;
     for (int l = 0; l < 10 && place * 10 + l < landmarks; ++l) {
       Landmark landmark;
@@ -576,10 +579,11 @@ void BM_MapReopen(benchmark::State& state) {
   const int landmarks = count != nullptr ? std::atoi(count) : 1000000;
   const RecognizerOptions options = BenchRecognizerOptions();
   // The settings the file was built with head its answer file; a file built otherwise (or a
-  // build cut short, which leaves no answer file) is refused rather than measured.
+  // build cut short, which leaves no answer file) is refused rather than measured. "route 1 Hz":
+  // places one second apart (FillSyntheticMap); files from before it held every place at time 0.
   const char* method = std::getenv("PLACEREC_BENCH_DESCRIPTOR_SEARCH");
   const std::string settings = "landmarks " + std::to_string(landmarks) + " descriptor-search " +
-                               (method != nullptr ? method : "default") + "\n";
+                               (method != nullptr ? method : "default") + " route 1 Hz\n";
   const bool existed = std::ifstream(path).good();
   if (existed && !std::ifstream(path + ".answer").good()) {
     state.SkipWithError((path + " has no .answer file (a build cut short?): remove it").c_str());
