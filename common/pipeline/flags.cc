@@ -184,7 +184,8 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
       "vote-places", &o->index.vote_places,
       "also verify the places most query descriptors have neighbours in (0: object matches only)");
   p->Add("vote-window-seconds", &o->index.vote_window_seconds,
-         "a robot's places taken within this many seconds count as one location for the votes");
+         "a robot's places taken within this many seconds count as one location for the votes "
+         "(a voted place brings at most the 64 nearest in time as candidates)");
   p->Add("descriptor-search", &o->index.flann.method,
          "nearest neighbours of the map's descriptors: hnsw (a graph; cost grows with the "
          "logarithm of the map) | flann (a k-d tree; cost grows with the map)");

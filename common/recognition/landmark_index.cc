@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <climits>
+#include <cstdlib>
 #include <iterator>
 #include <limits>
 #include <utility>
@@ -69,9 +70,16 @@ bool LandmarkIndex::SameLocation(PlaceId a, PlaceId b) const {
 std::vector<PlaceId> LandmarkIndex::VoteNeighbours(PlaceId place) const {
   const PlaceInfo& info = place_info_.at(place);
   const int64_t window = VoteWindowUs();
-  // Outward from the place's own time, one step to whichever side is nearer in time.
-  auto after = place_by_time_.lower_bound({info.robot, info.utime});
-  auto before = after;
+  // Outward from the place's own entry, one step to whichever side is nearer: in time, and among
+  // places of the same time (a clock that stands still) in insertion order, by place id.
+  auto before = place_by_time_.lower_bound({info.robot, info.utime});
+  while (before != place_by_time_.end() && before->second != place) ++before;
+  if (before == place_by_time_.end()) return {};
+  auto after = std::next(before);
+  const auto distance = [&](decltype(after) it) {
+    return std::make_pair(std::abs(it->first.second - info.utime),
+                          std::abs(it->second.value() - place.value()));
+  };
   const auto in_window = [&](decltype(after) it) {
     return it->first.first == info.robot && std::abs(it->first.second - info.utime) <= window;
   };
@@ -80,12 +88,9 @@ std::vector<PlaceId> LandmarkIndex::VoteNeighbours(PlaceId place) const {
     const bool can_after = after != place_by_time_.end() && in_window(after);
     const bool can_before = before != place_by_time_.begin() && in_window(std::prev(before));
     if (!can_after && !can_before) break;
-    const PlaceId next =
-        can_after && (!can_before || after->first.second - info.utime <=
-                                         info.utime - std::prev(before)->first.second)
-            ? (after++)->second
-            : (--before)->second;
-    if (next != place) neighbours.push_back(next);
+    const bool take_after =
+        can_after && (!can_before || distance(after) <= distance(std::prev(before)));
+    neighbours.push_back(take_after ? (after++)->second : (--before)->second);
   }
   return neighbours;
 }

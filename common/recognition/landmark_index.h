@@ -50,7 +50,9 @@ struct LandmarkIndexOptions {
   // nearest neighbour seen at another location.
   int vote_places = 10;
   // Places of one robot taken within this many seconds of each other (capture time) count as
-  // one location for the votes: they see the same scene, at any frame rate.
+  // one location for the votes: they see the same scene, at any frame rate. A voted place
+  // brings at most LandmarkIndex::kMaxVoteNeighbours of them as candidates (nearest in time), so a
+  // window wider than 3.2 s at 10 Hz is cut to the nearest 64.
   double vote_window_seconds = 3.0;
 
   bool Check(std::string* error) const;

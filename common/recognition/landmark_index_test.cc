@@ -3,6 +3,7 @@
 // votes, slots and counts, with both searches where they must agree.
 #include <memory>
 #include <random>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -292,8 +293,35 @@ TEST(LandmarkIndexVotesTest, AVotedPlaceBringsABoundedNeighbourhood) {
   EXPECT_EQ(candidates(100000), 61);
   // A clock standing still: every place is "within the window" of the voted one.
   EXPECT_EQ(candidates(0), LandmarkIndex::kMaxVoteNeighbours + 1);
-  // 100 Hz: 601 places fit the window; the nearest are kept.
+  // 100 Hz: 600 places fit the window; the nearest are kept.
   EXPECT_EQ(candidates(10000), LandmarkIndex::kMaxVoteNeighbours + 1);
+}
+
+TEST(LandmarkIndexVotesTest, AStoppedClockBringsTheVotedPlacesSequenceNeighbours) {
+  std::mt19937 rng(37);
+  LandmarkIndex index{LandmarkIndexOptions()};
+  const int places = 600;
+  std::vector<cv::Mat> stored;
+  for (int p = 0; p < places; ++p) {
+    index.AddPlace({PlaceId(p), "robot", p, /*utime=*/0, 1});
+    stored.push_back(RandomDescriptors(30, &rng));
+    index.Add(MakeLandmark(p, p, stored.back(), 30, {}));
+  }
+  IndexQuery rest;
+  rest.sift_count = 30;
+  rest.is_object = false;
+  rest.descriptors = Noisy(stored[300].rowRange(0, 20), &rng);
+  std::set<int64_t> asked;
+  const IndexResult found = index.Query({rest}, [&](PlaceId place) {
+    asked.insert(place.value());
+    return true;
+  });
+  EXPECT_EQ(found.place_points.count(PlaceId(300)), 1u);
+  // All times equal: the places inserted around the voted one, half on each side.
+  const int half = LandmarkIndex::kMaxVoteNeighbours / 2;
+  for (int p = 300 - half; p <= 300 + half; ++p) EXPECT_EQ(asked.count(p), 1u) << p;
+  EXPECT_EQ(asked.count(0), 0u);
+  EXPECT_EQ(asked.count(599), 0u);
 }
 
 }  // namespace

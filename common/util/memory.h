@@ -1,5 +1,5 @@
-// Resident memory of a process as Linux reports it (/proc/PID/status): what the server logs when it
-// returns free heap, what the soak test watches and what the benchmarks report per landmark.
+// Resident memory of a process as Linux reports it (/proc/PID/status), for logs, tests and
+// benchmarks that report what a process holds.
 #pragma once
 
 #include <sys/types.h>
