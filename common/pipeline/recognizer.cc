@@ -112,6 +112,7 @@ Status Recognizer::Validate(const FrameRequest& request) const {
       return Status::InvalidArgument("robot id contains a control character");
     }
   }
+  if (Status time = CheckCaptureTime(request.utime); !time.ok()) return time;
   if (request.insert) {
     std::lock_guard lock(robots_mutex_);
     const auto it = robots_.find(request.robot);

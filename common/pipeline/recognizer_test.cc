@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <memory>
 #include <random>
 #include <string>
@@ -502,6 +503,12 @@ TEST(RecognizerTest, ValidateNamesWhatIsWrong) {
     EXPECT_EQ(bad.code(), StatusCode::kInvalidArgument);
     EXPECT_EQ(bad.message(), "robot id contains a control character");
   }
+  for (const int64_t utime : {int64_t{-1}, std::numeric_limits<int64_t>::min(), kMaxUtime + 1}) {
+    const Status bad = recognizer.Validate({"a", 0, utime, false});
+    EXPECT_EQ(bad.code(), StatusCode::kInvalidArgument) << utime;
+    EXPECT_NE(bad.message().find("capture time"), std::string::npos) << bad.message();
+  }
+  EXPECT_TRUE(recognizer.Validate({"a", 0, kMaxUtime, false}).ok());
   // Validating does not take the sequence number; inserting does.
   EXPECT_TRUE(recognizer.Validate({"a", 3, 0, true}).ok());
   EXPECT_TRUE(recognizer.Validate({"a", 3, 0, true}).ok());

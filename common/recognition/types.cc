@@ -7,9 +7,17 @@
 
 namespace placerec {
 
+Status CheckCaptureTime(int64_t utime) {
+  if (utime >= 0 && utime <= kMaxUtime) return Status::Ok();
+  return Status::InvalidArgument("capture time " + std::to_string(utime) + " us is outside 0 .. " +
+                                 std::to_string(kMaxUtime) +
+                                 " (microseconds since the epoch, up to the end of the year 9999)");
+}
+
 Status Place::Validate() const {
   if (robot.empty()) return Status::InvalidArgument("robot id is empty");
   if (image_width < 0) return Status::InvalidArgument("place image width is negative");
+  if (Status time = CheckCaptureTime(utime); !time.ok()) return time;
   if (robot.size() > kMaxRobotIdLength) {
     return Status::InvalidArgument("robot id is " + std::to_string(robot.size()) +
                                    " bytes, longer than the limit of " +

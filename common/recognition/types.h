@@ -21,6 +21,13 @@ constexpr size_t kMaxRobotIdLength = 64;
 constexpr size_t kMaxThumbnailBytes = 1 << 20;
 // Longest object class name a landmark keeps (bytes).
 constexpr size_t kMaxObjectClassLength = 32;
+// Latest capture time the map accepts: the end of the year 9999 in microseconds since the epoch.
+// Times lie in 0 .. kMaxUtime, so that the differences the map takes between them (vote windows,
+// a robot's recent past) cannot overflow.
+constexpr int64_t kMaxUtime = 253402300799999999;
+
+// InvalidArgument naming the range when `utime` lies outside 0 .. kMaxUtime.
+Status CheckCaptureTime(int64_t utime);
 
 // One inserted frame of one robot.
 struct Place {

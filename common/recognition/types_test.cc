@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -47,6 +48,17 @@ TEST(PlaceValidateTest, RobotIdAndImageWidth) {
   place = ValidPlace();
   place.image_width = -1;
   ExpectInvalid(place.Validate(), "place image width is negative");
+  // Capture times whose differences the map takes (vote windows, the recent past) stay far
+  // from overflowing: 0 up to the end of the year 9999.
+  place = ValidPlace();
+  place.utime = kMaxUtime;
+  EXPECT_TRUE(place.Validate().ok());
+  place.utime = -1;
+  ExpectInvalid(place.Validate(),
+                "capture time -1 us is outside 0 .. 253402300799999999 (microseconds since the "
+                "epoch, up to the end of the year 9999)");
+  place.utime = std::numeric_limits<int64_t>::max();
+  EXPECT_EQ(place.Validate().code(), StatusCode::kInvalidArgument);
   // The store sets ids and counts; they are not the caller's to get right.
   place = ValidPlace();
   place.id = PlaceId(-7);
