@@ -12,6 +12,7 @@
 #include "client/client.h"
 #include "client/fleet.h"
 #include "client/run_feeder.h"
+#include "common/eval/alarms.h"
 #include "common/eval/run.h"
 #include "common/util/options.h"
 #include "common/util/paths.h"
@@ -214,9 +215,11 @@ int WatchCommand(int argc, const char* const* argv) {
       "Prints every scene-change alarm (PLACEREC_CHANGE, seed §7.2.4) as it arrives: the robot\n"
       "and frame, the known place and its earlier visit, what appeared or disappeared where, its\n"
       "class and confidence. With --out, saves the frame with the boxes drawn as\n"
-      "DIR/<robot>_<sequence>_frame.jpg and the stored place as DIR/<robot>_<sequence>_place.jpg.\n"
-      "Runs until interrupted, --duration or --max-alarms.");
-  parser.Add("out", &out, "folder for the alarm pictures (created; empty: none saved)");
+      "DIR/<robot>_<sequence>_frame.jpg and the stored place as DIR/<robot>_<sequence>_place.jpg,\n"
+      "and every alarm as a line of DIR/alarms.csv (written afresh; placerec-eval alarms scores\n"
+      "it against a changed run). Runs until interrupted, --duration or --max-alarms.");
+  parser.Add("out", &out,
+             "folder for the alarm pictures and alarms.csv (created; empty: nothing saved)");
   parser.Add("duration", &duration_s, "stop after this many seconds (0: run until interrupted)");
   parser.Add("max-alarms", &max_alarms, "stop after this many alarms (0: no limit)");
   AddLcmUrlFlag(&parser, &options);  // alarms are not signed: no key is needed to watch
@@ -230,6 +233,15 @@ int WatchCommand(int argc, const char* const* argv) {
   if (!out.empty() && !MakeDirectories(out)) {
     std::fprintf(stderr, "placerec-client watch: cannot create %s\n", out.c_str());
     return kExitFailed;
+  }
+  std::ofstream alarms_csv;
+  if (!out.empty()) {
+    alarms_csv.open(out + "/alarms.csv", std::ios::trunc);
+    alarms_csv << WatchedAlarmHeader() << '\n' << std::flush;
+    if (!alarms_csv) {
+      std::fprintf(stderr, "placerec-client watch: cannot write %s/alarms.csv\n", out.c_str());
+      return kExitFailed;
+    }
   }
   StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "watch");
   if (!client.ok()) return kExitFailed;
@@ -257,6 +269,24 @@ int WatchCommand(int argc, const char* const* argv) {
         a.change.y, a.change.width, a.change.height, a.frame_width, a.frame_height,
         a.change.confidence, a.change_index + 1, a.num_frame_changes);
     std::fflush(stdout);
+    if (alarms_csv.is_open()) {
+      WatchedAlarm line;
+      line.robot = a.robot;
+      line.sequence = a.sequence;
+      line.frame_utime = a.frame_utime;
+      line.place_id = a.place_id;
+      line.place_robot = a.place_robot;
+      line.place_utime = a.place_utime;
+      line.appeared = a.change.appeared;
+      line.box = cv::Rect(a.change.x, a.change.y, a.change.width, a.change.height);
+      line.object_class = a.change.object_class;
+      line.confidence = a.change.confidence;
+      alarms_csv << WatchedAlarmLine(line) << '\n' << std::flush;
+      if (!alarms_csv) {
+        std::fprintf(stderr, "placerec-client watch: cannot write %s/alarms.csv\n", out.c_str());
+        write_failed = true;
+      }
+    }
     if (!out.empty() && a.change_index == 0) {
       const std::string stem = out + "/" + a.robot + "_" + std::to_string(a.sequence) + "_";
       if (!save(stem + "frame.jpg", a.frame_jpeg) || !save(stem + "place.jpg", a.place_jpeg)) {

@@ -29,12 +29,8 @@ if [ -z "${PLACEREC_DEMO_STAGE:-}" ]; then
   PLACEREC_DEMO_STAGE=host exec bash "$0" "$@"
 fi
 
-if [ "$PLACEREC_DEMO_STAGE" = netns ]; then
-  export PATH="$PATH:/usr/sbin:/sbin"
-  ip link set lo up
-  ip link set lo multicast on
-  ip route add 224.0.0.0/4 dev lo
-fi
+source "$root/scripts/service.sh"
+[ "$PLACEREC_DEMO_STAGE" = netns ] && service_private_network
 
 out=$root/out/demo
 mkdir -p "$out"
@@ -46,36 +42,17 @@ client="$build_dir/bin/placerec-client"
 keys=$out/keys
 (umask 077 && bash "$root/scripts/make-key.sh" demo-robots both > "$keys")
 
-"$server" --db "$out/map.db" --lcm-url "$url" --keys "$keys" 2> "$out/server.log" &
-server_pid=$!
-stop_server() {
-  if kill -0 "$server_pid" 2>/dev/null; then
-    kill -TERM "$server_pid"
-    wait "$server_pid" || true
-  fi
-}
-trap stop_server EXIT
+server_pid=
+trap 'service_stop "$server_pid"' EXIT
 trap 'exit 130' INT TERM
-
-ready=0
-for _ in $(seq 1 30); do
-  if "$client" status --lcm-url "$url" --timeout 2 > /dev/null 2>&1; then
-    ready=1
-    break
-  fi
-  kill -0 "$server_pid" 2>/dev/null || break
-done
-if [ "$ready" -ne 1 ]; then
-  echo "demo: placerec-server did not come up; see $out/server.log" >&2
-  tail -n 20 "$out/server.log" >&2
-  exit 1
-fi
+service_start_server "$out/server.log" "$server" --db "$out/map.db" --lcm-url "$url" \
+  --keys "$keys" || exit 1
 echo "demo: placerec-server is up (map $out/map.db); feeding day_left_then_day_right as robots left and right"
 
 rc=0
 "$client" run --dataset "$data/gardens_point" --run day_left_then_day_right --out "$out" \
   --lcm-url "$url" --key-file "$keys" "$@" || rc=$?
 "$client" status --lcm-url "$url" --timeout 3 || true
-stop_server
+service_stop "$server_pid"
 echo "demo: server stopped; log in $out/server.log"
 exit "$rc"

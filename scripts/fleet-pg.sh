@@ -26,9 +26,8 @@ if [ -z "${PLACEREC_FLEET_NETNS:-}" ]; then
   [ "$(id -u)" -eq 0 ] || { echo "fleet-pg: run as root (private network namespace)" >&2; exit 1; }
   exec unshare -n env PLACEREC_FLEET_NETNS=1 bash "$0" "$@"
 fi
-ip link set lo up
-ip link set lo multicast on
-ip route add 224.0.0.0/4 dev lo
+source "$root/scripts/service.sh"
+service_private_network
 lcm="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
 
 mkdir -p "$out"

@@ -29,10 +29,8 @@ if [ -z "${PLACEREC_WORKERS_STAGE:-}" ]; then
   exec unshare -n -- env PLACEREC_WORKERS_STAGE=netns bash "$0" "$frames" "$out"
 fi
 
-export PATH="$PATH:/usr/sbin:/sbin"
-ip link set lo up
-ip link set lo multicast on
-ip route add 224.0.0.0/4 dev lo
+source "$root/scripts/service.sh"
+service_private_network
 url="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=8388608"
 server="$build_dir/bin/placerec-server"
 client="$build_dir/bin/placerec-client"
@@ -41,32 +39,22 @@ keys=$out/keys
 (umask 077 && bash "$root/scripts/make-key.sh" workers-robots both > "$keys")
 
 server_pid=
-stop_server() {
-  if [ -n "$server_pid" ] && kill -0 "$server_pid" 2>/dev/null; then
-    kill -TERM "$server_pid"
-    wait "$server_pid" || true
-  fi
-  server_pid=
-}
-trap stop_server EXIT
+trap 'service_stop "$server_pid"' EXIT
 
 declare -A fps
 for workers in 1 2; do
   dir=$out/workers_$workers
   rm -rf "$dir"
   mkdir -p "$dir"
-  "$server" --db "$dir/map.db" --lcm-url "$url" --keys "$keys" --workers "$workers" \
-    2> "$dir/server.log" &
-  server_pid=$!
-  for _ in $(seq 1 30); do
-    "$client" status --lcm-url "$url" --timeout 2 > /dev/null 2>&1 && break
-  done
+  service_start_server "$dir/server.log" "$server" --db "$dir/map.db" --lcm-url "$url" \
+    --keys "$keys" --workers "$workers" || exit 1
   /usr/bin/time -f "%U %S %e" -o "$dir/client.time" \
     "$client" run --dataset "$data/gardens_point" --run day_left_then_day_right --out "$dir" \
     --lcm-url "$url" --key-file "$keys" --concurrent-robots --max-frames "$frames" > "$dir/client.log"
   # The server's CPU seconds (utime + stime, fields 14 and 15 of /proc/PID/stat).
   server_cpu=$(awk -v hz="$(getconf CLK_TCK)" '{ print ($14 + $15) / hz }' "/proc/$server_pid/stat")
-  stop_server
+  service_stop "$server_pid"
+  server_pid=
   fps[$workers]=$(sed -n 's/.*"frames_per_second": *\([0-9.]*\).*/\1/p' "$dir/summary.json" | head -n 1)
   read -r cu cs ce < "$dir/client.time"
   echo "workers: $workers worker(s): ${fps[$workers]} frames/s; CPU seconds: server ${server_cpu}, client $(awk -v u="$cu" -v s="$cs" 'BEGIN { print u + s }') in ${ce} s"

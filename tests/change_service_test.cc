@@ -1,9 +1,9 @@
 // Scene-change alarms through the service (issue 22, seed §7.2.4): robot "a" maps the first
 // frames of the Gardens Point day walk; robot "b" passes the same place with a frame into which an
 // object was pasted. The answer lists the change where it was pasted, and `placerec-client watch`
-// receives the alarm on PLACEREC_CHANGE and saves both pictures; the same frame unchanged raises
-// nothing. In a private network namespace (tests/service_harness.h); skips when not root or
-// without ../shared/data.
+// receives the alarm on PLACEREC_CHANGE, saves both pictures and records it in alarms.csv; the
+// same frame unchanged raises nothing. In a private network namespace
+// (tests/service_harness.h); skips when not root or without ../shared/data.
 #include <string>
 #include <vector>
 
@@ -12,6 +12,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "client/client.h"
+#include "common/eval/alarms.h"
 #include "common/eval/run.h"
 #include "common/util/paths.h"
 #include "tests/service_harness.h"
@@ -121,6 +122,16 @@ TEST(ChangeServiceTest, APastedObjectRaisesAnAlarmThatWatchReceives) {
   const cv::Mat place_picture = cv::imread(dir + "/alarms/b_1_place.jpg");
   EXPECT_EQ(frame_picture.cols, 320);
   EXPECT_EQ(place_picture.cols, 160);
+  // ... and wrote it to alarms.csv as the answer gave it (placerec-eval alarms scores that file).
+  StatusOr<std::vector<WatchedAlarm>> recorded = LoadWatchedAlarms(dir + "/alarms/alarms.csv");
+  ASSERT_TRUE(recorded.ok()) << recorded.status().ToString();
+  ASSERT_EQ(recorded->size(), 1u);
+  EXPECT_EQ((*recorded)[0].robot, "b");
+  EXPECT_EQ((*recorded)[0].sequence, 1);
+  EXPECT_EQ((*recorded)[0].frame_utime, later + 1000000);
+  EXPECT_EQ((*recorded)[0].place_robot, "a");
+  EXPECT_TRUE((*recorded)[0].appeared);
+  EXPECT_EQ((*recorded)[0].box, found);
   ASSERT_TRUE(testing_service::StopServer(server->get()).ok());
   testing_service::RemoveTempDir(dir);
 }

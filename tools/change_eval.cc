@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <random>
 
@@ -15,55 +16,10 @@
 #include "common/util/paths.h"
 #include "common/util/progress.h"
 #include "common/util/timer.h"
+#include "tools/change_tally.h"
 
 namespace placerec {
 namespace {
-
-// Size bands of the changes, as shares of the frame's area.
-struct Band {
-  const char* name;
-  double low, high;
-};
-constexpr Band kBands[] = {{"1-2%", 0.0, 0.02}, {"2-5%", 0.02, 0.05}, {"5-10%", 0.05, 1.0}};
-
-int BandOf(double share) {
-  for (int b = 0; b < 3; ++b) {
-    if (share < kBands[b].high) return b;
-  }
-  return 2;
-}
-
-struct Tally {
-  int cases = 0;
-  int hits = 0;
-  int checked = 0;  // compared with a stored place
-  int cases_band[3] = {0, 0, 0};
-  int hits_band[3] = {0, 0, 0};
-  std::vector<double> ious;  // of the hits
-};
-
-double Share(int hits, int cases) { return cases > 0 ? static_cast<double>(hits) / cases : 0.0; }
-
-nlohmann::json TallyJson(const Tally& t) {
-  nlohmann::json j;
-  j["cases"] = t.cases;
-  j["found"] = t.hits;
-  j["compared"] = t.checked;
-  j["detection_recall"] = Share(t.hits, t.cases);
-  int cases2 = 0, hits2 = 0;
-  for (int b = 0; b < 3; ++b) {
-    j["by_size"][kBands[b].name] = {{"cases", t.cases_band[b]},
-                                    {"found", t.hits_band[b]},
-                                    {"recall", Share(t.hits_band[b], t.cases_band[b])}};
-    if (b >= 1) {
-      cases2 += t.cases_band[b];
-      hits2 += t.hits_band[b];
-    }
-  }
-  j["detection_recall_2pct"] = Share(hits2, cases2);
-  j["localisation_iou_median"] = t.ious.empty() ? 0.0 : Percentile(t.ious, 50);
-  return j;
-}
 
 // A double as text that reads back as the same value (whether a case is a hit is decided on it).
 std::string ExactText(double value) {
@@ -184,12 +140,28 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   const int frames = eval.max_frames > 0 ? std::min<int>(eval.max_frames, run.frames.size())
                                          : static_cast<int>(run.frames.size());
-  Tally pasted, removed;
+  ChangeTally pasted, removed;
   int unchanged = 0, unchanged_checked = 0, false_alarms = 0, loop_closures = 0;
   int revisits = 0;
   std::vector<double> change_ms, sift_ms;
   int pictures_hit = 0, pictures_miss = 0, pictures_false = 0;
   ProgressLine progress(static_cast<size_t>(frames), 50);
+  // The changed run, to replay live (ChangeEvalOptions::write_run_dir).
+  Run changed_run = FirstFrames(run, frames);
+  changed_run.name = run.name + "_changed";
+  std::ofstream changes_csv;
+  if (!eval.write_run_dir.empty()) {
+    if (!MakeDirectories(eval.write_run_dir + "/runs") ||
+        !MakeDirectories(eval.write_run_dir + "/images")) {
+      return Status::IoError("cannot create " + eval.write_run_dir + "/runs and /images");
+    }
+    for (RunFrame& f : changed_run.frames) {
+      f.image = std::filesystem::absolute(f.image).lexically_normal().string();
+    }
+    changes_csv.open(eval.write_run_dir + "/runs/" + changed_run.name + ".changes.csv");
+    changes_csv << "frame,robot,utime_us,case,x,y,width,height,frame_width,frame_height,"
+                   "object_class\n";
+  }
   std::ofstream cases(eval.out_dir + "/revisits.csv");
   cases << "frame,case,truth_x,truth_y,truth_w,truth_h,loop_closure,best_inliers,compared,why_not,"
            "changes,best_iou,boxes,truth_in_view,truth_difference,threshold\n";
@@ -207,6 +179,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
       cv::Mat query = *image;
       cv::Rect truth;
       std::string what;
+      std::string pasted_class;  // the pasted object's class ("" for the other cases)
       if (changed && !removal) {
         query = image->clone();
         const CutObject& object = objects[static_cast<size_t>(unit(rng) * objects.size())];
@@ -215,6 +188,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
         const double x = unit(rng), y = unit(rng);
         truth = PasteObject(object, share, x, y, &query);
         what = object.class_name + " from " + object.source;
+        pasted_class = object.class_name;
       } else if (removal) {
         // Paint over a stored landmark where the frame shows it (a landmark gone): of the frame's
         // objects of 1-10 % of the frame holding at least 3 verified points of the place the
@@ -249,6 +223,21 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
           what = "painted over";
         }
       }
+      if (changes_csv.is_open()) {
+        const char* what_case = truth.empty() ? "unchanged" : removal ? "removed" : "pasted";
+        if (!truth.empty()) {
+          const std::string written =
+              "images/" + run.name + "_" + std::to_string(frame.frame) + ".jpg";
+          if (!cv::imwrite(eval.write_run_dir + "/" + written, query,
+                           {cv::IMWRITE_JPEG_QUALITY, 95})) {
+            return Status::IoError("cannot write " + eval.write_run_dir + "/" + written);
+          }
+          changed_run.frames[i].image = written;
+        }
+        changes_csv << frame.frame << ',' << frame.robot << ',' << frame.utime << ',' << what_case
+                    << ',' << truth.x << ',' << truth.y << ',' << truth.width << ',' << truth.height
+                    << ',' << query.cols << ',' << query.rows << ',' << pasted_class << '\n';
+      }
       const FrameObservation asked = truth.empty() ? observation : recognizer.Analyze(query);
       FrameRequest as_query = request;
       as_query.insert = false;
@@ -270,10 +259,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
           kind = pictures_false++ < eval.pictures ? "false_alarm" : "";
         }
       } else {
-        Tally& tally = removal ? removed : pasted;
-        const int band = BandOf(truth.area() / frame_area);
-        ++tally.cases;
-        ++tally.cases_band[band];
+        ChangeTally& tally = removal ? removed : pasted;
         tally.checked += report.checked ? 1 : 0;
         double best = 0;
         for (const SceneChange& change : report.changes) {
@@ -282,10 +268,8 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
                              cv::Point(change.box.br() * to_frame));
           best = std::max(best, BoxIoU(box, truth));
         }
+        tally.Add(truth.area() / frame_area, best >= eval.min_iou, best);
         if (best >= eval.min_iou) {
-          ++tally.hits;
-          ++tally.hits_band[band];
-          tally.ious.push_back(best);
           kind = pictures_hit++ < eval.pictures ? "hit" : "";
         } else {
           // Pictures of the misses that were compared: those say why the detector missed.
@@ -328,6 +312,12 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
     }
   }
   if (eval.progress) std::fprintf(stderr, "\n");
+  if (changes_csv.is_open()) {
+    changes_csv.close();
+    if (!changes_csv) return Status::IoError("cannot write the changes of " + changed_run.name);
+    const Status written = WriteRun(changed_run, eval.write_run_dir + "/runs/" + changed_run.name);
+    if (!written.ok()) return written;
+  }
 
   nlohmann::json j;
   j["dataset"] = run.dataset_dir.substr(run.dataset_dir.find_last_of('/') + 1);
@@ -341,15 +331,15 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
                          {"min_area", options.change.min_area},
                          {"min_inliers_without_loop", options.change.min_inliers_without_loop},
                          {"segment_difference", options.change.segment_difference}};
-  j["appeared"] = TallyJson(pasted);
-  j["removed"] = TallyJson(removed);
+  j["appeared"] = ChangeTallyJson(pasted);
+  j["removed"] = ChangeTallyJson(removed);
   j["detection_recall"] = j["appeared"]["detection_recall"];
   j["detection_recall_2pct"] = j["appeared"]["detection_recall_2pct"];
   j["localisation_iou"] = j["appeared"]["localisation_iou_median"];
   j["unchanged"] = unchanged;
   j["unchanged_compared"] = unchanged_checked;
   j["false_alarms"] = false_alarms;
-  j["false_alarm_rate"] = Share(false_alarms, unchanged);
+  j["false_alarm_rate"] = ShareOf(false_alarms, unchanged);
   j["change_ms_median"] = change_ms.empty() ? 0.0 : Percentile(change_ms, 50);
   j["sift_ms_median"] = sift_ms.empty() ? 0.0 : Percentile(sift_ms, 50);
   std::ofstream(eval.out_dir + "/change.json") << j.dump(2) << "\n";

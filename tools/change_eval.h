@@ -3,7 +3,8 @@
 // query, for half of the revisits with a change made to it (a real object cut from a labelled
 // test split pasted in, or a stored landmark painted over with its surroundings), then inserted as
 // recorded. Writes OUT/change.json (detection recall by object size, false-alarm rate on the
-// unchanged revisits, localisation IoU) and pictures of hits, misses and false alarms.
+// unchanged revisits, localisation IoU) and pictures of hits, misses and false alarms; on request
+// the changed run itself, for a live check of the alarms through the service (alarm_score.h).
 #pragma once
 
 #include <string>
@@ -30,6 +31,13 @@ struct ChangeEvalOptions {
   double min_iou = 0.3;  // a change found with at least this IoU is a hit
   int pictures = 8;      // per kind (hits, misses, false alarms)
   int max_frames = 0;    // stop after this many frames (0: all)
+  // When set, the run as the changes left it, to replay through a live server (placerec-client
+  // run) while placerec-client watch records the alarms: DIR/runs/<run>_changed.frames.csv and
+  // .positives.csv (each changed revisit's frame as changed, in DIR/images; the others as
+  // recorded, by absolute path) and DIR/runs/<run>_changed.changes.csv (every revisit: frame,
+  // robot, utime_us, case unchanged | pasted | removed, the true box in frame pixels, the frame's
+  // size, the pasted object's class). The changed frames are inserted there, not only asked.
+  std::string write_run_dir;
   bool progress = true;
 };
 

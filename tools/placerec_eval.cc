@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <optional>
 #include <string>
 
@@ -19,6 +20,7 @@
 #include "common/util/logging.h"
 #include "common/util/options.h"
 #include "common/util/paths.h"
+#include "tools/alarm_score.h"
 #include "tools/change_eval.h"
 #include "tools/classify_command.h"
 #include "tools/eval_runner.h"
@@ -34,7 +36,9 @@ constexpr char kUsage[] =
     "  analyze   draw one frame's segmentation, keypoints and objects\n"
     "  segment   segment a labelled dataset's split and score it (seed eq. 6.2)\n"
     "  classify  classify a labelled dataset's object segments (seed Ch. 4, Tables 6.5-6.7)\n"
-    "  change    measure scene-change alarms (seed §7.2.4) with objects pasted into revisits\n\n"
+    "  change    measure scene-change alarms (seed §7.2.4) with objects pasted into revisits\n"
+    "  alarms    score the alarms placerec-client watch recorded while a changed run was "
+    "replayed\n\n"
     "'placerec-eval COMMAND --help' lists the options of a command.";
 
 // A dataset given by name (e.g. gardens_point) is looked up under PLACEREC_DATA or
@@ -238,6 +242,11 @@ int ChangeCommand(int argc, char** argv) {
              "every N-th changed revisit is a removal instead of a paste (0: none)");
   parser.Add("pictures", &eval.pictures, "pictures per kind (hit, miss, false alarm)");
   parser.Add("max-frames", &eval.max_frames, "stop after this many frames (0: all)");
+  parser.Add("write-run", &eval.write_run_dir,
+             "also write the run as changed, to replay through a live server while "
+             "placerec-client watch records the alarms (scripts/watch-changes.sh): "
+             "DIR/runs/NAME_changed.{frames,positives,changes}.csv and DIR/images; the changed "
+             "frames are inserted there, not only asked");
   parser.AddSwitch("quiet", &quiet, "no progress line");
   AddRecognizerFlags(&parser, &options);
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-eval change")) {
@@ -278,6 +287,57 @@ int ChangeCommand(int argc, char** argv) {
   return 0;
 }
 
+int AlarmsCommand(int argc, char** argv) {
+  std::string changes;
+  std::string alarms;
+  std::string out;
+  double min_iou = 0.3;
+  FlagParser parser(
+      "placerec-eval alarms --changes FILE --alarms FILE --out OUT [options]\n\n"
+      "Scores scene-change alarms watched live (seed §7.2.4): a run changed by\n"
+      "'placerec-eval change --write-run DIR' was replayed through a server with\n"
+      "'placerec-client run' while 'placerec-client watch --out W' recorded the alarms. Each\n"
+      "revisit of DIR/runs/NAME_changed.changes.csv is matched with W/alarms.csv by robot and\n"
+      "sequence number (the run's frame index) and scored as 'placerec-eval change' scores its\n"
+      "answers. Writes OUT/alarms.json. scripts/watch-changes.sh runs all of it.");
+  parser.AddRequired("changes", &changes, "the changed run's changes file");
+  parser.AddRequired("alarms", &alarms, "alarms.csv of placerec-client watch --out");
+  parser.AddRequired("out", &out, "output directory (created if missing)");
+  parser.Add("min-iou", &min_iou, "an alarm finds a change with at least this box IoU");
+  if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-eval alarms")) {
+    return *exit;
+  }
+  if (!(min_iou > 0 && min_iou <= 1)) {
+    std::fprintf(stderr, "placerec-eval alarms: --min-iou must be in (0, 1]\n");
+    return 2;
+  }
+  StatusOr<std::vector<ChangeCase>> cases = LoadChangeCases(changes);
+  StatusOr<std::vector<WatchedAlarm>> watched =
+      cases.ok() ? LoadWatchedAlarms(alarms) : StatusOr<std::vector<WatchedAlarm>>(cases.status());
+  if (!watched.ok()) {
+    std::fprintf(stderr, "placerec-eval alarms: %s\n", watched.status().ToString().c_str());
+    return 1;
+  }
+  if (!MakeDirectories(out)) {
+    std::fprintf(stderr, "placerec-eval alarms: cannot create %s\n", out.c_str());
+    return 1;
+  }
+  const nlohmann::json j = ScoreAlarms(*cases, *watched, min_iou);
+  if (!(std::ofstream(out + "/alarms.json") << j.dump(2) << "\n")) {
+    std::fprintf(stderr, "placerec-eval alarms: cannot write %s/alarms.json\n", out.c_str());
+    return 1;
+  }
+  std::printf(
+      "%zu alarms on %zu revisits: detection_recall %.3f (objects >= 2%%: %.3f), "
+      "false_alarm_rate %.3f, localisation_iou %.2f; removals found %.3f; %d frames that are no "
+      "revisit raised alarms -> %s/alarms.json\n",
+      watched->size(), cases->size(), j["detection_recall"].get<double>(),
+      j["detection_recall_2pct"].get<double>(), j["false_alarm_rate"].get<double>(),
+      j["localisation_iou"].get<double>(), j["removed"]["detection_recall"].get<double>(),
+      j["frames_alarmed_elsewhere"].get<int>(), out.c_str());
+  return 0;
+}
+
 }  // namespace
 }  // namespace placerec
 
@@ -290,6 +350,7 @@ int main(int argc, char** argv) {
   if (std::strcmp(argv[1], "run") == 0) return placerec::RunCommand(argc, argv);
   if (std::strcmp(argv[1], "analyze") == 0) return placerec::AnalyzeCommand(argc, argv);
   if (std::strcmp(argv[1], "change") == 0) return placerec::ChangeCommand(argc, argv);
+  if (std::strcmp(argv[1], "alarms") == 0) return placerec::AlarmsCommand(argc, argv);
   if (std::strcmp(argv[1], "segment") == 0) {
     return placerec::SegmentCommand(argc, argv, placerec::DataDir("", PLACEREC_DEFAULT_DATA_DIR));
   }

@@ -1,0 +1,75 @@
+#include "common/eval/alarms.h"
+
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+namespace placerec {
+namespace {
+
+class AlarmsFileTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    path_ = ::testing::TempDir() + "/placerec_alarms_test_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name() + ".csv";
+  }
+  void TearDown() override { std::filesystem::remove(path_); }
+
+  void Write(const std::string& text) { std::ofstream(path_) << text; }
+
+  std::string path_;
+};
+
+TEST_F(AlarmsFileTest, LinesReadBackAsWritten) {
+  WatchedAlarm a;
+  a.robot = "site 3,robot%1";  // a comma and a percent sign survive the CSV
+  a.sequence = 42;
+  a.frame_utime = 1700000000123456;
+  a.place_id = 7;
+  a.place_robot = "left";
+  a.place_utime = 1700000000000000;
+  a.appeared = false;
+  a.box = cv::Rect(10, 20, 30, 40);
+  a.object_class = "car";
+  a.confidence = 0.625;
+  WatchedAlarm b;
+  b.robot = "b";
+  b.box = cv::Rect(1, 2, 3, 4);
+  Write(WatchedAlarmHeader() + "\n" + WatchedAlarmLine(a) + "\n" + WatchedAlarmLine(b) + "\n");
+  StatusOr<std::vector<WatchedAlarm>> read = LoadWatchedAlarms(path_);
+  ASSERT_TRUE(read.ok()) << read.status().ToString();
+  ASSERT_EQ(read->size(), 2u);
+  const WatchedAlarm& r = (*read)[0];
+  EXPECT_EQ(r.robot, a.robot);
+  EXPECT_EQ(r.sequence, 42);
+  EXPECT_EQ(r.frame_utime, a.frame_utime);
+  EXPECT_EQ(r.place_id, 7);
+  EXPECT_EQ(r.place_robot, "left");
+  EXPECT_EQ(r.place_utime, a.place_utime);
+  EXPECT_FALSE(r.appeared);
+  EXPECT_EQ(r.box, a.box);
+  EXPECT_EQ(r.object_class, "car");
+  EXPECT_DOUBLE_EQ(r.confidence, 0.625);
+  EXPECT_TRUE((*read)[1].appeared);
+  EXPECT_EQ((*read)[1].object_class, "");
+}
+
+TEST_F(AlarmsFileTest, MalformedFilesAreNamed) {
+  EXPECT_EQ(LoadWatchedAlarms(path_ + ".missing").status().code(), StatusCode::kNotFound);
+  Write("robot,sequence\nb,1\n");
+  const Status no_column = LoadWatchedAlarms(path_).status();
+  EXPECT_EQ(no_column.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(no_column.message().find("no column 'frame_utime'"), std::string::npos);
+  WatchedAlarm a;
+  a.robot = "b";
+  std::string line = WatchedAlarmLine(a);
+  line.replace(line.find("appeared"), 8, "arrived");
+  Write(WatchedAlarmHeader() + "\n" + line + "\n");
+  const Status bad_kind = LoadWatchedAlarms(path_).status();
+  EXPECT_EQ(bad_kind.code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(bad_kind.message().find("row 2"), std::string::npos) << bad_kind.message();
+}
+
+}  // namespace
+}  // namespace placerec

@@ -1,0 +1,38 @@
+# Sourced by the scripts that run a placerec-server beside its clients (demo.sh, workers.sh,
+# watch-changes.sh, fleet-pg.sh): the private network's loopback, a server started and awaited,
+# a process stopped. Expects $client (placerec-client) and $url (LCM URL) where it says so.
+
+# Inside `unshare -n`: loopback up and multicast routed to it, so LCM stays on this machine.
+service_private_network() {
+  export PATH="$PATH:/usr/sbin:/sbin"
+  ip link set lo up
+  ip link set lo multicast on
+  ip route add 224.0.0.0/4 dev lo
+}
+
+# service_start_server LOG ARG...: starts placerec-server ARG... (stderr to LOG), sets
+# server_pid and waits until it answers `placerec-client status` on $url (60 s at most).
+# Returns 1, with the log's tail, when it does not come up.
+service_start_server() {
+  local log=$1
+  shift
+  "$@" 2> "$log" &
+  server_pid=$!
+  for _ in $(seq 1 30); do
+    if "$client" status --lcm-url "$url" --timeout 2 > /dev/null 2>&1; then
+      return 0
+    fi
+    kill -0 "$server_pid" 2>/dev/null || break
+  done
+  echo "placerec-server did not come up; see $log" >&2
+  tail -n 20 "$log" >&2
+  return 1
+}
+
+# service_stop PID: SIGTERM and wait, when PID is set and running.
+service_stop() {
+  if [ -n "${1:-}" ] && kill -0 "$1" 2>/dev/null; then
+    kill -TERM "$1"
+    wait "$1" || true
+  fi
+}
