@@ -9,9 +9,12 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "common/eval/run.h"
 #include "common/util/paths.h"
+#include "tools/alarm_score.h"
 #include "tools/change_eval.h"
 #include "tools/eval_runner.h"
 
@@ -138,6 +141,7 @@ TEST(EndToEndTest, CorridorLoopSceneChanges) {
   eval.object_datasets = {camvid};
   eval.pictures = 1;
   eval.progress = false;
+  eval.write_run_dir = out + "/run";
   StatusOr<nlohmann::json> result = EvaluateChanges(*run, RecognizerOptions(), eval);
   ASSERT_TRUE(result.ok()) << result.status().ToString();
   const nlohmann::json& j = *result;
@@ -191,6 +195,44 @@ TEST(EndToEndTest, CorridorLoopSceneChanges) {
   EXPECT_EQ(removed, j["removed"]["cases"].get<int>());
   EXPECT_EQ(unchanged, j["unchanged"].get<int>());
   EXPECT_EQ(hits, j["appeared"]["found"].get<int>() + j["removed"]["found"].get<int>());
+
+  // The changed run to replay live (--write-run): every frame, each revisit's case as counted,
+  // the changed frames written with the change inside their true box.
+  StatusOr<placerec::Run> changed = LoadRun(eval.write_run_dir, "corridor_loop_changed");
+  ASSERT_TRUE(changed.ok()) << changed.status().ToString();
+  EXPECT_EQ(changed->frames.size(), run->frames.size());
+  EXPECT_EQ(changed->positives, run->positives);
+  StatusOr<std::vector<ChangeCase>> written =
+      LoadChangeCases(eval.write_run_dir + "/runs/corridor_loop_changed.changes.csv");
+  ASSERT_TRUE(written.ok()) << written.status().ToString();
+  EXPECT_EQ(static_cast<int>(written->size()), run->num_revisits);
+  int written_pasted = 0, written_removed = 0, written_unchanged = 0;
+  for (const ChangeCase& c : *written) {
+    const RunFrame& original = run->frames[c.frame];
+    const RunFrame& replayed = changed->frames[c.frame];
+    EXPECT_EQ(replayed.utime, original.utime);
+    EXPECT_EQ(c.robot, original.robot);
+    if (c.kind == ChangeCase::Kind::kUnchanged) {
+      ++written_unchanged;
+      EXPECT_EQ(std::filesystem::canonical(replayed.image),
+                std::filesystem::canonical(original.image));
+      continue;
+    }
+    written_pasted += c.kind == ChangeCase::Kind::kPasted;
+    written_removed += c.kind == ChangeCase::Kind::kRemoved;
+    const cv::Mat before = cv::imread(original.image, cv::IMREAD_COLOR);
+    const cv::Mat after = cv::imread(replayed.image, cv::IMREAD_COLOR);
+    ASSERT_FALSE(after.empty()) << replayed.image;
+    ASSERT_EQ(after.size(), before.size());
+    EXPECT_EQ(c.frame_size, before.size());
+    cv::Mat changed_pixels;
+    cv::absdiff(before, after, changed_pixels);
+    const cv::Scalar change_in_box = cv::mean(changed_pixels(c.truth));
+    EXPECT_GT(change_in_box[0] + change_in_box[1] + change_in_box[2], 3.0) << "frame " << c.frame;
+  }
+  EXPECT_EQ(written_pasted, j["appeared"]["cases"].get<int>());
+  EXPECT_EQ(written_removed, j["removed"]["cases"].get<int>());
+  EXPECT_EQ(written_unchanged, j["unchanged"].get<int>());
 }
 
 }  // namespace
