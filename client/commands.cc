@@ -412,7 +412,9 @@ int FleetCommand(int argc, const char* const* argv, const std::string& data_defa
       "Simulates a fleet: N robots (ids fleet000, ...) replay the run's frames at HZ frames per\n"
       "second each, open loop, robot i starting i/N of the way along the route, for S seconds;\n"
       "then waits for the last answers. Prints and writes OUT/fleet.json: answers by status,\n"
-      "answered frames per second, latency percentiles, overloaded answers, timeouts.");
+      "answered frames per second, latency percentiles, overloaded answers, timeouts; and\n"
+      "OUT/acknowledged.csv: robot, sequence number and place id of every place a server\n"
+      "acknowledged storing.");
   parser.AddRequired("dataset", &dataset,
                      "dataset directory, or its name under PLACEREC_DATA / ../shared/data");
   parser.AddRequired("run", &run_name, "run name (DIR/runs/NAME.frames.csv)");
@@ -452,6 +454,19 @@ int FleetCommand(int argc, const char* const* argv, const std::string& data_defa
     return kExitFailed;
   }
   std::ofstream(out + "/fleet.json") << report->summary.dump(2) << "\n";
+  // Every place a server acknowledged storing: each must be in the map, whatever happens to a
+  // server afterwards.
+  std::ofstream acknowledged(out + "/acknowledged.csv");
+  acknowledged << "robot,sequence,place_id\n";
+  for (const FrameResult& r : report->results) {
+    if (r.ok() && r.insert && r.place_id >= 0) {
+      acknowledged << r.robot << ',' << r.sequence << ',' << r.place_id << '\n';
+    }
+  }
+  if (!acknowledged.flush()) {
+    std::fprintf(stderr, "placerec-client fleet: cannot write %s/acknowledged.csv\n", out.c_str());
+    return kExitFailed;
+  }
   const nlohmann::json& s = report->summary;
   std::printf(
       "fleet of %d robots at %.2f Hz (%.1f frames/s offered) for %.0f s: %d frames, %d ok, %d "

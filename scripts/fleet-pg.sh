@@ -6,20 +6,27 @@
 # Afterwards the same probe frames are asked (query only) through every server and through one
 # more server started on the finished map, and their answers compared (OUT/probes.txt).
 #
-#   scripts/fleet-pg.sh SERVERS ROBOTS RATE DURATION OUT [WORKERS]
+#   scripts/fleet-pg.sh SERVERS ROBOTS RATE DURATION OUT [WORKERS] [KILL_AFTER]
 #
-# WORKERS: worker threads per server (default 2). Runs as root in a private network namespace of
+# WORKERS: worker threads per server (default 2). KILL_AFTER (seconds, default 0: never): the
+# last fleet server is killed (SIGKILL) that long into the fleet and started again 3 s later on
+# the same robots; afterwards every place the fleet saw acknowledged is looked up in the map
+# (OUT/lost.txt lists any that is missing). Frames sent while their server was down are answered
+# when their resend reaches the restarted server, or refused (bad request: a robot's sequence
+# must increase) when a newer frame of the robot got there first. Runs as root in a private network namespace of
 # its own (unshare -n: LCM multicast on loopback only). Binaries from ${BUILD_DIR:-build}/bin.
-# Writes OUT/fleet.json (placerec-client fleet), OUT/server*.log, OUT/probe*.txt, OUT/probes.txt.
+# Writes OUT/fleet.json and acknowledged.csv (placerec-client fleet), OUT/server*.log,
+# OUT/probe*.txt, OUT/probes.txt.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 
 if [ $# -lt 5 ] || [ "$1" = "--help" ] || [ "$1" = "-h" ]; then
-  sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'
   [ $# -ge 1 ] && { [ "$1" = "--help" ] || [ "$1" = "-h" ]; } && exit 0
   exit 2
 fi
-servers=$1 robots=$2 rate=$3 duration=$4 out=$5 workers=${6:-2}
+servers=$1 robots=$2 rate=$3 duration=$4 out=$5 workers=${6:-2} kill_after=${7:-0}
+case "$kill_after" in '' | *[!0-9]*) echo "fleet-pg: KILL_AFTER must be whole seconds" >&2; exit 2 ;; esac
 bin=${BUILD_DIR:-$root/build}/bin
 
 if [ -z "${PLACEREC_FLEET_NETNS:-}" ]; then
@@ -35,8 +42,14 @@ out=$(cd "$out" && pwd)
 pgdir=$(mktemp -d /tmp/placerec-pg-XXXXXX)
 pids=()
 cleanup() {
+  [ -f "$out/restarted.pid" ] && pids+=("$(cat "$out/restarted.pid")")
   for pid in "${pids[@]}"; do kill "$pid" 2>/dev/null || true; done
   for pid in "${pids[@]}"; do wait "$pid" 2>/dev/null || true; done
+  # The restarted server is no child of this shell: wait until it has gone.
+  if [ -f "$out/restarted.pid" ]; then
+    while kill -0 "$(cat "$out/restarted.pid")" 2>/dev/null; do sleep 0.1; done
+    rm -f "$out/restarted.pid"
+  fi
   bash "$root/scripts/pg.sh" stop "$pgdir" || true
 }
 trap cleanup EXIT
@@ -49,7 +62,7 @@ chmod 600 "$out/keys"
 start_server() {
   local name=$1 ids=$2
   "$bin/placerec-server" --db "$db" --lcm-url "$lcm" --keys "$out/keys" --robots "$ids" \
-    --workers "$workers" >"$out/$name.log" 2>&1 &
+    --workers "$workers" >>"$out/$name.log" 2>&1 &
   pids+=($!)
   for _ in $(seq 1 600); do
     grep -q '\] placerec-server ' "$out/$name.log" && return 0
@@ -60,16 +73,40 @@ start_server() {
   exit 1
 }
 
+server_ids=()
 for ((k = 0; k < servers; k++)); do
   ids="probe$k"
   for ((i = k; i < robots; i += servers)); do ids+=$(printf ',fleet%03d' "$i"); done
+  server_ids+=("$ids")
   start_server "server$k" "$ids"
 done
+
+if [ "$kill_after" -gt 0 ]; then
+  victim=$((servers - 1))
+  (
+    sleep "$kill_after"
+    kill -KILL "${pids[$victim]}"
+    echo "fleet-pg: server$victim killed (SIGKILL) ${kill_after} s into the fleet; restarting it in 3 s"
+    sleep 3
+    start_server "server$victim" "${server_ids[$victim]}"
+    echo "${pids[-1]}" >"$out/restarted.pid"
+    echo "fleet-pg: server$victim serves again"
+  ) &
+  killer=$!
+fi
 
 "$bin/placerec-client" fleet --robots "$robots" --rate "$rate" --duration "$duration" \
   --dataset rtabmap_indoor --run corridor_loop --out "$out" --lcm-url "$lcm" \
   --key-file "$out/keys" --quiet >"$out/fleet.txt" 2>&1 || true
 cat "$out/fleet.txt"
+if [ "$kill_after" -gt 0 ]; then
+  wait "$killer" || true
+  # Every acknowledged place is in the map, under the id its answer gave.
+  psql "$db" -Atc "SELECT robot || ',' || sequence || ',' || id FROM places" | sort >"$out/stored.txt"
+  tail -n +2 "$out/acknowledged.csv" | sort >"$out/acknowledged.sorted"
+  comm -23 "$out/acknowledged.sorted" "$out/stored.txt" >"$out/lost.txt"
+  echo "fleet-pg: $(wc -l <"$out/acknowledged.sorted") places acknowledged, $(wc -l <"$out/lost.txt") of them missing from the map (OUT/lost.txt)"
+fi
 
 # Probes: every 8th frame of the run, asked through each server and a server started now.
 dataset=$(cd "$root/../shared/data/rtabmap_indoor" 2>/dev/null && pwd || echo "${PLACEREC_DATA:-}/rtabmap_indoor")
