@@ -67,7 +67,8 @@ bool LandmarkIndex::SameLocation(PlaceId a, PlaceId b) const {
          std::abs(ia->second.utime - ib->second.utime) <= VoteWindowUs();
 }
 
-std::vector<PlaceId> LandmarkIndex::VoteNeighbours(PlaceId place) const {
+std::vector<PlaceId> LandmarkIndex::VoteNeighbours(
+    PlaceId place, const std::function<bool(PlaceId)>& place_allowed) const {
   const PlaceInfo& info = place_info_.at(place);
   const int64_t window = VoteWindowUs();
   // Outward from the place's own entry, one step to whichever side is nearer: in time, and among
@@ -90,7 +91,8 @@ std::vector<PlaceId> LandmarkIndex::VoteNeighbours(PlaceId place) const {
     if (!can_after && !can_before) break;
     const bool take_after =
         can_after && (!can_before || distance(after) <= distance(std::prev(before)));
-    neighbours.push_back(take_after ? (after++)->second : (--before)->second);
+    const PlaceId next = take_after ? (after++)->second : (--before)->second;
+    if (place_allowed(next)) neighbours.push_back(next);
   }
   return neighbours;
 }
@@ -275,8 +277,8 @@ IndexResult LandmarkIndex::Query(const std::vector<IndexQuery>& objects,
       const PlaceId place = ranked[i].second;
       matched_places[place] = true;
       // Votes merge neighbouring frames; let the geometric check choose among them.
-      for (const PlaceId neighbour : VoteNeighbours(place)) {
-        if (place_allowed(neighbour)) matched_places[neighbour] = true;
+      for (const PlaceId neighbour : VoteNeighbours(place, place_allowed)) {
+        matched_places[neighbour] = true;
       }
     }
   }

@@ -160,9 +160,10 @@ class LandmarkIndex {
  private:
   bool CandidateByColour(const IndexQuery& object, int32_t slot) const;
   bool SameLocation(PlaceId a, PlaceId b) const;
-  // The other places of `place`'s robot within the vote window, nearest in time first, at most
-  // kMaxVoteNeighbours.
-  std::vector<PlaceId> VoteNeighbours(PlaceId place) const;
+  // The other places of `place`'s robot within the vote window that `place_allowed` accepts,
+  // nearest in time first, at most kMaxVoteNeighbours.
+  std::vector<PlaceId> VoteNeighbours(PlaceId place,
+                                      const std::function<bool(PlaceId)>& place_allowed) const;
   int64_t VoteWindowUs() const { return static_cast<int64_t>(options_.vote_window_seconds * 1e6); }
 
   struct PlaceInfo {

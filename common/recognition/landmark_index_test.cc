@@ -324,5 +324,27 @@ TEST(LandmarkIndexVotesTest, AStoppedClockBringsTheVotedPlacesSequenceNeighbours
   EXPECT_EQ(asked.count(599), 0u);
 }
 
+// Places the caller does not allow (a robot's own recent past) take none of the voted place's
+// neighbour slots: the neighbourhood holds kMaxVoteNeighbours allowed places.
+TEST(LandmarkIndexVotesTest, PlacesNotAllowedTakeNoNeighbourSlot) {
+  std::mt19937 rng(41);
+  LandmarkIndex index{LandmarkIndexOptions()};
+  const int places = 600;
+  std::vector<cv::Mat> stored;
+  for (int p = 0; p < places; ++p) {
+    index.AddPlace({PlaceId(p), "robot", p, /*utime=*/0, 1});
+    stored.push_back(RandomDescriptors(30, &rng));
+    index.Add(MakeLandmark(p, p, stored.back(), 30, {}));
+  }
+  IndexQuery rest;
+  rest.sift_count = 30;
+  rest.is_object = false;
+  rest.descriptors = Noisy(stored[300].rowRange(0, 20), &rng);
+  const IndexResult found =
+      index.Query({rest}, [](PlaceId place) { return place.value() % 2 == 0; });
+  EXPECT_EQ(found.place_points.count(PlaceId(300)), 1u);
+  EXPECT_EQ(found.stats.candidate_places, LandmarkIndex::kMaxVoteNeighbours + 1);
+}
+
 }  // namespace
 }  // namespace placerec
