@@ -243,12 +243,14 @@ int WatchCommand(int argc, const char* const* argv) {
       return kExitFailed;
     }
   }
-  StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "watch");
-  if (!client.ok()) return kExitFailed;
+  // What the alarm callback uses is declared before the client, so that it outlives the
+  // client's receiving thread.
   std::mutex mutex;
   std::condition_variable done;
   int alarms = 0;
   bool write_failed = false;
+  StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "watch");
+  if (!client.ok()) return kExitFailed;
   const auto save = [](const std::string& path, const std::vector<uint8_t>& bytes) {
     if (bytes.empty()) return true;
     std::ofstream file(path, std::ios::binary);
@@ -279,6 +281,7 @@ int WatchCommand(int argc, const char* const* argv) {
       line.place_utime = a.place_utime;
       line.appeared = a.change.appeared;
       line.box = cv::Rect(a.change.x, a.change.y, a.change.width, a.change.height);
+      line.frame_size = cv::Size(a.frame_width, a.frame_height);
       line.object_class = a.change.object_class;
       line.confidence = a.change.confidence;
       alarms_csv << WatchedAlarmLine(line) << '\n' << std::flush;

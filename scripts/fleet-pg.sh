@@ -10,18 +10,19 @@
 #
 # WORKERS: worker threads per server (default 2). KILL_AFTER (seconds, default 0: never): the
 # last fleet server is killed (SIGKILL) that long into the fleet and started again 3 s later on
-# the same robots; afterwards every place the fleet saw acknowledged is looked up in the map
-# (OUT/lost.txt lists any that is missing). Frames sent while their server was down are answered
-# when their resend reaches the restarted server, or refused (bad request: a robot's sequence
-# must increase) when a newer frame of the robot got there first. Runs as root in a private network namespace of
-# its own (unshare -n: LCM multicast on loopback only). Binaries from ${BUILD_DIR:-build}/bin.
-# Writes OUT/fleet.json and acknowledged.csv (placerec-client fleet), OUT/server*.log,
-# OUT/probe*.txt, OUT/probes.txt.
+# the same robots (log OUT/serverN.restart.log); afterwards every place the fleet saw
+# acknowledged is looked up in the map (OUT/lost.txt lists any that is missing,
+# OUT/unacknowledged.txt the places stored without an answer). Frames sent while their server
+# was down are answered when their resend reaches the restarted server, or refused (bad
+# request: a robot's sequence must increase) when a newer frame of the robot got there first.
+# Runs as root in a private network namespace of its own (unshare -n: LCM multicast on loopback
+# only). Binaries from ${BUILD_DIR:-build}/bin. Writes OUT/fleet.json and acknowledged.csv
+# (placerec-client fleet), OUT/server*.log, OUT/probe*.txt, OUT/probes.txt.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 
 if [ $# -lt 5 ] || [ "$1" = "--help" ] || [ "$1" = "-h" ]; then
-  sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,21p' "$0" | sed 's/^# \{0,1\}//'
   [ $# -ge 1 ] && { [ "$1" = "--help" ] || [ "$1" = "-h" ]; } && exit 0
   exit 2
 fi
@@ -41,13 +42,20 @@ mkdir -p "$out"
 out=$(cd "$out" && pwd)
 pgdir=$(mktemp -d /tmp/placerec-pg-XXXXXX)
 pids=()
+killer=
 cleanup() {
-  [ -f "$out/restarted.pid" ] && pids+=("$(cat "$out/restarted.pid")")
-  for pid in "${pids[@]}"; do kill "$pid" 2>/dev/null || true; done
+  # The killer first: it must not kill or start anything once the cluster is going away.
+  if [ -n "$killer" ]; then
+    kill "$killer" 2>/dev/null || true
+    wait "$killer" 2>/dev/null || true
+  fi
+  local restarted=
+  [ -f "$out/restarted.pid" ] && restarted=$(cat "$out/restarted.pid")
+  for pid in "${pids[@]}" $restarted; do kill "$pid" 2>/dev/null || true; done
   for pid in "${pids[@]}"; do wait "$pid" 2>/dev/null || true; done
   # The restarted server is no child of this shell: wait until it has gone.
-  if [ -f "$out/restarted.pid" ]; then
-    while kill -0 "$(cat "$out/restarted.pid")" 2>/dev/null; do sleep 0.1; done
+  if [ -n "$restarted" ]; then
+    while kill -0 "$restarted" 2>/dev/null; do sleep 0.1; done
     rm -f "$out/restarted.pid"
   fi
   bash "$root/scripts/pg.sh" stop "$pgdir" || true
@@ -62,8 +70,10 @@ chmod 600 "$out/keys"
 start_server() {
   local name=$1 ids=$2
   "$bin/placerec-server" --db "$db" --lcm-url "$lcm" --keys "$out/keys" --robots "$ids" \
-    --workers "$workers" >>"$out/$name.log" 2>&1 &
+    --workers "$workers" >"$out/$name.log" 2>&1 &
   pids+=($!)
+  # A server started by the killer (a subshell) is found by the cleanup through this file.
+  [ "$name" = "${name%.restart}" ] || echo "$!" >"$out/restarted.pid"
   for _ in $(seq 1 600); do
     grep -q '\] placerec-server ' "$out/$name.log" && return 0
     sleep 0.1
@@ -86,10 +96,10 @@ if [ "$kill_after" -gt 0 ]; then
   (
     sleep "$kill_after"
     kill -KILL "${pids[$victim]}"
-    echo "fleet-pg: server$victim killed (SIGKILL) ${kill_after} s into the fleet; restarting it in 3 s"
+    echo "fleet-pg: server$victim killed (SIGKILL) ${kill_after} s into the fleet;" \
+      "restarting it in 3 s"
     sleep 3
-    start_server "server$victim" "${server_ids[$victim]}"
-    echo "${pids[-1]}" >"$out/restarted.pid"
+    start_server "server$victim.restart" "${server_ids[$victim]}"
     echo "fleet-pg: server$victim serves again"
   ) &
   killer=$!
@@ -101,11 +111,21 @@ fi
 cat "$out/fleet.txt"
 if [ "$kill_after" -gt 0 ]; then
   wait "$killer" || true
-  # Every acknowledged place is in the map, under the id its answer gave.
-  psql "$db" -Atc "SELECT robot || ',' || sequence || ',' || id FROM places" | sort >"$out/stored.txt"
-  tail -n +2 "$out/acknowledged.csv" | sort >"$out/acknowledged.sorted"
-  comm -23 "$out/acknowledged.sorted" "$out/stored.txt" >"$out/lost.txt"
-  echo "fleet-pg: $(wc -l <"$out/acknowledged.sorted") places acknowledged, $(wc -l <"$out/lost.txt") of them missing from the map (OUT/lost.txt)"
+  killer=
+  # Every acknowledged place is in the map, under the id its answer gave; and which places the map
+  # holds that no answer acknowledged (a server killed between its commit and its answer).
+  if [ -f "$out/acknowledged.csv" ]; then
+    psql "$db" -Atc "SELECT robot || ',' || sequence || ',' || id FROM places" |
+      sort >"$out/stored.txt"
+    tail -n +2 "$out/acknowledged.csv" | sort >"$out/acknowledged.sorted"
+    comm -23 "$out/acknowledged.sorted" "$out/stored.txt" >"$out/lost.txt"
+    comm -13 "$out/acknowledged.sorted" "$out/stored.txt" >"$out/unacknowledged.txt"
+    echo "fleet-pg: $(wc -l <"$out/acknowledged.sorted") places acknowledged," \
+      "$(wc -l <"$out/lost.txt") of them missing from the map (OUT/lost.txt);" \
+      "$(wc -l <"$out/unacknowledged.txt") stored without an answer (OUT/unacknowledged.txt)"
+  else
+    echo "fleet-pg: the fleet wrote no acknowledged.csv; see OUT/fleet.txt" >&2
+  fi
 fi
 
 # Probes: every 8th frame of the run, asked through each server and a server started now.

@@ -132,6 +132,9 @@ TEST(ChangeServiceTest, APastedObjectRaisesAnAlarmThatWatchReceives) {
   EXPECT_EQ((*recorded)[0].place_robot, "a");
   EXPECT_TRUE((*recorded)[0].appeared);
   EXPECT_EQ((*recorded)[0].box, found);
+  EXPECT_EQ((*recorded)[0].place_id, alarm.matches.front().place_id);
+  EXPECT_NEAR((*recorded)[0].confidence, change.confidence, 1e-6);
+  EXPECT_EQ((*recorded)[0].frame_size, revisited.size());
   ASSERT_TRUE(testing_service::StopServer(server->get()).ok());
   testing_service::RemoveTempDir(dir);
 }

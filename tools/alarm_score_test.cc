@@ -19,11 +19,13 @@ ChangeCase Case(int frame, ChangeCase::Kind kind, const cv::Rect& truth = cv::Re
   return c;
 }
 
-WatchedAlarm Alarm(const std::string& robot, int64_t sequence, const cv::Rect& box) {
+WatchedAlarm Alarm(const std::string& robot, int64_t sequence, const cv::Rect& box,
+                   const cv::Size& frame_size = cv::Size(100, 100)) {
   WatchedAlarm a;
   a.robot = robot;
   a.sequence = sequence;
   a.box = box;
+  a.frame_size = frame_size;
   a.confidence = 0.7;
   return a;
 }
@@ -41,10 +43,14 @@ TEST(AlarmScoreTest, HitsMissesFalseAlarmsAndAlarmsElsewhere) {
       Case(15, Kind::kUnchanged),                         // quiet
   };
   const std::vector<WatchedAlarm> alarms = {
-      Alarm("right", 10, cv::Rect(2, 2, 20, 20)), Alarm("right", 10, cv::Rect(70, 70, 5, 5)),
-      Alarm("right", 11, cv::Rect(0, 0, 12, 12)), Alarm("right", 13, cv::Rect(60, 0, 20, 20)),
-      Alarm("right", 14, cv::Rect(5, 5, 10, 10)), Alarm("left", 12, cv::Rect(0, 0, 30, 30)),
+      Alarm("right", 10, cv::Rect(2, 2, 20, 20)),
+      Alarm("right", 10, cv::Rect(70, 70, 5, 5)),
+      Alarm("right", 11, cv::Rect(0, 0, 12, 12)),
+      Alarm("right", 14, cv::Rect(5, 5, 10, 10)),
+      Alarm("left", 12, cv::Rect(0, 0, 30, 30)),
       Alarm("right", 99, cv::Rect(5, 5, 10, 10)),
+      // Frame 13 sent at half size: its box in the case's pixels is the true one.
+      Alarm("right", 13, cv::Rect(30, 0, 10, 10), cv::Size(50, 50)),
   };
   const nlohmann::json j = ScoreAlarms(cases, alarms, 0.3);
   EXPECT_EQ(j["appeared"]["cases"], 3);
@@ -58,6 +64,7 @@ TEST(AlarmScoreTest, HitsMissesFalseAlarmsAndAlarmsElsewhere) {
   EXPECT_EQ(j["false_alarms"], 1);
   EXPECT_DOUBLE_EQ(j["false_alarm_rate"].get<double>(), 0.5);
   EXPECT_EQ(j["alarms"], 7);
+  EXPECT_EQ(j["removed"]["localisation_iou_median"], 1.0);
   // Robot "left"'s frame 12 and "right"'s frame 99 are no revisit of the cases.
   EXPECT_EQ(j["frames_alarmed_elsewhere"], 2);
   EXPECT_FALSE(j["appeared"].contains("compared"));
@@ -79,7 +86,8 @@ TEST(AlarmScoreTest, ChangesFileReadsAndRefusesWhatIsWrong) {
   EXPECT_EQ((*read)[1].kind, ChangeCase::Kind::kUnchanged);
 
   std::ofstream(path) << header << "3,right,1003,moved,1,2,30,40,640,480,\n";
-  EXPECT_NE(LoadChangeCases(path).status().message().find("case 'moved'"), std::string::npos);
+  EXPECT_NE(LoadChangeCases(path).status().message().find(path + ":2: case 'moved'"),
+            std::string::npos);
   std::ofstream(path) << header << "3,right,1003,pasted,0,0,0,0,640,480,\n";
   EXPECT_NE(LoadChangeCases(path).status().message().find("needs its box"), std::string::npos);
   std::filesystem::remove(path);

@@ -161,6 +161,10 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
     changes_csv.open(eval.write_run_dir + "/runs/" + changed_run.name + ".changes.csv");
     changes_csv << "frame,robot,utime_us,case,x,y,width,height,frame_width,frame_height,"
                    "object_class\n";
+    if (!changes_csv) {
+      return Status::IoError("cannot write " + eval.write_run_dir + "/runs/" + changed_run.name +
+                             ".changes.csv");
+    }
   }
   std::ofstream cases(eval.out_dir + "/revisits.csv");
   cases << "frame,case,truth_x,truth_y,truth_w,truth_h,loop_closure,best_inliers,compared,why_not,"

@@ -9,11 +9,11 @@ struct Band {
   const char* name;
   double high;  // upper end (share of the frame); the last band takes everything above
 };
-constexpr Band kBandNames[ChangeTally::kBands] = {{"1-2%", 0.02}, {"2-5%", 0.05}, {"5-10%", 1.0}};
+constexpr Band kBandLimits[ChangeTally::kBands] = {{"1-2%", 0.02}, {"2-5%", 0.05}, {"5-10%", 1.0}};
 
 int BandOf(double share) {
   for (int b = 0; b < ChangeTally::kBands; ++b) {
-    if (share < kBandNames[b].high) return b;
+    if (share < kBandLimits[b].high) return b;
   }
   return ChangeTally::kBands - 1;
 }
@@ -40,9 +40,9 @@ nlohmann::json ChangeTallyJson(const ChangeTally& t) {
   j["detection_recall"] = ShareOf(t.hits, t.cases);
   int cases2 = 0, hits2 = 0;
   for (int b = 0; b < ChangeTally::kBands; ++b) {
-    j["by_size"][kBandNames[b].name] = {{"cases", t.cases_band[b]},
-                                        {"found", t.hits_band[b]},
-                                        {"recall", ShareOf(t.hits_band[b], t.cases_band[b])}};
+    j["by_size"][kBandLimits[b].name] = {{"cases", t.cases_band[b]},
+                                         {"found", t.hits_band[b]},
+                                         {"recall", ShareOf(t.hits_band[b], t.cases_band[b])}};
     if (b >= 1) {
       cases2 += t.cases_band[b];
       hits2 += t.hits_band[b];

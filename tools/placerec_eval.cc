@@ -291,7 +291,7 @@ int AlarmsCommand(int argc, char** argv) {
   std::string changes;
   std::string alarms;
   std::string out;
-  double min_iou = 0.3;
+  double min_iou = ChangeEvalOptions().min_iou;
   FlagParser parser(
       "placerec-eval alarms --changes FILE --alarms FILE --out OUT [options]\n\n"
       "Scores scene-change alarms watched live (seed §7.2.4): a run changed by\n"

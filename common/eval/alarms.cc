@@ -1,14 +1,17 @@
 #include "common/eval/alarms.h"
 
-#include <cstdio>
-#include <filesystem>
 #include <iterator>
 #include <utility>
 
-#include "common/util/csv.h"
+#include "common/eval/csv_lines.h"
 
 namespace placerec {
 namespace {
+
+using eval_internal::CsvLines;
+using eval_internal::FormatDouble;
+using eval_internal::ParseFloat;
+using eval_internal::ParseInt;
 
 std::string Encode(const std::string& text) {
   std::string out;
@@ -40,72 +43,159 @@ std::string Decode(const std::string& text) {
   return out;
 }
 
-constexpr const char* kColumns[] = {
-    "robot", "sequence", "frame_utime", "place_id", "place_robot",  "place_utime", "kind",
-    "x",     "y",        "width",       "height",   "object_class", "confidence"};
+enum Column {
+  kRobot,
+  kSequence,
+  kFrameUtime,
+  kPlaceId,
+  kPlaceRobot,
+  kPlaceUtime,
+  kKind,
+  kX,
+  kY,
+  kWidth,
+  kHeight,
+  kFrameWidth,
+  kFrameHeight,
+  kObjectClass,
+  kConfidence,
+  kColumns
+};
+constexpr const char* kColumnNames[kColumns] = {"robot",
+                                                "sequence",
+                                                "frame_utime",
+                                                "place_id",
+                                                "place_robot",
+                                                "place_utime",
+                                                "kind",
+                                                "x",
+                                                "y",
+                                                "width",
+                                                "height",
+                                                "frame_width",
+                                                "frame_height",
+                                                "object_class",
+                                                "confidence"};
 
 }  // namespace
 
 std::string WatchedAlarmHeader() {
   std::string header;
-  for (const char* column : kColumns) header += (header.empty() ? "" : ",") + std::string(column);
+  for (const char* column : kColumnNames) {
+    header += (header.empty() ? "" : ",") + std::string(column);
+  }
   return header;
 }
 
 std::string WatchedAlarmLine(const WatchedAlarm& a) {
-  char confidence[32];
-  std::snprintf(confidence, sizeof(confidence), "%.3f", a.confidence);
   return Encode(a.robot) + ',' + std::to_string(a.sequence) + ',' + std::to_string(a.frame_utime) +
          ',' + std::to_string(a.place_id) + ',' + Encode(a.place_robot) + ',' +
          std::to_string(a.place_utime) + ',' + (a.appeared ? "appeared" : "disappeared") + ',' +
          std::to_string(a.box.x) + ',' + std::to_string(a.box.y) + ',' +
          std::to_string(a.box.width) + ',' + std::to_string(a.box.height) + ',' +
-         Encode(a.object_class) + ',' + confidence;
+         std::to_string(a.frame_size.width) + ',' + std::to_string(a.frame_size.height) + ',' +
+         Encode(a.object_class) + ',' + FormatDouble(a.confidence);
 }
 
 StatusOr<std::vector<WatchedAlarm>> LoadWatchedAlarms(const std::string& path) {
-  if (!std::filesystem::exists(path)) {
-    return Status::NotFound("no alarms file " + path +
+  StatusOr<CsvLines> table = eval_internal::ReadCsvLines(path);
+  if (!table.ok()) {
+    if (table.status().code() != StatusCode::kNotFound) return table.status();
+    return Status::NotFound(table.status().message() +
                             " (placerec-client watch --out DIR writes DIR/alarms.csv)");
   }
-  StatusOr<CsvTable> table = ReadCsv(path);
-  if (!table.ok()) return table.status();
-  int col[std::size(kColumns)];
-  for (size_t k = 0; k < std::size(kColumns); ++k) {
-    col[k] = table->Column(kColumns[k]);
+  int col[kColumns];
+  for (int k = 0; k < kColumns; ++k) {
+    col[k] = table->Column(kColumnNames[k]);
     if (col[k] < 0) {
-      return Status::InvalidArgument(path + ": no column '" + kColumns[k] + "'; the header is " +
-                                     WatchedAlarmHeader());
+      return Status::InvalidArgument(path + ": no column '" + kColumnNames[k] +
+                                     "'; the header is " + WatchedAlarmHeader());
     }
   }
   std::vector<WatchedAlarm> alarms;
-  for (size_t r = 0; r < table->rows.size(); ++r) {
-    const std::vector<std::string>& row = table->rows[r];
-    long long n[8];
-    const int numeric[8] = {1, 2, 3, 5, 7, 8, 9, 10};
+  for (const eval_internal::CsvLine& row : table->rows) {
+    const auto field = [&](Column c) -> const std::string& { return row.fields[col[c]]; };
+    long long n[kColumns] = {};
     bool ok = true;
-    for (int k = 0; k < 8; ++k) ok = ok && ParseInt64(row[col[numeric[k]]], &n[k]);
-    WatchedAlarm a;
-    ok = ok && ParseDouble(row[col[12]], &a.confidence);
-    const std::string& kind = row[col[6]];
-    if (!ok || (kind != "appeared" && kind != "disappeared")) {
-      return Status::InvalidArgument(path + ": row " + std::to_string(r + 2) +
-                                     ": sequence, times, place, box and confidence must be "
-                                     "numbers and kind appeared or disappeared");
+    for (Column c : {kSequence, kFrameUtime, kPlaceId, kPlaceUtime, kX, kY, kWidth, kHeight,
+                     kFrameWidth, kFrameHeight}) {
+      ok = ok && ParseInt(field(c), &n[c]);
     }
-    a.robot = Decode(row[col[0]]);
-    a.sequence = n[0];
-    a.frame_utime = n[1];
-    a.place_id = n[2];
-    a.place_robot = Decode(row[col[4]]);
-    a.place_utime = n[3];
+    WatchedAlarm a;
+    ok = ok && ParseFloat(field(kConfidence), &a.confidence);
+    const std::string& kind = field(kKind);
+    if (!ok || (kind != "appeared" && kind != "disappeared")) {
+      return Status::InvalidArgument(table->Where(row.line) +
+                                     ": sequence, times, place, box, frame size and confidence "
+                                     "must be numbers and kind appeared or disappeared");
+    }
+    a.robot = Decode(field(kRobot));
+    a.sequence = n[kSequence];
+    a.frame_utime = n[kFrameUtime];
+    a.place_id = n[kPlaceId];
+    a.place_robot = Decode(field(kPlaceRobot));
+    a.place_utime = n[kPlaceUtime];
     a.appeared = kind == "appeared";
-    a.box = cv::Rect(static_cast<int>(n[4]), static_cast<int>(n[5]), static_cast<int>(n[6]),
-                     static_cast<int>(n[7]));
-    a.object_class = Decode(row[col[11]]);
+    a.box = cv::Rect(static_cast<int>(n[kX]), static_cast<int>(n[kY]), static_cast<int>(n[kWidth]),
+                     static_cast<int>(n[kHeight]));
+    a.frame_size = cv::Size(static_cast<int>(n[kFrameWidth]), static_cast<int>(n[kFrameHeight]));
+    a.object_class = Decode(field(kObjectClass));
     alarms.push_back(std::move(a));
   }
   return alarms;
+}
+
+StatusOr<std::vector<ChangeCase>> LoadChangeCases(const std::string& path) {
+  StatusOr<CsvLines> table = eval_internal::ReadCsvLines(path);
+  if (!table.ok()) {
+    if (table.status().code() != StatusCode::kNotFound) return table.status();
+    return Status::NotFound(table.status().message() +
+                            " (placerec-eval change --write-run DIR writes "
+                            "DIR/runs/NAME_changed.changes.csv)");
+  }
+  const std::vector<std::string> names = {
+      "frame", "robot",  "utime_us",    "case",         "x",           "y",
+      "width", "height", "frame_width", "frame_height", "object_class"};
+  std::vector<int> col;
+  for (const std::string& name : names) {
+    col.push_back(table->Column(name));
+    if (col.back() < 0) return Status::InvalidArgument(path + ": no column '" + name + "'");
+  }
+  std::vector<ChangeCase> cases;
+  for (const eval_internal::CsvLine& row : table->rows) {
+    long long n[11] = {};
+    bool ok = true;
+    for (int k : {0, 2, 4, 5, 6, 7, 8, 9}) ok = ok && ParseInt(row.fields[col[k]], &n[k]);
+    if (!ok) {
+      return Status::InvalidArgument(table->Where(row.line) +
+                                     ": frame, utime_us, box and frame size must be integers");
+    }
+    ChangeCase c;
+    c.frame = static_cast<int>(n[0]);
+    c.robot = row.fields[col[1]];
+    c.utime = n[2];
+    const std::string& kind = row.fields[col[3]];
+    if (kind == "unchanged") {
+      c.kind = ChangeCase::Kind::kUnchanged;
+    } else if (kind == "pasted") {
+      c.kind = ChangeCase::Kind::kPasted;
+    } else if (kind == "removed") {
+      c.kind = ChangeCase::Kind::kRemoved;
+    } else {
+      return Status::InvalidArgument(table->Where(row.line) + ": case '" + kind +
+                                     "' is none of unchanged, pasted, removed");
+    }
+    c.truth = cv::Rect(static_cast<int>(n[4]), static_cast<int>(n[5]), static_cast<int>(n[6]),
+                       static_cast<int>(n[7]));
+    c.frame_size = cv::Size(static_cast<int>(n[8]), static_cast<int>(n[9]));
+    c.object_class = row.fields[col[10]];
+    if (c.kind != ChangeCase::Kind::kUnchanged && (c.truth.empty() || c.frame_size.area() <= 0)) {
+      return Status::InvalidArgument(table->Where(row.line) +
+                                     ": a changed revisit needs its box and frame size");
+    }
+    cases.push_back(std::move(c));
+  }
+  return cases;
 }
 
 }  // namespace placerec

@@ -1,6 +1,7 @@
-// The alarms file of `placerec-client watch --out W` (W/alarms.csv): one line per scene-change
-// alarm (seed §7.2.4) as it arrived on PLACEREC_CHANGE, so that alarms watched live can be
-// scored (tools/alarm_score.h) or looked at in a spreadsheet.
+// The files of the live check of scene-change alarms (seed §7.2.4): the alarms file of
+// `placerec-client watch --out W` (W/alarms.csv: one line per alarm as it arrived on
+// PLACEREC_CHANGE, also for a spreadsheet) and the changes file of a run changed by
+// `placerec-eval change --write-run` (the truth they are scored against, tools/alarm_score.h).
 #pragma once
 
 #include <cstdint>
@@ -17,11 +18,13 @@ struct WatchedAlarm {
   std::string robot;
   int64_t sequence = 0;
   int64_t frame_utime = 0;
-  int64_t place_id = -1;  // the stored place, the robot that stored it and its capture time
+  // The stored place compared with: its id, the robot that stored it and its capture time.
+  int64_t place_id = -1;
   std::string place_robot;
   int64_t place_utime = 0;
   bool appeared = true;  // false: disappeared
   cv::Rect box;          // pixels of the frame as sent
+  cv::Size frame_size;   // the frame as sent, pixels
   std::string object_class;
   double confidence = 0;
 };
@@ -31,7 +34,24 @@ struct WatchedAlarm {
 std::string WatchedAlarmHeader();
 std::string WatchedAlarmLine(const WatchedAlarm& alarm);
 
-// Reads W/alarms.csv: NotFound when missing, InvalidArgument naming the row for a malformed line.
+// Reads W/alarms.csv: NotFound when missing, InvalidArgument naming the file and line for a
+// malformed one. Numbers are written and read locale-independently.
 StatusOr<std::vector<WatchedAlarm>> LoadWatchedAlarms(const std::string& path);
+
+// One revisit of a changed run (DIR/runs/<run>_changed.changes.csv).
+struct ChangeCase {
+  enum class Kind { kUnchanged, kPasted, kRemoved };
+  int frame = 0;  // the run's frame index: the sequence number placerec-client run sends
+  std::string robot;
+  int64_t utime = 0;
+  Kind kind = Kind::kUnchanged;
+  cv::Rect truth;            // frame pixels; empty for an unchanged revisit
+  cv::Size frame_size;       // pixels
+  std::string object_class;  // of a pasted object
+};
+
+// Reads a changes file: NotFound when missing, InvalidArgument naming the file and line for a
+// malformed one.
+StatusOr<std::vector<ChangeCase>> LoadChangeCases(const std::string& path);
 
 }  // namespace placerec

@@ -31,6 +31,7 @@ TEST_F(AlarmsFileTest, LinesReadBackAsWritten) {
   a.place_utime = 1700000000000000;
   a.appeared = false;
   a.box = cv::Rect(10, 20, 30, 40);
+  a.frame_size = cv::Size(640, 480);
   a.object_class = "car";
   a.confidence = 0.625;
   WatchedAlarm b;
@@ -49,6 +50,7 @@ TEST_F(AlarmsFileTest, LinesReadBackAsWritten) {
   EXPECT_EQ(r.place_utime, a.place_utime);
   EXPECT_FALSE(r.appeared);
   EXPECT_EQ(r.box, a.box);
+  EXPECT_EQ(r.frame_size, a.frame_size);
   EXPECT_EQ(r.object_class, "car");
   EXPECT_DOUBLE_EQ(r.confidence, 0.625);
   EXPECT_TRUE((*read)[1].appeared);
@@ -68,7 +70,7 @@ TEST_F(AlarmsFileTest, MalformedFilesAreNamed) {
   Write(WatchedAlarmHeader() + "\n" + line + "\n");
   const Status bad_kind = LoadWatchedAlarms(path_).status();
   EXPECT_EQ(bad_kind.code(), StatusCode::kInvalidArgument);
-  EXPECT_NE(bad_kind.message().find("row 2"), std::string::npos) << bad_kind.message();
+  EXPECT_NE(bad_kind.message().find(path_ + ":2"), std::string::npos) << bad_kind.message();
 }
 
 }  // namespace

@@ -2,8 +2,10 @@
 
 #include <istream>
 #include <ostream>
+#include <string>
 
 #include "common/organization/organizer_flags.h"
+#include "common/recognition/landmark_index.h"
 #include "common/segmentation/superpixel_flags.h"
 
 namespace placerec {
@@ -185,7 +187,8 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
       "also verify the places most query descriptors have neighbours in (0: object matches only)");
   p->Add("vote-window-seconds", &o->index.vote_window_seconds,
          "a robot's places taken within this many seconds count as one location for the votes "
-         "(a voted place brings at most the 64 nearest in time as candidates)");
+         "(a voted place brings at most the " +
+             std::to_string(LandmarkIndex::kMaxVoteNeighbours) + " nearest in time as candidates)");
   p->Add("descriptor-search", &o->index.flann.method,
          "nearest neighbours of the map's descriptors: hnsw (a graph; cost grows with the "
          "logarithm of the map) | flann (a k-d tree; cost grows with the map)");

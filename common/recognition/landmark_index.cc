@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <iterator>
 #include <limits>
+#include <tuple>
 #include <utility>
 
 #include "common/features/features.h"
@@ -55,7 +56,7 @@ void LandmarkIndex::AddPlace(const Place& place) {
   CHECK(place.id.IsValid());
   auto [it, inserted] = robot_number_.emplace(place.robot, static_cast<int>(robot_number_.size()));
   place_info_[place.id] = {it->second, place.utime};
-  place_by_time_.insert({{it->second, place.utime}, place.id});
+  place_by_time_.insert({it->second, place.utime, place.id.value()});
 }
 
 bool LandmarkIndex::SameLocation(PlaceId a, PlaceId b) const {
@@ -72,26 +73,29 @@ std::vector<PlaceId> LandmarkIndex::VoteNeighbours(
   const PlaceInfo& info = place_info_.at(place);
   const int64_t window = VoteWindowUs();
   // Outward from the place's own entry, one step to whichever side is nearer: in time, and among
-  // places of the same time (a clock that stands still) in insertion order, by place id.
-  auto before = place_by_time_.lower_bound({info.robot, info.utime});
-  while (before != place_by_time_.end() && before->second != place) ++before;
-  if (before == place_by_time_.end()) return {};
-  auto after = std::next(before);
-  const auto distance = [&](decltype(after) it) {
-    return std::make_pair(std::abs(it->first.second - info.utime),
-                          std::abs(it->second.value() - place.value()));
+  // places of the same time (a clock that stands still) by place id, the order of the entries.
+  const auto own = place_by_time_.find({info.robot, info.utime, place.value()});
+  CHECK(own != place_by_time_.end());
+  auto before = own;
+  auto after = std::next(own);
+  const auto distance = [&](decltype(own) it) {
+    return std::make_pair(std::abs(std::get<1>(*it) - info.utime),
+                          std::abs(std::get<2>(*it) - place.value()));
   };
-  const auto in_window = [&](decltype(after) it) {
-    return it->first.first == info.robot && std::abs(it->first.second - info.utime) <= window;
+  const auto in_window = [&](decltype(own) it) {
+    return std::get<0>(*it) == info.robot && std::abs(std::get<1>(*it) - info.utime) <= window;
   };
+  // Places not allowed are passed over, but the walk stops after a bounded number of steps.
   std::vector<PlaceId> neighbours;
-  while (static_cast<int>(neighbours.size()) < kMaxVoteNeighbours) {
+  for (int steps = 0;
+       static_cast<int>(neighbours.size()) < kMaxVoteNeighbours && steps < kMaxVoteNeighbourSteps;
+       ++steps) {
     const bool can_after = after != place_by_time_.end() && in_window(after);
     const bool can_before = before != place_by_time_.begin() && in_window(std::prev(before));
     if (!can_after && !can_before) break;
     const bool take_after =
         can_after && (!can_before || distance(after) <= distance(std::prev(before)));
-    const PlaceId next = take_after ? (after++)->second : (--before)->second;
+    const PlaceId next(std::get<2>(take_after ? *after++ : *--before));
     if (place_allowed(next)) neighbours.push_back(next);
   }
   return neighbours;

@@ -13,7 +13,9 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <set>
 #include <string>
+#include <tuple>
 #include <unordered_map>
 #include <vector>
 
@@ -51,8 +53,8 @@ struct LandmarkIndexOptions {
   int vote_places = 10;
   // Places of one robot taken within this many seconds of each other (capture time) count as
   // one location for the votes: they see the same scene, at any frame rate. A voted place
-  // brings at most LandmarkIndex::kMaxVoteNeighbours of them as candidates (nearest in time), so a
-  // window wider than 3.2 s at 10 Hz is cut to the nearest 64.
+  // brings at most LandmarkIndex::kMaxVoteNeighbours of them as candidates (the nearest in time
+  // that the caller allows), so a window wider than 3.2 s at 10 Hz is cut to the nearest 64.
   double vote_window_seconds = 3.0;
 
   bool Check(std::string* error) const;
@@ -113,6 +115,8 @@ class LandmarkIndex {
   // vote window, nearest in time first (a 10 Hz camera's whole window of 3 s on each side): a
   // faster camera, or a robot whose clock stands still, does not make every place a candidate.
   static constexpr int kMaxVoteNeighbours = 64;
+  // ... looked for among at most this many places of the window (some may not be allowed).
+  static constexpr int kMaxVoteNeighbourSteps = 4 * kMaxVoteNeighbours;
 
   explicit LandmarkIndex(const LandmarkIndexOptions& options);
 
@@ -175,7 +179,7 @@ class LandmarkIndex {
   std::vector<int32_t> slot_of_id_;  // landmark id -> slot, -1 where absent
   std::unordered_map<PlaceId, std::vector<int32_t>> slots_of_place_;
   std::unordered_map<PlaceId, PlaceInfo> place_info_;
-  std::multimap<std::pair<int, int64_t>, PlaceId> place_by_time_;  // (robot, utime) -> place
+  std::set<std::tuple<int, int64_t, int64_t>> place_by_time_;  // (robot, utime, place id)
   std::unordered_map<std::string, int> robot_number_;
   RangeTree<int32_t> by_count_;
   DescriptorIndex descriptors_;

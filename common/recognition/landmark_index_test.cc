@@ -317,6 +317,7 @@ TEST(LandmarkIndexVotesTest, AStoppedClockBringsTheVotedPlacesSequenceNeighbours
     return true;
   });
   EXPECT_EQ(found.place_points.count(PlaceId(300)), 1u);
+  EXPECT_EQ(found.stats.candidate_places, LandmarkIndex::kMaxVoteNeighbours + 1);
   // All times equal: the places inserted around the voted one, half on each side.
   const int half = LandmarkIndex::kMaxVoteNeighbours / 2;
   for (int p = 300 - half; p <= 300 + half; ++p) EXPECT_EQ(asked.count(p), 1u) << p;
