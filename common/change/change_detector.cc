@@ -64,7 +64,9 @@ bool ChangeOptions::Check(std::string* error) const {
   }
   if (max_changes < 1) return fail("change max_changes must be at least 1");
   if (max_references < 1) return fail("change max_references must be at least 1");
-  if (!(reference_window_seconds >= 0.0)) return fail("change reference window must be >= 0");
+  if (!(reference_window_seconds >= 0.0 && reference_window_seconds <= 86400.0)) {
+    return fail("change reference window must be in [0, 86400] seconds (a day)");
+  }
   if (picture_width < 32 || picture_width > 4096) {
     return fail("change picture width must be in [32, 4096] pixels");
   }

@@ -66,6 +66,10 @@ TEST(ChangeOptionsTest, DefaultsPass) {
   bad.max_elsewhere_similarity = 0;
   EXPECT_FALSE(bad.Check(&error));
   EXPECT_NE(error.find("elsewhere"), std::string::npos);
+  bad = ChangeOptions();
+  bad.reference_window_seconds = 1e13;
+  EXPECT_FALSE(bad.Check(&error));
+  EXPECT_NE(error.find("reference window"), std::string::npos) << error;
 }
 
 TEST(ChangeDetectorTest, UnchangedSceneRaisesNothing) {

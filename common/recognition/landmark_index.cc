@@ -15,8 +15,9 @@
 namespace placerec {
 
 bool LandmarkIndexOptions::Check(std::string* error) const {
-  if (vote_window_seconds < 0) {
-    *error = "index vote_window_seconds must be >= 0";
+  if (!(vote_window_seconds >= 0 && vote_window_seconds <= kMaxWindowSeconds)) {
+    *error = "index vote_window_seconds must be in [0, " +
+             std::to_string(static_cast<int>(kMaxWindowSeconds)) + "] (a day)";
     return false;
   }
   if (count_range_low < 0 || count_range_low > 1) {

@@ -102,6 +102,11 @@ TEST(LandmarkIndexOptionsTest, DefaultsPassAndBadValuesAreNamed) {
   bad.matching.ratio = 1.5;
   EXPECT_FALSE(bad.Check(&error));
   EXPECT_NE(error.find("ratio"), std::string::npos) << error;
+  // Windows are taken in microseconds: at most a day, far from overflowing.
+  bad = LandmarkIndexOptions();
+  bad.vote_window_seconds = 1e13;
+  EXPECT_FALSE(bad.Check(&error));
+  EXPECT_NE(error.find("vote_window_seconds"), std::string::npos) << error;
 }
 
 // Slots are insertion order whatever the ids; counts grow with every landmark added.

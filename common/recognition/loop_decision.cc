@@ -37,8 +37,9 @@ bool LoopDecisionOptions::Check(std::string* error) const {
     *error = "loop max_verified_places and max_matches must be at least 1";
     return false;
   }
-  if (localization_window_seconds < 0) {
-    *error = "loop localization_window_seconds must be >= 0";
+  if (!(localization_window_seconds >= 0 && localization_window_seconds <= kMaxWindowSeconds)) {
+    *error = "loop localization_window_seconds must be in [0, " +
+             std::to_string(static_cast<int>(kMaxWindowSeconds)) + "] (a day)";
     return false;
   }
   if (!(localization_score_fraction >= 0 && localization_score_fraction <= 1)) {

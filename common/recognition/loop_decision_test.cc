@@ -204,6 +204,8 @@ TEST(LoopDecisionTest, EachBadValueIsNamedInTheError) {
       {"max_verified_places", [](LoopDecisionOptions* o) { o->max_verified_places = 0; }},
       {"max_matches", [](LoopDecisionOptions* o) { o->max_matches = 0; }},
       {"min_score", [](LoopDecisionOptions* o) { o->min_score = -1; }},
+      {"localization_window_seconds",
+       [](LoopDecisionOptions* o) { o->localization_window_seconds = 1e13; }},
   });
 }
 

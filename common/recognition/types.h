@@ -26,6 +26,10 @@ constexpr size_t kMaxObjectClassLength = 32;
 // a robot's recent past) cannot overflow.
 constexpr int64_t kMaxUtime = 253402300799999999;
 
+// Longest time window an option may give (seconds; a day): windows are compared in
+// microseconds, and no place is one location with another for longer.
+constexpr double kMaxWindowSeconds = 86400.0;
+
 // InvalidArgument naming the range when `utime` lies outside 0 .. kMaxUtime.
 Status CheckCaptureTime(int64_t utime);
 
