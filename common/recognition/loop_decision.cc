@@ -297,8 +297,11 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
         match.inliers = -1;  // not verified yet
       }
     }
-    // Localization needs the best place's neighbours verified too.
+    // Localization needs the best place's neighbours verified too: at most
+    // max_verified_places of them, nearest to the best in time (then in place id) first, however
+    // many a stopped clock or a fast camera puts within the window.
     const auto best = std::max_element(ranked.begin(), ranked.end(), by_score);
+    std::vector<std::pair<std::pair<int64_t, int64_t>, PlaceMatch*>> neighbours;
     for (PlaceMatch& match : ranked) {
       if (match.inliers >= 0) continue;
       const bool neighbour = best != ranked.end() && best->score > 0 &&
@@ -306,9 +309,20 @@ std::vector<PlaceMatch> RankPlaces(const IndexResult& found,
                              LocalizationNeighbour(match.place, best->place, options) &&
                              match.point_pairs.size() >= min_points;
       if (neighbour) {
-        verify(match);
+        neighbours.push_back({{std::llabs(match.place.utime - best->place.utime),
+                               std::llabs(match.place.id.value() - best->place.id.value())},
+                              &match});
       } else {
         discard(match);
+      }
+    }
+    std::sort(neighbours.begin(), neighbours.end(),
+              [](const auto& a, const auto& b) { return a.first < b.first; });
+    for (size_t i = 0; i < neighbours.size(); ++i) {
+      if (static_cast<int>(i) < options.max_verified_places) {
+        verify(*neighbours[i].second);
+      } else {
+        discard(*neighbours[i].second);
       }
     }
     std::sort(ranked.begin(), ranked.end(), by_score);

@@ -45,7 +45,8 @@ struct LoopDecisionOptions {
   // about where along the route the robot is; inliers spread over the frame do.
   int max_inliers_per_cell = 0;
   int inlier_cell_size = 48;
-  // Places verified geometrically, best by matched descriptors first.
+  // Places verified geometrically, best by matched descriptors first; and at most as many
+  // again among the best place's localization neighbours, nearest in time first.
   int max_verified_places = 20;
   // Localization among the best place's neighbours (same robot, taken within this many seconds
   // of it, so that the neighbourhood is the same at any frame rate; score

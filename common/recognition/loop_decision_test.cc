@@ -189,6 +189,34 @@ TEST(LoopDecisionTest, LocalizesAtTheNeighbourWithTheQueryScale) {
   EXPECT_EQ(best[0].place.sequence, 1);
 }
 
+// A robot whose clock stands still (or a camera far faster than 10 Hz) puts many places within
+// the localization window of the best one: at most max_verified_places of them are verified as
+// its neighbours, the nearest first, besides the max_verified_places checked by match count.
+TEST(LoopDecisionTest, NeighboursVerifiedAreBounded) {
+  std::mt19937 rng(14);
+  const std::vector<cv::KeyPoint> query = QueryKeypoints(60, &rng);
+  LandmarkIndex index{LandmarkIndexOptions()};
+  std::vector<Place> places;
+  IndexResult found;
+  const int kPlaces = 100;
+  for (int k = 0; k < kPlaces; ++k) {
+    places.push_back({PlaceId(k), "a", k, /*utime=*/0, 1, 640});
+    index.AddPlace(places.back());
+    index.Add(ShiftedLandmark(k, k, query, &rng));
+    MatchAll(&found, k, k, LandmarkId(k), k == 50 ? 60 : 50);
+  }
+  LoopDecisionOptions options;
+  options.max_inliers_per_landmark = 0;
+  options.max_matches = kPlaces;  // every place comes back, verified or not
+  const std::vector<PlaceMatch> ranked = RankPlaces(
+      found, {query}, 640, index, [&](PlaceId id) { return &places[id.value()]; }, options);
+  ASSERT_EQ(static_cast<int>(ranked.size()), kPlaces);
+  int verified = 0;
+  for (const PlaceMatch& match : ranked) verified += match.inliers > 0 ? 1 : 0;
+  EXPECT_LE(verified, 2 * options.max_verified_places);
+  EXPECT_GE(verified, options.max_verified_places);
+}
+
 // Every out-of-range option is refused, with a message that names it.
 TEST(LoopDecisionTest, EachBadValueIsNamedInTheError) {
   options_test::ExpectEachRefusedByName<LoopDecisionOptions>({
