@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "common/eval/alarms.h"
 #include "common/eval/stats.h"
 #include "common/image/image.h"
 #include "common/storage/sqlite_store.h"
@@ -159,8 +160,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
       f.image = std::filesystem::absolute(f.image).lexically_normal().string();
     }
     changes_csv.open(eval.write_run_dir + "/runs/" + changed_run.name + ".changes.csv");
-    changes_csv << "frame,robot,utime_us,case,x,y,width,height,frame_width,frame_height,"
-                   "object_class\n";
+    changes_csv << ChangeCaseHeader() << '\n';
     if (!changes_csv) {
       return Status::IoError("cannot write " + eval.write_run_dir + "/runs/" + changed_run.name +
                              ".changes.csv");
@@ -227,8 +227,17 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
           what = "painted over";
         }
       }
+      ChangeCase written_case;
+      written_case.frame = frame.frame;
+      written_case.robot = frame.robot;
+      written_case.utime = frame.utime;
+      written_case.kind = truth.empty() ? ChangeCase::Kind::kUnchanged
+                          : removal     ? ChangeCase::Kind::kRemoved
+                                        : ChangeCase::Kind::kPasted;
+      written_case.truth = truth;
+      written_case.frame_size = query.size();
+      written_case.object_class = pasted_class;
       if (changes_csv.is_open()) {
-        const char* what_case = truth.empty() ? "unchanged" : removal ? "removed" : "pasted";
         if (!truth.empty()) {
           const std::string written =
               "images/" + run.name + "_" + std::to_string(frame.frame) + ".jpg";
@@ -238,9 +247,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
           }
           changed_run.frames[i].image = written;
         }
-        changes_csv << frame.frame << ',' << frame.robot << ',' << frame.utime << ',' << what_case
-                    << ',' << truth.x << ',' << truth.y << ',' << truth.width << ',' << truth.height
-                    << ',' << query.cols << ',' << query.rows << ',' << pasted_class << '\n';
+        changes_csv << ChangeCaseLine(written_case) << '\n';
       }
       const FrameObservation asked = truth.empty() ? observation : recognizer.Analyze(query);
       FrameRequest as_query = request;
@@ -281,7 +288,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
         }
       }
       {
-        const char* what_case = truth.empty() ? "unchanged" : removal ? "removed" : "pasted";
+        const char* what_case = ChangeCaseKindName(written_case.kind);
         double best = 0;
         std::string boxes;
         for (const SceneChange& change : report.changes) {

@@ -145,6 +145,58 @@ StatusOr<std::vector<WatchedAlarm>> LoadWatchedAlarms(const std::string& path) {
   return alarms;
 }
 
+namespace {
+
+enum ChangeColumn {
+  kCaseFrame,
+  kCaseRobot,
+  kCaseUtime,
+  kCaseKind,
+  kCaseX,
+  kCaseY,
+  kCaseWidth,
+  kCaseHeight,
+  kCaseFrameWidth,
+  kCaseFrameHeight,
+  kCaseObjectClass,
+  kCaseColumns
+};
+constexpr const char* kCaseColumnNames[kCaseColumns] = {
+    "frame", "robot",  "utime_us",    "case",         "x",           "y",
+    "width", "height", "frame_width", "frame_height", "object_class"};
+constexpr ChangeCase::Kind kCaseKinds[] = {ChangeCase::Kind::kUnchanged, ChangeCase::Kind::kPasted,
+                                           ChangeCase::Kind::kRemoved};
+
+}  // namespace
+
+const char* ChangeCaseKindName(ChangeCase::Kind kind) {
+  switch (kind) {
+    case ChangeCase::Kind::kUnchanged:
+      return "unchanged";
+    case ChangeCase::Kind::kPasted:
+      return "pasted";
+    case ChangeCase::Kind::kRemoved:
+      return "removed";
+  }
+  return "?";
+}
+
+std::string ChangeCaseHeader() {
+  std::string header;
+  for (const char* column : kCaseColumnNames) {
+    header += (header.empty() ? "" : ",") + std::string(column);
+  }
+  return header;
+}
+
+std::string ChangeCaseLine(const ChangeCase& c) {
+  return std::to_string(c.frame) + ',' + Encode(c.robot) + ',' + std::to_string(c.utime) + ',' +
+         ChangeCaseKindName(c.kind) + ',' + std::to_string(c.truth.x) + ',' +
+         std::to_string(c.truth.y) + ',' + std::to_string(c.truth.width) + ',' +
+         std::to_string(c.truth.height) + ',' + std::to_string(c.frame_size.width) + ',' +
+         std::to_string(c.frame_size.height) + ',' + Encode(c.object_class);
+}
+
 StatusOr<std::vector<ChangeCase>> LoadChangeCases(const std::string& path) {
   StatusOr<CsvLines> table = eval_internal::ReadCsvLines(path);
   if (!table.ok()) {
@@ -153,42 +205,47 @@ StatusOr<std::vector<ChangeCase>> LoadChangeCases(const std::string& path) {
                             " (placerec-eval change --write-run DIR writes "
                             "DIR/runs/NAME_changed.changes.csv)");
   }
-  const std::vector<std::string> names = {
-      "frame", "robot",  "utime_us",    "case",         "x",           "y",
-      "width", "height", "frame_width", "frame_height", "object_class"};
-  std::vector<int> col;
-  for (const std::string& name : names) {
-    col.push_back(table->Column(name));
-    if (col.back() < 0) return Status::InvalidArgument(path + ": no column '" + name + "'");
+  int col[kCaseColumns];
+  for (int k = 0; k < kCaseColumns; ++k) {
+    col[k] = table->Column(kCaseColumnNames[k]);
+    if (col[k] < 0) {
+      return Status::InvalidArgument(path + ": no column '" + kCaseColumnNames[k] +
+                                     "'; the header is " + ChangeCaseHeader());
+    }
   }
   std::vector<ChangeCase> cases;
   for (const eval_internal::CsvLine& row : table->rows) {
-    long long n[11] = {};
+    const auto field = [&](ChangeColumn c) -> const std::string& { return row.fields[col[c]]; };
+    long long n[kCaseColumns] = {};
     bool ok = true;
-    for (int k : {0, 2, 4, 5, 6, 7, 8, 9}) ok = ok && ParseInt(row.fields[col[k]], &n[k]);
+    for (ChangeColumn c : {kCaseFrame, kCaseUtime, kCaseX, kCaseY, kCaseWidth, kCaseHeight,
+                           kCaseFrameWidth, kCaseFrameHeight}) {
+      ok = ok && ParseInt(field(c), &n[c]);
+    }
     if (!ok) {
       return Status::InvalidArgument(table->Where(row.line) +
                                      ": frame, utime_us, box and frame size must be integers");
     }
     ChangeCase c;
-    c.frame = static_cast<int>(n[0]);
-    c.robot = row.fields[col[1]];
-    c.utime = n[2];
-    const std::string& kind = row.fields[col[3]];
-    if (kind == "unchanged") {
-      c.kind = ChangeCase::Kind::kUnchanged;
-    } else if (kind == "pasted") {
-      c.kind = ChangeCase::Kind::kPasted;
-    } else if (kind == "removed") {
-      c.kind = ChangeCase::Kind::kRemoved;
-    } else {
-      return Status::InvalidArgument(table->Where(row.line) + ": case '" + kind +
+    c.frame = static_cast<int>(n[kCaseFrame]);
+    c.robot = Decode(field(kCaseRobot));
+    c.utime = n[kCaseUtime];
+    bool known = false;
+    for (ChangeCase::Kind kind : kCaseKinds) {
+      if (field(kCaseKind) == ChangeCaseKindName(kind)) {
+        c.kind = kind;
+        known = true;
+      }
+    }
+    if (!known) {
+      return Status::InvalidArgument(table->Where(row.line) + ": case '" + field(kCaseKind) +
                                      "' is none of unchanged, pasted, removed");
     }
-    c.truth = cv::Rect(static_cast<int>(n[4]), static_cast<int>(n[5]), static_cast<int>(n[6]),
-                       static_cast<int>(n[7]));
-    c.frame_size = cv::Size(static_cast<int>(n[8]), static_cast<int>(n[9]));
-    c.object_class = row.fields[col[10]];
+    c.truth = cv::Rect(static_cast<int>(n[kCaseX]), static_cast<int>(n[kCaseY]),
+                       static_cast<int>(n[kCaseWidth]), static_cast<int>(n[kCaseHeight]));
+    c.frame_size =
+        cv::Size(static_cast<int>(n[kCaseFrameWidth]), static_cast<int>(n[kCaseFrameHeight]));
+    c.object_class = Decode(field(kCaseObjectClass));
     if (c.kind != ChangeCase::Kind::kUnchanged && (c.truth.empty() || c.frame_size.area() <= 0)) {
       return Status::InvalidArgument(table->Where(row.line) +
                                      ": a changed revisit needs its box and frame size");

@@ -50,6 +50,13 @@ struct ChangeCase {
   std::string object_class;  // of a pasted object
 };
 
+// "unchanged", "pasted", "removed": the case column of a changes file.
+const char* ChangeCaseKindName(ChangeCase::Kind kind);
+
+// The header of a changes file, and one revisit as its line (without the newline).
+std::string ChangeCaseHeader();
+std::string ChangeCaseLine(const ChangeCase& change);
+
 // Reads a changes file: NotFound when missing, InvalidArgument naming the file and line for a
 // malformed one.
 StatusOr<std::vector<ChangeCase>> LoadChangeCases(const std::string& path);

@@ -73,5 +73,34 @@ TEST_F(AlarmsFileTest, MalformedFilesAreNamed) {
   EXPECT_NE(bad_kind.message().find(path_ + ":2"), std::string::npos) << bad_kind.message();
 }
 
+TEST_F(AlarmsFileTest, ChangeCasesReadBackAsWritten) {
+  ChangeCase pasted;
+  pasted.frame = 41;
+  pasted.robot = "site 3,robot";
+  pasted.utime = 1300000041000000;
+  pasted.kind = ChangeCase::Kind::kPasted;
+  pasted.truth = cv::Rect(208, 6, 50, 65);
+  pasted.frame_size = cv::Size(512, 384);
+  pasted.object_class = "car";
+  ChangeCase unchanged;
+  unchanged.frame = 42;
+  unchanged.robot = "robot";
+  Write(ChangeCaseHeader() + "\n" + ChangeCaseLine(pasted) + "\n" + ChangeCaseLine(unchanged) +
+        "\n");
+  StatusOr<std::vector<ChangeCase>> read = LoadChangeCases(path_);
+  ASSERT_TRUE(read.ok()) << read.status().ToString();
+  ASSERT_EQ(read->size(), 2u);
+  const ChangeCase& r = (*read)[0];
+  EXPECT_EQ(r.frame, 41);
+  EXPECT_EQ(r.robot, pasted.robot);
+  EXPECT_EQ(r.utime, pasted.utime);
+  EXPECT_EQ(r.kind, ChangeCase::Kind::kPasted);
+  EXPECT_EQ(r.truth, pasted.truth);
+  EXPECT_EQ(r.frame_size, pasted.frame_size);
+  EXPECT_EQ(r.object_class, "car");
+  EXPECT_EQ((*read)[1].kind, ChangeCase::Kind::kUnchanged);
+  EXPECT_TRUE((*read)[1].truth.empty());
+}
+
 }  // namespace
 }  // namespace placerec

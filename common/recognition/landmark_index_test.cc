@@ -302,53 +302,54 @@ TEST(LandmarkIndexVotesTest, AVotedPlaceBringsABoundedNeighbourhood) {
   EXPECT_EQ(candidates(10000), LandmarkIndex::kMaxVoteNeighbours + 1);
 }
 
-TEST(LandmarkIndexVotesTest, AStoppedClockBringsTheVotedPlacesSequenceNeighbours) {
-  std::mt19937 rng(37);
+// 600 places of one robot whose clock stands still (all at time 0), one landmark each; the query
+// holds noisy copies of place 300's descriptors.
+struct StoppedClock {
+  static constexpr int kPlaces = 600;
+  static constexpr int kVoted = 300;
   LandmarkIndex index{LandmarkIndexOptions()};
-  const int places = 600;
-  std::vector<cv::Mat> stored;
-  for (int p = 0; p < places; ++p) {
-    index.AddPlace({PlaceId(p), "robot", p, /*utime=*/0, 1});
-    stored.push_back(RandomDescriptors(30, &rng));
-    index.Add(MakeLandmark(p, p, stored.back(), 30, {}));
+  IndexQuery query;
+
+  explicit StoppedClock(uint32_t seed) {
+    std::mt19937 rng(seed);
+    cv::Mat voted;
+    for (int p = 0; p < kPlaces; ++p) {
+      index.AddPlace({PlaceId(p), "robot", p, /*utime=*/0, 1});
+      const cv::Mat stored = RandomDescriptors(30, &rng);
+      if (p == kVoted) voted = stored;
+      index.Add(MakeLandmark(p, p, stored, 30, {}));
+    }
+    query.sift_count = 30;
+    query.is_object = false;
+    query.descriptors = Noisy(voted.rowRange(0, 20), &rng);
   }
-  IndexQuery rest;
-  rest.sift_count = 30;
-  rest.is_object = false;
-  rest.descriptors = Noisy(stored[300].rowRange(0, 20), &rng);
+};
+
+TEST(LandmarkIndexVotesTest, AStoppedClockBringsTheVotedPlacesSequenceNeighbours) {
+  const StoppedClock map(37);
   std::set<int64_t> asked;
-  const IndexResult found = index.Query({rest}, [&](PlaceId place) {
+  const IndexResult found = map.index.Query({map.query}, [&](PlaceId place) {
     asked.insert(place.value());
     return true;
   });
-  EXPECT_EQ(found.place_points.count(PlaceId(300)), 1u);
+  EXPECT_EQ(found.place_points.count(PlaceId(StoppedClock::kVoted)), 1u);
   EXPECT_EQ(found.stats.candidate_places, LandmarkIndex::kMaxVoteNeighbours + 1);
   // All times equal: the places inserted around the voted one, half on each side.
   const int half = LandmarkIndex::kMaxVoteNeighbours / 2;
-  for (int p = 300 - half; p <= 300 + half; ++p) EXPECT_EQ(asked.count(p), 1u) << p;
+  for (int p = StoppedClock::kVoted - half; p <= StoppedClock::kVoted + half; ++p) {
+    EXPECT_EQ(asked.count(p), 1u) << p;
+  }
   EXPECT_EQ(asked.count(0), 0u);
-  EXPECT_EQ(asked.count(599), 0u);
+  EXPECT_EQ(asked.count(StoppedClock::kPlaces - 1), 0u);
 }
 
 // Places the caller does not allow (a robot's own recent past) take none of the voted place's
 // neighbour slots: the neighbourhood holds kMaxVoteNeighbours allowed places.
 TEST(LandmarkIndexVotesTest, PlacesNotAllowedTakeNoNeighbourSlot) {
-  std::mt19937 rng(41);
-  LandmarkIndex index{LandmarkIndexOptions()};
-  const int places = 600;
-  std::vector<cv::Mat> stored;
-  for (int p = 0; p < places; ++p) {
-    index.AddPlace({PlaceId(p), "robot", p, /*utime=*/0, 1});
-    stored.push_back(RandomDescriptors(30, &rng));
-    index.Add(MakeLandmark(p, p, stored.back(), 30, {}));
-  }
-  IndexQuery rest;
-  rest.sift_count = 30;
-  rest.is_object = false;
-  rest.descriptors = Noisy(stored[300].rowRange(0, 20), &rng);
+  const StoppedClock map(41);
   const IndexResult found =
-      index.Query({rest}, [](PlaceId place) { return place.value() % 2 == 0; });
-  EXPECT_EQ(found.place_points.count(PlaceId(300)), 1u);
+      map.index.Query({map.query}, [](PlaceId place) { return place.value() % 2 == 0; });
+  EXPECT_EQ(found.place_points.count(PlaceId(StoppedClock::kVoted)), 1u);
   EXPECT_EQ(found.stats.candidate_places, LandmarkIndex::kMaxVoteNeighbours + 1);
 }
 
