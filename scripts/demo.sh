@@ -15,22 +15,15 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 build_dir=${BUILD_DIR:-$root/build}
 data=${PLACEREC_DATA:-$root/../shared/data}
 
-if [ -z "${PLACEREC_DEMO_STAGE:-}" ]; then
+source "$root/scripts/service.sh"
+if [ -z "${PLACEREC_SERVICE_STAGE:-}" ]; then
   bash "$root/scripts/build.sh"
   if [ ! -f "$data/gardens_point/runs/day_left_then_day_right.frames.csv" ]; then
     echo "demo: $data/gardens_point is missing; set PLACEREC_DATA to the folder holding gardens_point/" >&2
     exit 1
   fi
-  if [ "$(id -u)" -eq 0 ] && unshare -n true 2>/dev/null; then
-    echo "demo: running server and client in a private network namespace"
-    exec unshare -n -- env PLACEREC_DEMO_STAGE=netns bash "$0" "$@"
-  fi
-  echo "demo: not root (or unshare is not allowed): using the host's loopback, LCM TTL 0"
-  PLACEREC_DEMO_STAGE=host exec bash "$0" "$@"
 fi
-
-source "$root/scripts/service.sh"
-[ "$PLACEREC_DEMO_STAGE" = netns ] && service_private_network
+service_stage demo "$@"
 
 out=$root/out/demo
 mkdir -p "$out"

@@ -1,6 +1,26 @@
 # Sourced by the scripts that run a placerec-server beside its clients (demo.sh, workers.sh,
-# watch-changes.sh, fleet-pg.sh): the private network's loopback, a server started and awaited,
-# a process stopped. Expects $client (placerec-client) and $url (LCM URL) where it says so.
+# watch-changes.sh, fleet-pg.sh): running in a private network (or on the host's loopback), a
+# server started and awaited, a process stopped. Expects $client (placerec-client) and $url (LCM
+# URL) where it says so.
+
+# service_stage NAME ARG...: the second stage of a script that runs a server. The first run
+# (PLACEREC_SERVICE_STAGE unset) re-runs the script with ARG...: as root in a private network
+# namespace (loopback only), otherwise on the host's loopback (LCM TTL 0 keeps it there). The
+# second run gets PLACEREC_SERVICE_STAGE=netns (loopback set up here) or host.
+service_stage() {
+  local name=$1
+  shift
+  case "${PLACEREC_SERVICE_STAGE:-}" in
+    netns) service_private_network; return 0 ;;
+    host) return 0 ;;
+  esac
+  if [ "$(id -u)" -eq 0 ] && unshare -n true 2>/dev/null; then
+    echo "$name: running server and clients in a private network namespace"
+    exec unshare -n -- env PLACEREC_SERVICE_STAGE=netns bash "$0" "$@"
+  fi
+  echo "$name: not root (or unshare is not allowed): using the host's loopback, LCM TTL 0"
+  PLACEREC_SERVICE_STAGE=host exec bash "$0" "$@"
+}
 
 # Inside `unshare -n`: loopback up and multicast routed to it, so LCM stays on this machine.
 service_private_network() {

@@ -22,23 +22,16 @@ if [ "$#" -gt 2 ] || [ "${1:-}" = "-h" ] || [ "${1:-}" = "--help" ]; then
 fi
 out=$root/out/watch-changes/$run
 
-if [ -z "${PLACEREC_WATCH_STAGE:-}" ]; then
+source "$root/scripts/service.sh"
+if [ -z "${PLACEREC_SERVICE_STAGE:-}" ]; then
   bash "$root/scripts/build.sh"
   rm -rf "$out"
   mkdir -p "$out"
   echo "watch-changes: pasting objects into the revisits of $dataset/$run (offline figures too)"
   "$build_dir/bin/placerec-eval" change --dataset "$dataset" --run "$run" --out "$out/offline" \
     --write-run "$out/run"
-  if [ "$(id -u)" -eq 0 ] && unshare -n true 2>/dev/null; then
-    echo "watch-changes: running server and clients in a private network namespace"
-    exec unshare -n -- env PLACEREC_WATCH_STAGE=netns bash "$0" "$@"
-  fi
-  echo "watch-changes: not root (or unshare is not allowed): the host's loopback, LCM TTL 0"
-  PLACEREC_WATCH_STAGE=host exec bash "$0" "$@"
 fi
-
-source "$root/scripts/service.sh"
-[ "$PLACEREC_WATCH_STAGE" = netns ] && service_private_network
+service_stage watch-changes "$@"
 
 url="udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304"
 server="$build_dir/bin/placerec-server"
