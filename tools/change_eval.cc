@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
 
 #include <opencv2/imgcodecs.hpp>
@@ -168,7 +169,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   }
   std::ofstream cases(eval.out_dir + "/revisits.csv");
   cases << "frame,case,truth_x,truth_y,truth_w,truth_h,loop_closure,best_inliers,compared,why_not,"
-           "changes,best_iou,boxes,truth_in_view,truth_difference,threshold\n";
+           "changes,best_iou,boxes,truth_in_view,truth_difference,threshold,dropped_by,dropped\n";
   for (int i = 0; i < frames; ++i) {
     const RunFrame& frame = run.frames[i];
     StatusOr<cv::Mat> image = ReadImageFile(frame.image);
@@ -301,12 +302,31 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
                    std::to_string(box.height) + " " + std::to_string(change.confidence);
         }
         const TruthInView in_view = TruthSeen(report, truth, asked.scale, processed);
+        // The rule that dropped the region overlapping the truth most (IoU >= 0.1), if any.
+        std::string dropped_by;
+        double dropped_iou = 0.1;
+        std::map<std::string, int> dropped_rules;  // every dropped region, by rule
+        for (const DroppedRegion& region : report.dropped) {
+          ++dropped_rules[region.rule];
+          const double to_frame = 1.0 / asked.scale;
+          const cv::Rect box(cv::Point(region.box.tl() * to_frame),
+                             cv::Point(region.box.br() * to_frame));
+          const double overlap = BoxIoU(box, truth);
+          if (overlap >= dropped_iou) {
+            dropped_iou = overlap;
+            dropped_by = region.rule;
+          }
+        }
         cases << frame.frame << ',' << what_case << ',' << truth.x << ',' << truth.y << ','
               << truth.width << ',' << truth.height << ',' << answer.loop_closure << ','
               << (answer.matches.empty() ? -1 : answer.matches.front().inliers) << ','
               << report.checked << ",\"" << report.why_not << "\"," << report.changes.size() << ','
               << ExactText(best) << ",\"" << boxes << "\"," << in_view.share << ','
-              << in_view.difference << ',' << report.threshold << "\n";
+              << in_view.difference << ',' << report.threshold << ',' << dropped_by << ",\"";
+        for (const auto& [rule, count] : dropped_rules) {
+          cases << (rule == dropped_rules.begin()->first ? "" : " ") << rule << ':' << count;
+        }
+        cases << "\"\n";
       }
       if (!kind.empty()) {
         char name[256];

@@ -228,7 +228,7 @@ int ChangeCommand(int argc, char** argv) {
       "inserted as recorded. Writes OUT/change.json (detection_recall by size band with IoU >= "
       "0.3,\n"
       "false_alarm_rate on the unchanged revisits, localisation_iou median) and\n"
-      "OUT/pictures/{hit,miss,false_alarm}_*.jpg (truth green, alarms red/yellow, stored place\n"
+      "OUT/pictures/{hit,miss,false_alarm}_*.png (truth green, alarms red/yellow, stored place\n"
       "right).");
   parser.AddRequired("dataset", &dataset,
                      "dataset directory, or its name under PLACEREC_DATA / ../shared/data");

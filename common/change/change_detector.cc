@@ -45,6 +45,11 @@ bool ChangeOptions::Check(std::string* error) const {
   if (!(grow_fraction > 0.0 && grow_fraction <= 1.0)) {
     return fail("change grow fraction must be in (0, 1]");
   }
+  if (!(weak_mean >= 0.0 && weak_mean <= 1.0)) return fail("change weak mean must be in [0, 1]");
+  if (!(weak_spread >= 0.0)) return fail("change weak spread must be >= 0");
+  if (!(weak_min_area > 0.0 && weak_min_area <= 1.0)) {
+    return fail("change weak min area must be in (0, 1]");
+  }
   if (!(edge_band >= 0.0 && edge_band < 0.5)) return fail("change edge band must be in [0, 0.5)");
   if (!(max_edge_share > 0.0 && max_edge_share <= 1.0)) {
     return fail("change max edge share must be in (0, 1]");
@@ -522,6 +527,8 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
   const double spread = 1.4826 * values[values.size() / 2];
   const double threshold = std::max(options.Threshold(), median + options.noise_spread * spread);
   result.threshold = threshold;
+  result.median_difference = median;
+  result.difference_spread = spread;
   const cv::Mat small = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(3, 3));
   cv::Mat seeds = (difference > threshold) & shared;
   cv::morphologyEx(seeds, seeds, cv::MORPH_OPEN, small);
@@ -545,15 +552,19 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
   const double frame_area = static_cast<double>(width) * height;
   // Whether a candidate (its pixels `in_component`, `area` of them, within `box`) is explained by
   // the robot's motion or was seen at the place; otherwise the change it makes.
+  const auto drop = [&](const cv::Rect& box, const char* rule) {
+    result.dropped.push_back(
+        {Scaled(box, 1.0 / to_thumb) & cv::Rect(0, 0, frame_size.width, frame_size.height), rule});
+  };
   const auto judge = [&](const cv::Mat& in_component, const cv::Rect& box, int area, double mean,
                          double needed, std::vector<SceneChange>* changes) {
     if (area < options.min_area * frame_area || box.area() > options.max_area * frame_area) {
-      return;
+      return drop(box, "size");
     }
     // Along the edge of the shared view: what the motion brought into view, or the parallax of
     // near objects there.
     if (cv::countNonZero(in_component & (to_edge < edge_band)) > options.max_edge_share * area) {
-      return;
+      return drop(box, "edge");
     }
     // Matched content inside: what is there was seen at the place.
     int inside = 0;
@@ -563,11 +574,13 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
         ++inside;
       }
     }
-    if (inside > 0 && inside >= options.max_match_density * density * area) return;
+    if (inside > 0 && inside >= options.max_match_density * density * area) {
+      return drop(box, "matched");
+    }
     if (options.max_elsewhere_similarity < 1.0 &&
         SeenElsewhere(frame_grey, box, in_component(box), compared,
                       options.max_elsewhere_similarity)) {
-      return;
+      return drop(box, "elsewhere");
     }
     // Confidence: how far beyond what it needed the candidate differs, and how large it is.
     const double strength = std::clamp((mean - needed) / needed, 0.0, 1.0);
@@ -588,12 +601,25 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
     changes->push_back(change);
   };
   for (int c = 1; c < count; ++c) {
-    if (!seeded[c]) continue;
     const cv::Rect box(stats.at<int>(c, cv::CC_STAT_LEFT), stats.at<int>(c, cv::CC_STAT_TOP),
                        stats.at<int>(c, cv::CC_STAT_WIDTH), stats.at<int>(c, cv::CC_STAT_HEIGHT));
+    const int area = stats.at<int>(c, cv::CC_STAT_AREA);
+    // A region that differs, but nowhere by the threshold, differs too little unless it is
+    // large, its mean reaches weak_mean of the threshold and stands weak_spread robust
+    // deviations above the view's median difference (ChangeOptions::weak_mean).
+    const bool may_be_weak = options.weak_mean > 0 && area >= options.weak_min_area * frame_area;
+    if (!seeded[c] && !may_be_weak) {
+      if (area >= options.min_area * frame_area) drop(box, "weak");
+      continue;
+    }
     const cv::Mat in_component = labels == c;
-    judge(in_component, box, stats.at<int>(c, cv::CC_STAT_AREA),
-          cv::mean(difference, in_component)[0], threshold, &result.changes);
+    const double mean = cv::mean(difference, in_component)[0];
+    if (!seeded[c] &&
+        (mean < options.weak_mean * threshold || mean < median + options.weak_spread * spread)) {
+      drop(box, "weak");
+      continue;
+    }
+    judge(in_component, box, area, mean, threshold, &result.changes);
   }
   // Whole segments whose means differ, where no region found them already.
   std::vector<SceneChange> by_segment;

@@ -64,6 +64,14 @@ struct ChangeOptions {
   // A change grows from pixels above the threshold through neighbours above this fraction of it
   // (whole objects rather than their most different parts).
   double grow_fraction = 0.4;
+  // A grown region with no pixel above the threshold is still a candidate when it covers at least
+  // weak_min_area of the frame and its mean difference reaches weak_mean of the threshold and
+  // stands weak_spread robust deviations above the frame's median difference: a large object
+  // whose colours lie near its background's differs a little everywhere, in a view that is
+  // otherwise aligned well (where the whole view differs, parallax makes such regions) (0: off).
+  double weak_mean = 0.5;
+  double weak_spread = 8.0;
+  double weak_min_area = 0.01;
   // A region with more than max_edge_share of its pixels within edge_band (fraction of the frame
   // width) of the shared view's edge is explained by the motion: new scene entering the view, or
   // the parallax of near objects that the homography does not model.
@@ -126,13 +134,24 @@ struct SceneChange {
   float confidence = 0.0f;   // in [0, 1]
 };
 
+// A region that differed beyond the threshold but was judged no change, and the rule that said
+// so ("size", "edge", "matched", "elsewhere"): what an evaluation reads to see why a change was
+// missed.
+struct DroppedRegion {
+  cv::Rect box;  // in the frame, processed pixels
+  std::string rule;
+};
+
 struct ChangeResult {
   bool checked = false;              // a shared view was found and compared
   std::string why_not;               // when not checked: why
   double shared_view = 0;            // share of the frame compared
   double threshold = 0;              // the Lab difference changes needed in this frame
+  double median_difference = 0;      // over the shared view (Lab units)
+  double difference_spread = 0;      // its robust standard deviation (1.4826 MAD)
   int references = 0;                // places compared against
   std::vector<SceneChange> changes;  // most confident first
+  std::vector<DroppedRegion> dropped;
   cv::Mat difference;  // CV_32F per pixel of the frame's thumbnail (Lab units; 0 outside)
   cv::Mat shared;      // CV_8U per pixel of the frame's thumbnail: 255 where it was compared
 };

@@ -159,9 +159,13 @@ TEST(ChangeDetectorTest, ContentTheStoredViewShowsElsewhereIsNotAChange) {
       DetectChanges(Thumbnail(frame), frame.size(), {Reference(scene, kOffset, block)}, options)
           .changes.empty());
   options.max_elsewhere_similarity = ChangeOptions().max_elsewhere_similarity;
-  EXPECT_TRUE(
-      DetectChanges(Thumbnail(frame), frame.size(), {Reference(scene, kOffset, block)}, options)
-          .changes.empty());
+  const ChangeResult result =
+      DetectChanges(Thumbnail(frame), frame.size(), {Reference(scene, kOffset, block)}, options);
+  EXPECT_TRUE(result.changes.empty());
+  // The evaluation reads which rule dropped the region, and where.
+  ASSERT_FALSE(result.dropped.empty());
+  EXPECT_EQ(result.dropped[0].rule, "elsewhere");
+  EXPECT_GT(IoU(result.dropped[0].box, block), 0.3) << result.dropped[0].box;
 }
 
 TEST(ChangeDetectorTest, ObjectBeforeAPlainStoredAreaIsFound) {
@@ -205,6 +209,7 @@ TEST(ChangeDetectorTest, ASegmentThatDiffersLittlePerPixelIsFoundAsAWhole) {
   segments(cv::Rect(object.x / 2, object.y / 2, object.width / 2, object.height / 2)).setTo(1);
   const ChangeReference reference = Reference(scene, kOffset, object);
   ChangeOptions options;
+  options.weak_mean = 0;  // weak regions find it too (the next test)
   const ChangeResult per_pixel =
       DetectChanges(Thumbnail(frame), frame.size(), {reference}, options, segments);
   ASSERT_TRUE(per_pixel.checked);
@@ -222,6 +227,38 @@ TEST(ChangeDetectorTest, ASegmentThatDiffersLittlePerPixelIsFoundAsAWhole) {
   EXPECT_TRUE(DetectChanges(Thumbnail(unchanged), unchanged.size(), {Reference(scene, kOffset)},
                             options, segments)
                   .changes.empty());
+}
+
+TEST(ChangeDetectorTest, ALargeRegionThatDiffersLittleIsFoundWhereTheViewIsAligned) {
+  // The plain object of the previous test: no pixel differs by the threshold, but the region
+  // is large and stands far above the rest of a well aligned view.
+  cv::Mat scene = Scene();
+  const cv::Rect object(300, 200, 100, 120);
+  scene(cv::Rect(object.tl() + kOffset - cv::Point(40, 40), object.size() + cv::Size(80, 80)))
+      .setTo(cv::Scalar(128, 128, 128));
+  cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+  Tint(frame(object));
+  const ChangeReference reference = Reference(scene, kOffset, object);
+  ChangeOptions options;
+  options.weak_mean = 0;
+  const ChangeResult off = DetectChanges(Thumbnail(frame), frame.size(), {reference}, options);
+  ASSERT_TRUE(off.checked);
+  EXPECT_TRUE(off.changes.empty());
+  ASSERT_FALSE(off.dropped.empty());
+  EXPECT_EQ(off.dropped[0].rule, "weak");
+  options.weak_mean = ChangeOptions().weak_mean;
+  const ChangeResult on = DetectChanges(Thumbnail(frame), frame.size(), {reference}, options);
+  ASSERT_EQ(on.changes.size(), 1u);
+  EXPECT_GT(IoU(on.changes[0].box, object), 0.6) << on.changes[0].box;
+  // It must also stand weak_spread robust deviations above the view's median difference (where
+  // the whole view differs a little, parallax makes such regions): far beyond this view's, it
+  // is dropped.
+  EXPECT_LT(on.median_difference + options.weak_spread * on.difference_spread, 0.5 * 25.0);
+  options.weak_spread = (on.threshold - on.median_difference) / on.difference_spread;
+  const ChangeResult gated = DetectChanges(Thumbnail(frame), frame.size(), {reference}, options);
+  EXPECT_TRUE(gated.changes.empty());
+  ASSERT_FALSE(gated.dropped.empty());
+  EXPECT_EQ(gated.dropped[0].rule, "weak");
 }
 
 TEST(ChangeDetectorTest, LabelsOfNoSegmentationAreNotCompared) {
@@ -287,6 +324,9 @@ TEST(ChangeDetectorTest, RegionWithVerifiedMatchesIsNotAChange) {
   const ChangeResult result =
       DetectChanges(Thumbnail(frame), frame.size(), {Reference(scene, kOffset)}, ChangeOptions());
   EXPECT_TRUE(result.changes.empty());
+  ASSERT_EQ(result.dropped.size(), 1u);
+  EXPECT_EQ(result.dropped[0].rule, "matched");
+  EXPECT_GT(IoU(result.dropped[0].box, object), 0.6) << result.dropped[0].box;
 }
 
 TEST(ChangeDetectorTest, MissingLandmarkIsADisappearance) {

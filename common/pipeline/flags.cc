@@ -304,6 +304,17 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add("change-grow-fraction", &o->change.grow_fraction,
          "a change grows from pixels above the threshold through neighbours above this fraction "
          "of it");
+  p->Add("change-weak-mean", &o->change.weak_mean,
+         "a region with no pixel above the threshold is still a change candidate when it covers "
+         "--change-weak-min-area of the frame and its mean difference reaches this share of the "
+         "threshold and --change-weak-spread robust deviations above the frame's median "
+         "difference: a large object whose colours lie near its background's (0: off; "
+         "docs/results.md 'Scene changes')");
+  p->Add("change-weak-spread", &o->change.weak_spread,
+         "robust deviations above the frame's median difference a region needs for "
+         "--change-weak-mean");
+  p->Add("change-weak-min-area", &o->change.weak_min_area,
+         "smallest share of the frame a region needs for --change-weak-mean");
   p->Add("change-segment-difference", &o->change.segment_difference,
          "a segment of the frame whose mean colour or mean local contrast differs from the "
          "stored view's under it by at least this many Lab units is a change (0: off, the "

@@ -256,6 +256,7 @@ ChangeReport Recognizer::DetectSceneChanges(const FrameObservation& observation,
   report.difference = found.difference;
   report.threshold = found.threshold;
   report.shared = found.shared;
+  report.dropped = std::move(found.dropped);
   if (report.changes.empty()) return report;
   // The class of an object that appeared: the frame's object that covers it best.
   if (labeler_) {

@@ -107,6 +107,7 @@ struct ChangeReport {
   cv::Mat difference;
   double threshold = 0;  // the difference a change needed in this frame (ChangeResult)
   cv::Mat shared;        // where the frame was compared (ChangeResult::shared)
+  std::vector<DroppedRegion> dropped;  // regions judged no change, and why (ChangeResult)
 };
 
 struct RecognitionResult {
