@@ -13,6 +13,25 @@ namespace placerec {
 PlaceMap::PlaceMap(std::unique_ptr<LandmarkStore> store, const LandmarkIndexOptions& index_options)
     : store_(std::move(store)), index_(index_options) {}
 
+namespace {
+
+// The place with its capture time moved into 0 .. kMaxUtime. A map written before times were
+// checked at intake (or by such a server on a shared map) may hold any time; the differences the
+// map takes between times (vote windows, a robot's recent past) must not overflow. The store
+// keeps what it holds.
+Place WithCaptureTimeInRange(const Place& place) {
+  if (CheckCaptureTime(place.utime).ok()) return place;
+  LOG(WARNING) << "place " << place.id.value() << " of robot '" << place.robot
+               << "' has capture time " << place.utime << " us, outside 0 .. " << kMaxUtime
+               << " us: used as " << (place.utime < 0 ? 0 : kMaxUtime)
+               << " (the map file keeps it; placerec-map prune --before or --robot drops it)";
+  Place bounded = place;
+  bounded.utime = place.utime < 0 ? 0 : kMaxUtime;
+  return bounded;
+}
+
+}  // namespace
+
 StatusOr<std::unique_ptr<PlaceMap>> PlaceMap::Open(std::unique_ptr<LandmarkStore> store,
                                                    const LandmarkIndexOptions& index_options) {
   CHECK(store != nullptr);
@@ -20,7 +39,8 @@ StatusOr<std::unique_ptr<PlaceMap>> PlaceMap::Open(std::unique_ptr<LandmarkStore
   std::unique_ptr<PlaceMap> map(new PlaceMap(std::move(store), index_options));
   // The descriptors are indexed once all are known: then the snapshot can be judged.
   map->index_.DeferDescriptors();
-  PLACEREC_RETURN_IF_ERROR(map->store_->LoadPlaces([&map](const Place& place) {
+  PLACEREC_RETURN_IF_ERROR(map->store_->LoadPlaces([&map](const Place& stored) {
+    const Place place = WithCaptureTimeInRange(stored);
     map->places_[place.id] = place;
     map->index_.AddPlace(place);
     for (const LandmarkId seen : place.seen_landmarks) map->seen_at_[seen].push_back(place.id);
@@ -130,7 +150,8 @@ Status PlaceMap::Insert(Place* place, std::vector<Landmark>* landmarks) {
   return Status::Ok();
 }
 
-void PlaceMap::IndexCommitted(const Place& place, const std::vector<Landmark>& landmarks) {
+void PlaceMap::IndexCommitted(const Place& committed, const std::vector<Landmark>& landmarks) {
+  const Place place = WithCaptureTimeInRange(committed);
   places_[place.id] = place;
   places_[place.id].thumbnail.clear();  // in the store only: LoadThumbnail
   index_.AddPlace(place);

@@ -6,6 +6,8 @@
 #include <cstdlib>
 #include <fstream>
 #include <future>
+#include <limits>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <random>
@@ -202,6 +204,45 @@ TEST(PlaceMapTest, DamagedLandmarkCountsDoNotStopTheMapFromOpening) {
   StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), {});
   ASSERT_TRUE(map.ok()) << map.status().message();
   EXPECT_EQ((*map)->Counts().landmarks, 9);
+}
+
+TEST(PlaceMapTest, CaptureTimesOutOfRangeInAnOldMapAreBoundedInMemoryAndLeftInTheFile) {
+  // Before capture times were checked at intake a map could store any time; the differences
+  // the map takes between them (vote windows, a robot's recent past) would overflow.
+  MapFile file;
+  {
+    std::unique_ptr<PlaceMap> map = OpenMap(file.path(), LandmarkIndexOptions());
+    for (int p = 0; p < 3; ++p) InsertPlace(p, map.get());
+  }
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(file.path().c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db,
+                         "UPDATE places SET utime = -9223372036854775807 - 1 WHERE id = 1; "
+                         "UPDATE places SET utime = 9223372036854775807 WHERE id = 2",
+                         nullptr, nullptr, nullptr),
+            SQLITE_OK);
+  sqlite3_close(db);
+  StatusOr<std::unique_ptr<LandmarkStore>> store =
+      OpenSqliteStore(file.path(), SqliteStoreOptions());
+  ASSERT_TRUE(store.ok()) << store.status().message();
+  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), {});
+  ASSERT_TRUE(map.ok()) << map.status().message();
+  std::map<int64_t, int64_t> times;
+  (*map)->ForEachPlace([&times](const Place& place) { times[place.id.value()] = place.utime; });
+  ASSERT_EQ(times.size(), 3u);
+  EXPECT_EQ(times[1], 0);
+  EXPECT_EQ(times[2], kMaxUtime);
+  // The file keeps what it held: nothing is rewritten behind the operator's back.
+  StatusOr<std::unique_ptr<LandmarkStore>> again =
+      OpenSqliteStore(file.path(), SqliteStoreOptions());
+  ASSERT_TRUE(again.ok());
+  std::map<int64_t, int64_t> stored;
+  ASSERT_TRUE(
+      (*again)
+          ->LoadPlaces([&stored](const Place& place) { stored[place.id.value()] = place.utime; })
+          .ok());
+  EXPECT_EQ(stored[1], std::numeric_limits<int64_t>::min());
+  EXPECT_EQ(stored[2], std::numeric_limits<int64_t>::max());
 }
 
 TEST(PlaceMapTest, ReopensFromItsIndexSnapshotWithTheSameAnswers) {
