@@ -10,17 +10,19 @@
 # Usage: bash scripts/watch-changes.sh [DATASET RUN]   (default: rtabmap_indoor corridor_loop)
 # Output in out/watch-changes/RUN: offline/change.json, run/ (the changed run), alarms/ (what
 # watch saved), client/ (answers), alarms.json (the live scores), server.log.
-# Set PLACEREC_DATA when the data is not at ../shared/data.
+# Set PLACEREC_DATA when the data is not at ../shared/data; CHANGE_OPTIONS (e.g.
+# "--change-sensitivity 0.7") is given to both the offline pass and the server.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build_dir=${BUILD_DIR:-$root/build}
 dataset=${1:-rtabmap_indoor}
 run=${2:-corridor_loop}
 if [ "$#" -gt 2 ] || [ "${1:-}" = "-h" ] || [ "${1:-}" = "--help" ]; then
-  sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'
   exit 2
 fi
 out=$root/out/watch-changes/$run
+read -r -a change_options <<< "${CHANGE_OPTIONS:-}"
 
 source "$root/scripts/service.sh"
 if [ -z "${PLACEREC_SERVICE_STAGE:-}" ]; then
@@ -29,7 +31,7 @@ if [ -z "${PLACEREC_SERVICE_STAGE:-}" ]; then
   mkdir -p "$out"
   echo "watch-changes: pasting objects into the revisits of $dataset/$run (offline figures too)"
   "$build_dir/bin/placerec-eval" change --dataset "$dataset" --run "$run" --out "$out/offline" \
-    --write-run "$out/run"
+    --write-run "$out/run" "${change_options[@]}"
 fi
 service_stage watch-changes "$@"
 
@@ -48,7 +50,7 @@ stop_all() {
 trap stop_all EXIT
 trap 'exit 130' INT TERM
 service_start_server "$out/server.log" "$server" --db "$out/map.db" --lcm-url "$url" \
-  --keys "$keys" || exit 1
+  --keys "$keys" "${change_options[@]}" || exit 1
 
 "$client" watch --out "$out/alarms" --lcm-url "$url" &
 watch_pid=$!
