@@ -308,6 +308,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
         std::map<std::string, int> dropped_rules;  // every dropped region, by rule
         for (const DroppedRegion& region : report.dropped) {
           ++dropped_rules[region.rule];
+          if (best >= eval.min_iou) continue;  // found: no rule dropped it
           const double to_frame = 1.0 / asked.scale;
           const cv::Rect box(cv::Point(region.box.tl() * to_frame),
                              cv::Point(region.box.br() * to_frame));

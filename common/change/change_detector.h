@@ -134,9 +134,10 @@ struct SceneChange {
   float confidence = 0.0f;   // in [0, 1]
 };
 
-// A region that differed beyond the threshold but was judged no change, and the rule that said
-// so ("size", "edge", "matched", "elsewhere"): what an evaluation reads to see why a change was
-// missed.
+// A grown region that differed but was judged no change, and the rule that said so ("weak": no
+// pixel beyond the threshold and not enough for weak_mean; "size", "edge", "matched",
+// "elsewhere"; with segment_difference on, dropped segments too): what an evaluation reads to
+// see why a change was missed.
 struct DroppedRegion {
   cv::Rect box;  // in the frame, processed pixels
   std::string rule;

@@ -24,7 +24,8 @@ Place WithCaptureTimeInRange(const Place& place) {
   LOG(WARNING) << "place " << place.id.value() << " of robot '" << place.robot
                << "' has capture time " << place.utime << " us, outside 0 .. " << kMaxUtime
                << " us: used as " << (place.utime < 0 ? 0 : kMaxUtime)
-               << " (the map file keeps it; placerec-map prune --before or --robot drops it)";
+               << " (the map file keeps it; placerec-map prune --robot, or --before for a time "
+                  "before 0, drops it from a SQLite map)";
   Place bounded = place;
   bounded.utime = place.utime < 0 ? 0 : kMaxUtime;
   return bounded;

@@ -243,6 +243,15 @@ TEST(PlaceMapTest, CaptureTimesOutOfRangeInAnOldMapAreBoundedInMemoryAndLeftInTh
           .ok());
   EXPECT_EQ(stored[1], std::numeric_limits<int64_t>::min());
   EXPECT_EQ(stored[2], std::numeric_limits<int64_t>::max());
+  // A place another server committed (the PostgreSQL follower's path) is bounded the same way.
+  Place late;
+  late.id = PlaceId(100);
+  late.robot = "old-server";
+  late.utime = std::numeric_limits<int64_t>::max();
+  ASSERT_TRUE((*map)->AddCommitted(late, {}));
+  times.clear();
+  (*map)->ForEachPlace([&times](const Place& place) { times[place.id.value()] = place.utime; });
+  EXPECT_EQ(times[100], kMaxUtime);
 }
 
 TEST(PlaceMapTest, ReopensFromItsIndexSnapshotWithTheSameAnswers) {
