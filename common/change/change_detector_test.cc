@@ -195,15 +195,27 @@ void Tint(cv::Mat roi) {
   tinted.convertTo(roi, CV_8UC3);
 }
 
+// A plain object before a plain wall of nearly its colour (a dozen Lab units apart): no pixel
+// differs by the threshold, the object as a whole does.
+struct PlainObject {
+  PlainObject() {
+    scene(cv::Rect(object.tl() + kOffset - cv::Point(40, 40), object.size() + cv::Size(80, 80)))
+        .setTo(cv::Scalar(128, 128, 128));
+    frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+    Tint(frame(object));
+  }
+  cv::Mat scene = Scene();
+  const cv::Rect object{300, 200, 100, 120};
+  cv::Mat frame;
+};
+
 TEST(ChangeDetectorTest, ASegmentThatDiffersLittlePerPixelIsFoundAsAWhole) {
   // A plain object before a plain wall of nearly its colour (a dozen Lab units apart): no pixel
   // differs by the threshold, the whole segment's mean does.
-  cv::Mat scene = Scene();
-  const cv::Rect object(300, 200, 100, 120);
-  scene(cv::Rect(object.tl() + kOffset - cv::Point(40, 40), object.size() + cv::Size(80, 80)))
-      .setTo(cv::Scalar(128, 128, 128));
-  cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
-  Tint(frame(object));
+  const PlainObject plain;
+  const cv::Mat& scene = plain.scene;
+  const cv::Mat& frame = plain.frame;
+  const cv::Rect& object = plain.object;
   // The frame's segmentation at half its resolution: the object, and the rest of the frame.
   cv::Mat segments(kHeight / 2, kWidth / 2, CV_32S, cv::Scalar(0));
   segments(cv::Rect(object.x / 2, object.y / 2, object.width / 2, object.height / 2)).setTo(1);
@@ -232,12 +244,10 @@ TEST(ChangeDetectorTest, ASegmentThatDiffersLittlePerPixelIsFoundAsAWhole) {
 TEST(ChangeDetectorTest, ALargeRegionThatDiffersLittleIsFoundWhereTheViewIsAligned) {
   // The plain object of the previous test: no pixel differs by the threshold, but the region
   // is large and stands far above the rest of a well aligned view.
-  cv::Mat scene = Scene();
-  const cv::Rect object(300, 200, 100, 120);
-  scene(cv::Rect(object.tl() + kOffset - cv::Point(40, 40), object.size() + cv::Size(80, 80)))
-      .setTo(cv::Scalar(128, 128, 128));
-  cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
-  Tint(frame(object));
+  const PlainObject plain;
+  const cv::Mat& scene = plain.scene;
+  const cv::Mat& frame = plain.frame;
+  const cv::Rect& object = plain.object;
   const ChangeReference reference = Reference(scene, kOffset, object);
   ChangeOptions options;
   options.weak_mean = 0;

@@ -186,18 +186,21 @@ std::string Answers(const PlaceMap& map, int seeds) {
   return text.str();
 }
 
-TEST(PlaceMapTest, DamagedLandmarkCountsDoNotStopTheMapFromOpening) {
-  MapFile file;
+// A map file of three places, then `sql` run on it behind the map's back (a damaged or old map).
+void WriteThreePlacesThenDamage(const std::string& path, const char* sql) {
   {
-    std::unique_ptr<PlaceMap> map = OpenMap(file.path(), LandmarkIndexOptions());
+    std::unique_ptr<PlaceMap> map = OpenMap(path, LandmarkIndexOptions());
     for (int p = 0; p < 3; ++p) InsertPlace(p, map.get());
   }
   sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open(file.path().c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(
-      sqlite3_exec(db, "UPDATE places SET num_landmarks = 2147483647", nullptr, nullptr, nullptr),
-      SQLITE_OK);
+  ASSERT_EQ(sqlite3_open(path.c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, sql, nullptr, nullptr, nullptr), SQLITE_OK);
   sqlite3_close(db);
+}
+
+TEST(PlaceMapTest, DamagedLandmarkCountsDoNotStopTheMapFromOpening) {
+  MapFile file;
+  WriteThreePlacesThenDamage(file.path(), "UPDATE places SET num_landmarks = 2147483647");
   StatusOr<std::unique_ptr<LandmarkStore>> store =
       OpenSqliteStore(file.path(), SqliteStoreOptions());
   ASSERT_TRUE(store.ok()) << store.status().message();
@@ -210,18 +213,9 @@ TEST(PlaceMapTest, CaptureTimesOutOfRangeInAnOldMapAreBoundedInMemoryAndLeftInTh
   // Before capture times were checked at intake a map could store any time; the differences
   // the map takes between them (vote windows, a robot's recent past) would overflow.
   MapFile file;
-  {
-    std::unique_ptr<PlaceMap> map = OpenMap(file.path(), LandmarkIndexOptions());
-    for (int p = 0; p < 3; ++p) InsertPlace(p, map.get());
-  }
-  sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open(file.path().c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(db,
-                         "UPDATE places SET utime = -9223372036854775807 - 1 WHERE id = 1; "
-                         "UPDATE places SET utime = 9223372036854775807 WHERE id = 2",
-                         nullptr, nullptr, nullptr),
-            SQLITE_OK);
-  sqlite3_close(db);
+  WriteThreePlacesThenDamage(file.path(),
+                             "UPDATE places SET utime = -9223372036854775807 - 1 WHERE id = 1; "
+                             "UPDATE places SET utime = 9223372036854775807 WHERE id = 2");
   StatusOr<std::unique_ptr<LandmarkStore>> store =
       OpenSqliteStore(file.path(), SqliteStoreOptions());
   ASSERT_TRUE(store.ok()) << store.status().message();
