@@ -289,6 +289,17 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
          "Lab difference a change needs at sensitivity 0");
   p->Add("change-min-area", &o->change.min_area,
          "smallest scene change reported, as a share of the frame's area");
+  p->Add("change-min-points", &o->change.min_points,
+         "verified point pairs that must fit one homography before a place is compared");
+  p->Add("change-min-inlier-share", &o->change.min_inlier_share,
+         "compare a place only when this share of the verified point pairs fits one homography "
+         "(a view that a plane does not describe is not compared)");
+  p->Add("change-max-references", &o->change.max_references,
+         "stored views compared with a frame: the matched place and its route neighbours among "
+         "the matches (a pixel differs only when every view that sees it differs)");
+  p->Add("change-reference-window", &o->change.reference_window_seconds,
+         "route neighbours of the matched place compared too: the same robot's places within "
+         "this many seconds of it");
   p->Add("change-support-radius", &o->change.support_radius,
          "compare only within this share of the frame width of a verified point that fits the "
          "homography (0: the whole mapped view)");

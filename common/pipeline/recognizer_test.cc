@@ -19,6 +19,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "common/organization/filter_bank.h"
+#include "common/pipeline/flags.h"
 #include "common/pipeline/pipeline_test_util.h"
 #include "common/pipeline/place_map.h"
 #include "common/pipeline/recognizer.h"
@@ -57,6 +58,27 @@ TEST(RecognizerOptionsTest, DefaultsPass) {
   bad.analyzer.max_image_width = 10;
   EXPECT_FALSE(bad.Check(&error));
   EXPECT_NE(error.find("max_image_width"), std::string::npos);
+}
+
+TEST(RecognizerOptionsTest, ChangeFlagsReachTheDetectorAndBadValuesAreNamed) {
+  RecognizerOptions options;
+  FlagParser parser("test");
+  AddRecognizerFlags(&parser, &options);
+  const char* argv[] = {"prog", "--change-min-points",     "8", "--change-min-inlier-share",
+                        "0.1",  "--change-max-references", "2", "--change-reference-window",
+                        "5"};
+  bool help = false;
+  ASSERT_TRUE(parser.Parse(9, argv, 1, &help).ok());
+  EXPECT_EQ(options.change.min_points, 8);
+  EXPECT_DOUBLE_EQ(options.change.min_inlier_share, 0.1);
+  EXPECT_EQ(options.change.max_references, 2);
+  EXPECT_DOUBLE_EQ(options.change.reference_window_seconds, 5.0);
+  std::string error;
+  EXPECT_TRUE(options.Check(&error)) << error;
+  const char* too_few[] = {"prog", "--change-min-points", "3"};
+  ASSERT_TRUE(parser.Parse(3, too_few, 1, &help).ok());
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("min_points"), std::string::npos) << error;
 }
 
 TEST(RecognizerTest, RejectsBadRequestsWithoutChangingAnything) {
