@@ -64,7 +64,12 @@ struct ChangeOptions {
   // A change grows from pixels above the threshold through neighbours above this fraction of it
   // (whole objects rather than their most different parts).
   double grow_fraction = 0.4;
-  // A grown region with no pixel above the threshold is still a candidate when it covers at least
+  // A region seeded above the threshold is a candidate outright only when its strongest pixel
+  // differs by strong_peak times the threshold; otherwise it must pass the weak test below. A
+  // misaligned view (parallax) makes many regions that just cross the threshold, a new object
+  // differs clearly somewhere (1: every seeded region is a candidate).
+  double strong_peak = 1.5;
+  // A grown region without such a peak is still a candidate when it covers at least
   // weak_min_area of the frame and its mean difference reaches weak_mean of the threshold and
   // stands weak_spread robust deviations above the frame's median difference: a large object
   // whose colours lie near its background's differs a little everywhere, in a view that is
@@ -135,9 +140,9 @@ struct SceneChange {
 };
 
 // A grown region that differed but was judged no change, and the rule that said so ("weak": no
-// pixel beyond the threshold and not enough for weak_mean; "size", "edge", "matched",
-// "elsewhere"; with segment_difference on, dropped segments too): what an evaluation reads to
-// see why a change was missed.
+// pixel beyond strong_peak times the threshold and not enough for weak_mean; "size", "edge",
+// "matched", "elsewhere"; with segment_difference on, dropped segments too): what an evaluation
+// reads to see why a change was missed.
 struct DroppedRegion {
   cv::Rect box;  // in the frame, processed pixels
   std::string rule;
