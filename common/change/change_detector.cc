@@ -45,8 +45,8 @@ bool ChangeOptions::Check(std::string* error) const {
   if (!(grow_fraction > 0.0 && grow_fraction <= 1.0)) {
     return fail("change grow fraction must be in (0, 1]");
   }
-  if (!(strong_peak >= 1.0 && strong_peak <= 10.0)) {
-    return fail("change strong peak must be in [1, 10] times the threshold");
+  if (!(strong_spread >= 0.0 && strong_spread <= 100.0)) {
+    return fail("change strong spread must be in [0, 100] robust deviations");
   }
   if (!(weak_mean >= 0.0 && weak_mean <= 1.0)) return fail("change weak mean must be in [0, 1]");
   if (!(weak_spread >= 0.0)) return fail("change weak spread must be >= 0");
@@ -607,9 +607,9 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
     const cv::Rect box(stats.at<int>(c, cv::CC_STAT_LEFT), stats.at<int>(c, cv::CC_STAT_TOP),
                        stats.at<int>(c, cv::CC_STAT_WIDTH), stats.at<int>(c, cv::CC_STAT_HEIGHT));
     const int area = stats.at<int>(c, cv::CC_STAT_AREA);
-    // A region that differs, but nowhere by strong_peak times the threshold, differs too little
-    // unless it is large, its mean reaches weak_mean of the threshold and stands weak_spread robust
-    // deviations above the view's median difference (ChangeOptions::weak_mean).
+    // A region that differs, but nowhere by the threshold plus strong_spread deviations, differs
+    // too little unless it is large, its mean reaches weak_mean of the threshold and stands
+    // weak_spread robust deviations above the view's median difference (ChangeOptions::weak_mean).
     const bool may_be_weak = options.weak_mean > 0 && area >= options.weak_min_area * frame_area;
     if (!seeded[c] && !may_be_weak) {
       if (area >= options.min_area * frame_area) drop(box, "weak");
@@ -618,10 +618,10 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
     const cv::Mat in_component = labels == c;
     // A seeded region whose strongest pixel only just crosses the threshold is judged as weak.
     bool strong = seeded[c];
-    if (strong && options.strong_peak > 1.0) {
+    if (strong && options.strong_spread > 0.0) {
       double peak = 0.0;
       cv::minMaxLoc(difference, nullptr, &peak, nullptr, nullptr, in_component);
-      strong = peak >= options.strong_peak * threshold;
+      strong = peak >= threshold + options.strong_spread * spread;
     }
     if (!strong && !may_be_weak) {
       if (area >= options.min_area * frame_area) drop(box, "weak");

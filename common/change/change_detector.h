@@ -65,10 +65,13 @@ struct ChangeOptions {
   // (whole objects rather than their most different parts).
   double grow_fraction = 0.4;
   // A region seeded above the threshold is a candidate outright only when its strongest pixel
-  // differs by strong_peak times the threshold; otherwise it must pass the weak test below. A
-  // misaligned view (parallax) makes many regions that just cross the threshold, a new object
-  // differs clearly somewhere (1: every seeded region is a candidate).
-  double strong_peak = 1.5;
+  // differs by the threshold plus strong_spread robust deviations of the shared view's
+  // difference; otherwise it must pass the weak test below. Where the homography and the flow
+  // align the view only roughly (parallax across a wide path, near railings) the difference
+  // spreads and many regions just cross the threshold, while a new object differs clearly
+  // somewhere; in a well aligned view the spread is small and the rule asks little more than the
+  // threshold (0: every seeded region is a candidate).
+  double strong_spread = 6.0;
   // A grown region without such a peak is still a candidate when it covers at least
   // weak_min_area of the frame and its mean difference reaches weak_mean of the threshold and
   // stands weak_spread robust deviations above the frame's median difference: a large object
@@ -140,9 +143,9 @@ struct SceneChange {
 };
 
 // A grown region that differed but was judged no change, and the rule that said so ("weak": no
-// pixel beyond strong_peak times the threshold and not enough for weak_mean; "size", "edge",
-// "matched", "elsewhere"; with segment_difference on, dropped segments too): what an evaluation
-// reads to see why a change was missed.
+// pixel beyond the threshold plus strong_spread deviations and not enough for weak_mean; "size",
+// "edge", "matched", "elsewhere"; with segment_difference on, dropped segments too): what an
+// evaluation reads to see why a change was missed.
 struct DroppedRegion {
   cv::Rect box;  // in the frame, processed pixels
   std::string rule;

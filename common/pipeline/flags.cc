@@ -315,11 +315,12 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add("change-grow-fraction", &o->change.grow_fraction,
          "a change grows from pixels above the threshold through neighbours above this fraction "
          "of it");
-  p->Add("change-strong-peak", &o->change.strong_peak,
+  p->Add("change-strong-spread", &o->change.strong_spread,
          "a region seeded above the threshold is a change candidate outright only when its "
-         "strongest pixel differs by this many times the threshold, otherwise it must pass "
-         "--change-weak-mean (1: every seeded region; the seed gives no value, docs/results.md "
-         "'Scene changes')");
+         "strongest pixel differs by the threshold plus this many robust deviations of the "
+         "view's difference, otherwise it must pass --change-weak-mean (a roughly aligned view "
+         "makes regions that just cross the threshold; 0: every seeded region; the seed gives "
+         "no value, docs/results.md 'Scene changes')");
   p->Add("change-weak-mean", &o->change.weak_mean,
          "a region with no pixel above the threshold is still a change candidate when it covers "
          "--change-weak-min-area of the frame and its mean difference reaches this share of the "
