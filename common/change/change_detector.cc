@@ -559,7 +559,9 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
     result.dropped.push_back(
         {Scaled(box, 1.0 / to_thumb) & cv::Rect(0, 0, frame_size.width, frame_size.height), rule});
   };
-  const auto judge = [&](const cv::Mat& in_component, const cv::Rect& box, int area, double mean,
+  // `differs`: the candidate's strongest pixel difference (a region) or its mean (a segment),
+  // against the `needed` one.
+  const auto judge = [&](const cv::Mat& in_component, const cv::Rect& box, int area, double differs,
                          double needed, std::vector<SceneChange>* changes) {
     if (area < options.min_area * frame_area || box.area() > options.max_area * frame_area) {
       return drop(box, "size");
@@ -585,8 +587,9 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
                       options.max_elsewhere_similarity)) {
       return drop(box, "elsewhere");
     }
-    // Confidence: how far beyond what it needed the candidate differs, and how large it is.
-    const double strength = std::clamp((mean - needed) / needed, 0.0, 1.0);
+    // Confidence: how far beyond what it needed the candidate differs (twice the need counts
+    // fully; a weak region, which nowhere reaches it, counts nothing), and how large it is.
+    const double strength = std::clamp((differs - needed) / needed, 0.0, 1.0);
     const double size = std::clamp(area / (0.02 * frame_area), 0.0, 1.0);
     SceneChange change;
     change.confidence = static_cast<float>(0.5 + 0.25 * strength + 0.25 * size);
@@ -617,12 +620,9 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
     }
     const cv::Mat in_component = labels == c;
     // A seeded region whose strongest pixel only just crosses the threshold is judged as weak.
-    bool strong = seeded[c];
-    if (strong && options.strong_spread > 0.0) {
-      double peak = 0.0;
-      cv::minMaxLoc(difference, nullptr, &peak, nullptr, nullptr, in_component);
-      strong = peak >= threshold + options.strong_spread * spread;
-    }
+    double peak = 0.0;
+    cv::minMaxLoc(difference, nullptr, &peak, nullptr, nullptr, in_component);
+    const bool strong = seeded[c] && peak >= threshold + options.strong_spread * spread;
     if (!strong && !may_be_weak) {
       if (area >= options.min_area * frame_area) drop(box, "weak");
       continue;
@@ -633,7 +633,7 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
       drop(box, "weak");
       continue;
     }
-    judge(in_component, box, area, mean, threshold, &result.changes);
+    judge(in_component, box, area, peak, threshold, &result.changes);
   }
   // Whole segments whose means differ, where no region found them already.
   std::vector<SceneChange> by_segment;

@@ -325,6 +325,35 @@ TEST(ChangeDetectorTest, ARegionThatDoesNotStandOutOfTheViewsSpreadIsJudgedAsWea
   EXPECT_NE(error.find("strong spread"), std::string::npos) << error;
 }
 
+TEST(ChangeDetectorTest, ConfidenceGrowsWithHowClearlyTheObjectDiffers) {
+  // Two objects of one size (4 % of the frame) whose colours lie near their background's over
+  // most of their area: one with a core of a colour the place never showed, one whose core only
+  // just crosses the threshold. Both regions' mean difference stays under the threshold.
+  const auto confidence = [](const cv::Scalar& core_shift) {
+    // The plain object before a plain wall of nearly its colour (ASegmentThatDiffersLittle...).
+    PlainObject plain;
+    const cv::Rect& object = plain.object;
+    const cv::Mat& scene = plain.scene;
+    cv::Mat& frame = plain.frame;
+    const cv::Rect core(object.x + 35, object.y + 40, 30, 30);
+    cv::Mat shifted;
+    frame(core).convertTo(shifted, CV_16SC3);
+    shifted += core_shift;
+    shifted.convertTo(frame(core), CV_8UC3);
+    const ChangeResult result = DetectChanges(Thumbnail(frame), frame.size(),
+                                              {Reference(scene, kOffset, object)}, ChangeOptions());
+    EXPECT_EQ(result.changes.size(), 1u);
+    if (result.changes.size() != 1) return 0.0f;
+    EXPECT_GT(IoU(result.changes[0].box, object), 0.3) << result.changes[0].box;
+    return result.changes[0].confidence;
+  };
+  const float clear = confidence(cv::Scalar(-120, 120, 120));
+  const float faint = confidence(cv::Scalar(-10, 10, 10));
+  EXPECT_GT(clear, faint + 0.1f) << clear << " " << faint;
+  EXPECT_LE(clear, 1.0f);
+  EXPECT_GE(faint, 0.5f);
+}
+
 TEST(ChangeDetectorTest, LabelsOfNoSegmentationAreNotCompared) {
   // Negative labels only, or an id far beyond one per pixel: no segment is compared, and
   // nothing throws.
