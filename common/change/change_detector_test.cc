@@ -345,6 +345,13 @@ TEST(ChangeDetectorTest, ConfidenceGrowsWithHowClearlyTheObjectDiffers) {
     EXPECT_EQ(result.changes.size(), 1u);
     if (result.changes.size() != 1) return 0.0f;
     EXPECT_GT(IoU(result.changes[0].box, object), 0.3) << result.changes[0].box;
+    // The object's mean difference stays under the threshold (what the confidence must not
+    // rest on).
+    const double to_thumb = static_cast<double>(result.difference.cols) / kWidth;
+    const cv::Rect in_thumb(
+        static_cast<int>(object.x * to_thumb), static_cast<int>(object.y * to_thumb),
+        static_cast<int>(object.width * to_thumb), static_cast<int>(object.height * to_thumb));
+    EXPECT_LT(cv::mean(result.difference(in_thumb))[0], result.threshold);
     return result.changes[0].confidence;
   };
   const float clear = confidence(cv::Scalar(-120, 120, 120));
