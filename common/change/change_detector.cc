@@ -8,6 +8,8 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
+#include "common/image/image.h"
+
 namespace placerec {
 
 bool ChangeOptions::Check(std::string* error) const {
@@ -98,11 +100,8 @@ const char* ChangeKindName(SceneChange::Kind kind) {
 namespace {
 
 // CIE Lab (L in [0, 100], a and b around 0), float, lightly smoothed against JPEG noise.
-cv::Mat ToLab(const cv::Mat& bgr) {
-  cv::Mat as_float;
-  bgr.convertTo(as_float, CV_32FC3, 1.0 / 255.0);
-  cv::Mat lab;
-  cv::cvtColor(as_float, lab, cv::COLOR_BGR2Lab);
+cv::Mat SmoothedLab(const cv::Mat& bgr) {
+  cv::Mat lab = ToLab(bgr);
   cv::GaussianBlur(lab, lab, cv::Size(3, 3), 0.8);
   return lab;
 }
@@ -363,7 +362,7 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
   const int width = frame_thumbnail.cols;
   const int height = frame_thumbnail.rows;
   const double to_thumb = static_cast<double>(width) / frame_size.width;
-  const cv::Mat frame_lab = ToLab(frame_thumbnail);
+  const cv::Mat frame_lab = SmoothedLab(frame_thumbnail);
   const int radius =
       static_cast<int>(std::lround(options.alignment_tolerance * static_cast<double>(width)));
   const int margin =
@@ -442,15 +441,14 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
     // Only where the homography holds: near points that fit it. Elsewhere (near walls, doors
     // that the robot passes) the parallax of the scene's depth makes differences of its own.
     if (options.support_radius > 0) {
-      cv::Mat support = cv::Mat::zeros(height, width, CV_8U);
+      std::vector<cv::Point> at;
       for (const cv::Point2f& p : fitted.frame_points) {
-        const cv::Point at(static_cast<int>(p.x * to_thumb), static_cast<int>(p.y * to_thumb));
-        if (at.x >= 0 && at.y >= 0 && at.x < width && at.y < height) support.at<uint8_t>(at) = 255;
+        at.emplace_back(static_cast<int>(p.x * to_thumb), static_cast<int>(p.y * to_thumb));
       }
       const int r = std::max(1, static_cast<int>(std::lround(options.support_radius * width)));
-      cv::dilate(support, support,
-                 cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * r + 1, 2 * r + 1)));
-      valid &= support;
+      valid &= DilatePoints(
+          at, valid.size(),
+          cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * r + 1, 2 * r + 1)));
     }
     if (cv::countNonZero(valid) < options.min_area * width * height) {
       if (result.why_not.empty()) result.why_not = "the views share too little";
@@ -459,7 +457,7 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
     if (options.flow_alignment && std::min(width, height) >= kMinFlowSide) {
       AlignByFlow(frame_grey, &warped, &valid);
     }
-    const cv::Mat stored_lab = MatchExposure(ToLab(warped), frame_lab, valid);
+    const cv::Mat stored_lab = MatchExposure(SmoothedLab(warped), frame_lab, valid);
     cv::Mat outside = OutsideRange(frame_lab, stored_lab, radius);
     cv::Mat stored_contrast;
     if (options.texture_weight > 0 || segment_count > 0) {

@@ -233,6 +233,28 @@ StatusOr<cv::Mat> ReadImageFile(const std::string& path) {
   return bgr;
 }
 
+cv::Mat DilatePoints(const std::vector<cv::Point>& points, const cv::Size& size,
+                     const cv::Mat& kernel) {
+  CHECK(kernel.type() == CV_8U && kernel.rows % 2 == 1 && kernel.cols % 2 == 1);
+  cv::Mat mask = cv::Mat::zeros(size, CV_8U);
+  cv::Mat seen = cv::Mat::zeros(size, CV_8U);
+  // cv::dilate sets p where some kernel element k has a point at p + k - anchor: around each
+  // point the kernel mirrored about its anchor.
+  cv::Mat stamp;
+  cv::flip(kernel != 0, stamp, -1);
+  const cv::Point anchor(kernel.cols / 2, kernel.rows / 2);
+  const cv::Rect image(cv::Point(0, 0), size);
+  for (const cv::Point& point : points) {
+    if (!image.contains(point) || seen.at<uint8_t>(point) != 0) continue;
+    seen.at<uint8_t>(point) = 1;
+    const cv::Rect placed(point - anchor, stamp.size());
+    const cv::Rect inside = placed & image;
+    cv::Mat target = mask(inside);
+    cv::bitwise_or(target, stamp(inside - placed.tl()), target);
+  }
+  return mask;
+}
+
 cv::Mat LimitWidth(const cv::Mat& bgr, int max_width, double* scale) {
   return FitWidth(bgr, 0, max_width, scale);
 }

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 namespace placerec {
 namespace {
@@ -252,6 +253,41 @@ TEST(ResizeTest, ResizeToWidthKeepsAspect) {
   const cv::Mat small = ResizeToWidth(Flat(960, 540, cv::Scalar(0, 0, 0)), 160);
   EXPECT_EQ(small.cols, 160);
   EXPECT_EQ(small.rows, 90);
+}
+
+TEST(DilatePointsTest, EqualsDilatingTheMaskOfThePoints) {
+  cv::RNG rng(7);
+  const cv::Size size(160, 120);
+  // An asymmetric kernel too: DilatePoints must mirror it as cv::dilate does.
+  cv::Mat asymmetric = cv::Mat::zeros(5, 7, CV_8U);
+  asymmetric.at<uint8_t>(0, 0) = asymmetric.at<uint8_t>(2, 3) = asymmetric.at<uint8_t>(4, 6) = 1;
+  asymmetric.at<uint8_t>(1, 5) = 1;
+  const std::vector<cv::Mat> kernels = {
+      cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(97, 97)),
+      cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(3, 3)),
+      cv::getStructuringElement(cv::MORPH_RECT, cv::Size(9, 5)),
+      cv::getStructuringElement(cv::MORPH_CROSS, cv::Size(11, 11)), asymmetric};
+  for (const cv::Mat& kernel : kernels) {
+    for (const int count : {0, 1, 5, 300}) {
+      std::vector<cv::Point> points;
+      for (int i = 0; i < count; ++i) {
+        // Some outside the image, some twice.
+        points.emplace_back(rng.uniform(-10, size.width + 10), rng.uniform(-10, size.height + 10));
+        if (i % 7 == 0) points.push_back(points.back());
+      }
+      cv::Mat marked = cv::Mat::zeros(size, CV_8U);
+      for (const cv::Point& p : points) {
+        if (cv::Rect(cv::Point(0, 0), size).contains(p)) marked.at<uint8_t>(p) = 255;
+      }
+      cv::Mat expected;
+      cv::dilate(marked, expected, kernel);
+      const cv::Mat found = DilatePoints(points, size, kernel);
+      ASSERT_EQ(found.size(), size);
+      ASSERT_EQ(found.type(), CV_8U);
+      EXPECT_EQ(cv::countNonZero(found != expected), 0)
+          << "kernel " << kernel.cols << "x" << kernel.rows << ", " << count << " points";
+    }
+  }
 }
 
 }  // namespace
