@@ -209,7 +209,8 @@ void AlignByFlow(const cv::Mat& frame_grey, cv::Mat* warped, cv::Mat* valid) {
   cv::cvtColor(*warped, stored_grey, cv::COLOR_BGR2GRAY);
   // Outside the stored view the frame's own pixels, so that the flow is not pulled to black.
   frame_grey.copyTo(stored_grey, *valid == 0);
-  // At the thumbnail's own scale (the medium preset's finest), patches of 6 pixels every 3.
+  // The medium preset's finest level is half the thumbnail's resolution (finest scale 1; the flow
+  // is upscaled to the thumbnail), with patches of 6 pixels every 3 there.
   cv::Ptr<cv::DISOpticalFlow> dis = cv::DISOpticalFlow::create(cv::DISOpticalFlow::PRESET_MEDIUM);
   dis->setPatchSize(6);
   dis->setPatchStride(3);
