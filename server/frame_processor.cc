@@ -44,15 +44,8 @@ FrameProcessor::FrameProcessor(const RecognizerOptions& options, const DecodeOpt
 }
 
 std::optional<Place> FrameProcessor::StoredCopyOf(const FrameRequest& request) const {
-  std::optional<Place> found;
   // Only refused inserts get here, so a pass over the places costs nothing in normal running.
-  map_->ForEachPlace([&](const Place& place) {
-    if (place.sequence == request.sequence && place.utime == request.utime &&
-        place.robot == request.robot) {
-      found = place;
-    }
-  });
-  return found;
+  return map_->FindStored(request.robot, request.sequence, request.utime);
 }
 
 std::unique_ptr<Recognizer> FrameProcessor::NewRun() const {

@@ -20,6 +20,7 @@
 
 #include "common/pipeline/pipeline_test_util.h"
 #include "common/storage/sqlite_store.h"
+#include "common/storage/storage_testing.h"
 
 namespace placerec {
 namespace {
@@ -208,6 +209,35 @@ TEST(FrameProcessorTest, AnInsertSentAgainAfterARestartIsAnsweredWithItsStoredPl
   // The robot goes on after it.
   EXPECT_EQ(int{restarted->Process(Frame("r", frame.sequence + 1, step)).status},
             int{result_t::STATUS_OK});
+}
+
+// A map written before capture times were checked may hold a place of a time out of range; the
+// map uses it as 0 (or the largest time). No frame of such a time is accepted, so none can be that
+// place sent again: a frame at time 0 with its robot and sequence is refused, not answered as it.
+TEST(FrameProcessorTest, APlaceWhoseStoredTimeWasOutOfRangeIsNoCopyOfAFrameAtTimeZero) {
+  TempMap file;
+  {
+    StatusOr<std::unique_ptr<LandmarkStore>> store =
+        OpenSqliteStore(file.path(), SqliteStoreOptions());
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    Place old;
+    old.robot = "r";
+    old.sequence = 3;
+    old.utime = 1;
+    std::vector<Landmark> none;
+    const Status added = (*store)->AddPlace(&old, &none);
+    ASSERT_TRUE(added.ok()) << added.ToString();
+  }
+  testing_storage::ExecSql(file.path(), "UPDATE places SET utime = -5");
+  std::unique_ptr<PlaceMap> map = OpenMap(file.path());
+  std::unique_ptr<FrameProcessor> processor = NewProcessor(map.get(), 5.0);
+  frame_t frame = Frame("r", 3, 0);
+  frame.utime = 0;
+  const result_t answer = processor->Process(frame);
+  EXPECT_EQ(int{answer.status}, int{result_t::STATUS_BAD_REQUEST}) << answer.message;
+  EXPECT_NE(answer.message.find("sequence 3 of robot 'r'"), std::string::npos) << answer.message;
+  EXPECT_EQ(answer.place_id, -1);
+  EXPECT_EQ(map->Counts().places, 1);
 }
 
 }  // namespace

@@ -42,6 +42,7 @@ StatusOr<std::unique_ptr<PlaceMap>> PlaceMap::Open(std::unique_ptr<LandmarkStore
   map->index_.DeferDescriptors();
   PLACEREC_RETURN_IF_ERROR(map->store_->LoadPlaces([&map](const Place& stored) {
     const Place place = WithCaptureTimeInRange(stored);
+    if (place.utime != stored.utime) map->time_out_of_range_.insert(place.id);
     map->places_[place.id] = place;
     map->index_.AddPlace(place);
     for (const LandmarkId seen : place.seen_landmarks) map->seen_at_[seen].push_back(place.id);
@@ -153,6 +154,7 @@ Status PlaceMap::Insert(Place* place, std::vector<Landmark>* landmarks) {
 
 void PlaceMap::IndexCommitted(const Place& committed, const std::vector<Landmark>& landmarks) {
   const Place place = WithCaptureTimeInRange(committed);
+  if (place.utime != committed.utime) time_out_of_range_.insert(place.id);
   places_[place.id] = place;
   places_[place.id].thumbnail.clear();  // in the store only: LoadThumbnail
   index_.AddPlace(place);
@@ -242,6 +244,18 @@ MapCounts PlaceMap::Counts() const {
 void PlaceMap::ForEachPlace(const std::function<void(const Place&)>& visit) const {
   std::shared_lock lock(mutex_);
   for (const auto& [id, place] : places_) visit(place);
+}
+
+std::optional<Place> PlaceMap::FindStored(const std::string& robot, int64_t sequence,
+                                          int64_t utime) const {
+  std::shared_lock lock(mutex_);
+  for (const auto& [id, place] : places_) {
+    if (place.sequence == sequence && place.utime == utime && place.robot == robot &&
+        time_out_of_range_.count(id) == 0) {
+      return place;
+    }
+  }
+  return std::nullopt;
 }
 
 StatusOr<uint64_t> PlaceMap::Checksum() const {

@@ -10,9 +10,11 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <shared_mutex>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 #include <vector>
 
 #include "common/recognition/landmark_index.h"
@@ -88,6 +90,11 @@ class PlaceMap {
   // Calls `visit` for every place in the map (in no particular order), under the map's read lock:
   // `visit` must not call back into the map.
   void ForEachPlace(const std::function<void(const Place&)>& visit) const;
+  // The place `robot` stored as its frame `sequence` captured at `utime`, if there is one: what a
+  // frame sent again was stored as. A place whose stored time lay outside 0 .. kMaxUtime (an old
+  // map's; used in memory as the nearest bound) is never one: no frame of such a time is accepted.
+  // A pass over every place.
+  std::optional<Place> FindStored(const std::string& robot, int64_t sequence, int64_t utime) const;
   StatusOr<uint64_t> Checksum() const;
   std::string Describe() const;
   // Milliseconds Open spent loading the store and building the index.
@@ -120,6 +127,8 @@ class PlaceMap {
   std::unique_ptr<LandmarkStore> store_;
   LandmarkIndex index_;
   std::unordered_map<PlaceId, Place> places_;
+  // Places whose stored capture time lay out of range (places_ holds them with the nearest bound).
+  std::unordered_set<PlaceId> time_out_of_range_;
   // Per stored landmark, the later places that saw it again (Place::seen_landmarks).
   std::unordered_map<LandmarkId, std::vector<PlaceId>> seen_at_;
   double open_ms_ = 0;
