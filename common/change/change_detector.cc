@@ -562,9 +562,9 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
   // against the `needed` one.
   const auto judge = [&](const cv::Mat& in_component, const cv::Rect& box, int area, double differs,
                          double needed, std::vector<SceneChange>* changes) {
-    if (area < options.min_area * frame_area || box.area() > options.max_area * frame_area) {
-      return drop(box, "size");
-    }
+    // A speck is no candidate (nor listed, as a weak one is not); a region too large is dropped.
+    if (area < options.min_area * frame_area) return;
+    if (box.area() > options.max_area * frame_area) return drop(box, "size");
     // Along the edge of the shared view: what the motion brought into view, or the parallax of
     // near objects there.
     if (cv::countNonZero(in_component & (to_edge < edge_band)) > options.max_edge_share * area) {

@@ -143,9 +143,10 @@ struct SceneChange {
 };
 
 // A grown region that differed but was judged no change, and the rule that said so ("weak": no
-// pixel beyond the threshold plus strong_spread deviations and not enough for weak_mean; "size",
-// "edge", "matched", "elsewhere"; with segment_difference on, dropped segments too): what an
-// evaluation reads to see why a change was missed.
+// pixel beyond the threshold plus strong_spread deviations and not enough for weak_mean; "size":
+// its box larger than max_area; "edge", "matched", "elsewhere"; with segment_difference on,
+// dropped segments too): what an evaluation reads to see why a change was missed. Specks under
+// min_area are no candidates and are not listed.
 struct DroppedRegion {
   cv::Rect box;  // in the frame, processed pixels
   std::string rule;

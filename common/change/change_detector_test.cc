@@ -110,6 +110,33 @@ TEST(ChangeDetectorTest, PastedObjectIsFoundWhereItIs) {
   EXPECT_LE(result.changes[0].confidence, 1.0f);
 }
 
+// A region under min_area is a speck, no candidate: it is not listed among the dropped regions
+// ("size" there means larger than max_area), as a speck that differs weakly is not either.
+TEST(ChangeDetectorTest, ASpeckIsNoDroppedRegion) {
+  const cv::Mat scene = Scene();
+  cv::Mat frame = scene(cv::Rect(kOffset, cv::Size(kWidth, kHeight))).clone();
+  const cv::Rect speck(300, 200, 24, 24);
+  frame(speck).setTo(cv::Scalar(250, 250, 250));
+  // The grown region around it covers about 0.5 % of the frame: a speck under 2 %.
+  ChangeOptions options;
+  options.min_area = 0.02;
+  const ChangeResult result =
+      DetectChanges(Thumbnail(frame), frame.size(), {Reference(scene, kOffset, speck)}, options);
+  ASSERT_TRUE(result.checked);
+  EXPECT_TRUE(result.changes.empty());
+  for (const DroppedRegion& region : result.dropped) {
+    EXPECT_EQ(IoU(region.box, speck), 0.0) << region.rule << " " << region.box;
+  }
+  // The same region is a candidate under the default min_area (the rules then judge it).
+  const ChangeResult by_default = DetectChanges(
+      Thumbnail(frame), frame.size(), {Reference(scene, kOffset, speck)}, ChangeOptions());
+  bool listed = !by_default.changes.empty();
+  for (const DroppedRegion& region : by_default.dropped) {
+    listed = listed || IoU(region.box, speck) > 0.0;
+  }
+  EXPECT_TRUE(listed);
+}
+
 TEST(ChangeDetectorTest, ObjectAtTheFrameBorderIsFound) {
   // The place sees beyond the frame's top border: an object there is in the shared view, not
   // new scene brought in by the motion.
