@@ -629,7 +629,7 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
     const double mean = cv::mean(difference, in_component)[0];
     if (!strong &&
         (mean < options.weak_mean * threshold || mean < median + options.weak_spread * spread)) {
-      drop(box, "weak");
+      if (area >= options.min_area * frame_area) drop(box, "weak");
       continue;
     }
     judge(in_component, box, area, peak, threshold, &result.changes);
