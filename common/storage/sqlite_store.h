@@ -22,7 +22,9 @@ struct SqliteStoreOptions {
   // Open an existing file only (no creation); for inspection tools.
   bool must_exist = false;
   // Run SQLite's PRAGMA quick_check when an existing map is opened (it reads the whole file
-  // once): a damaged file is refused with a message saying how to restore or repair it.
+  // once, after one pass over the file in order that brings it into the page cache when it fits
+  // in half the available memory): a damaged file is refused with a message saying how to restore
+  // or repair it.
   bool quick_check = true;
 
   bool Check(std::string* error) const;

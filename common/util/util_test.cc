@@ -31,6 +31,25 @@ TEST(MemoryTest, SeesThisProcessGrow) {
   EXPECT_GE(after.peak_mib, after.current_mib);
 }
 
+TEST(MemoryTest, ReadAheadReadsAWholeFileThatFitsAndSkipsOneThatDoesNot) {
+  EXPECT_GT(AvailableMemoryBytes(), 0);
+  const std::string path =
+      ::testing::TempDir() + "/placerec_read_ahead_" + std::to_string(getpid());
+  {
+    std::ofstream out(path, std::ios::binary);
+    const std::string block(1 << 20, 'x');
+    for (int i = 0; i < 3; ++i) out << block;
+    out << "tail";
+  }
+  const int64_t size = (int64_t{3} << 20) + 4;
+  EXPECT_EQ(ReadAhead(path, 0.5), size);
+  // 3 MiB is more than a billionth of any machine's memory.
+  EXPECT_EQ(ReadAhead(path, 1e-9), 0);
+  std::remove(path.c_str());
+  EXPECT_EQ(ReadAhead(path, 0.5), 0);
+  EXPECT_EQ(ReadAhead(::testing::TempDir(), 0.5), 0);  // a folder
+}
+
 TEST(MemoryTest, NoSuchProcessLeavesTheFiguresAlone) {
   // Process ids stay below pid_max.
   std::ifstream in("/proc/sys/kernel/pid_max");
