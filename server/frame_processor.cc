@@ -1,6 +1,7 @@
 #include "server/frame_processor.h"
 
 #include <exception>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -43,11 +44,6 @@ FrameProcessor::FrameProcessor(const RecognizerOptions& options, const DecodeOpt
   map_->ForEachPlace([this](const Place& place) { gate_.AddStored(place.robot, place.sequence); });
 }
 
-std::optional<Place> FrameProcessor::StoredCopyOf(const FrameRequest& request) const {
-  // Only refused inserts get here, so a pass over the places costs nothing in normal running.
-  return map_->FindStored(request.robot, request.sequence, request.utime);
-}
-
 std::unique_ptr<Recognizer> FrameProcessor::NewRun() const {
   return std::make_unique<Recognizer>(options_, map_,
                                       std::make_unique<SharedSegmenter>(&analyzer_.segmenter()),
@@ -87,7 +83,12 @@ result_t FrameProcessor::ProcessOrThrow(const frame_t& frame, std::vector<change
     const StatusOr<SequenceGate::Admission> admission =
         gate_.Admit(request.robot, request.sequence, SequenceGate::Clock::now());
     if (!admission.ok()) {
-      const std::optional<Place> stored = StoredCopyOf(request);
+      // An insert sent again (a server killed between committing the frame and answering it lost
+      // the answer; the robot sends the frame again to the restarted server) is answered with the
+      // place it stored. Only refused inserts look, so the pass over the places costs nothing in
+      // normal running.
+      const std::optional<Place> stored =
+          map_->FindStored(request.robot, request.sequence, request.utime);
       if (!stored) return fail(result_t::STATUS_BAD_REQUEST, admission.status().message());
       // Answered ok with the place it stored; the loop-closure answer is not kept (the server's
       // answer record, which holds it, does not survive a restart).

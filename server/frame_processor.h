@@ -6,7 +6,6 @@
 
 #include <memory>
 #include <mutex>
-#include <optional>
 #include <string>
 #include <unordered_map>
 #include <vector>
@@ -43,10 +42,6 @@ class FrameProcessor {
 
  private:
   result_t ProcessOrThrow(const frame_t& frame, std::vector<change_t>* alarms);
-  // The stored place of an insert sent again: the map holds a place of the frame's robot and
-  // sequence with the frame's capture time (a server killed between committing the frame and
-  // answering it lost the answer; the robot sends the frame again to the restarted server).
-  std::optional<Place> StoredCopyOf(const FrameRequest& request) const;
   // A recognizer for one run of a robot: its own short-term memory, the shared segmenter.
   std::unique_ptr<Recognizer> NewRun() const;
 

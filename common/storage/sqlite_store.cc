@@ -709,9 +709,9 @@ StatusOr<std::unique_ptr<LandmarkStore>> OpenSqliteStore(const std::string& path
     return Status::NotFound(path + " holds no placerec map (an empty database)");
   }
   if (options.quick_check && *version > 0) {
-    // quick_check walks the file's trees page by page; from the disk that costs a seek a page (a
-    // million-landmark map: over a minute) where one pass in order takes seconds. The map's load
-    // reads every page next anyway.
+    // quick_check walks the file's trees page by page, a wait on the disk for each page that is
+    // not cached; one pass in order brings them in at the disk's full speed. The map's load reads
+    // every page next anyway.
     if (path != ":memory:") ReadAhead(path, kReadAheadShare);
     const std::vector<std::string> problems = QuickCheck(db->get(), 5);
     if (!problems.empty()) {
