@@ -41,7 +41,7 @@ keys=$out/keys
 server_pid=
 trap 'service_stop "$server_pid"' EXIT
 
-declare -A fps
+declare -A fps cpu_ms
 for workers in 1 2; do
   dir=$out/workers_$workers
   rm -rf "$dir"
@@ -56,7 +56,19 @@ for workers in 1 2; do
   service_stop "$server_pid"
   server_pid=
   fps[$workers]=$(sed -n 's/.*"frames_per_second": *\([0-9.]*\).*/\1/p' "$dir/summary.json" | head -n 1)
+  sent=$(sed -n 's/.*"frames": *\([0-9]*\).*/\1/p' "$dir/summary.json" | head -n 1)
+  cpu_ms[$workers]=$(awk -v c="$server_cpu" -v n="$sent" 'BEGIN { printf "%.0f", 1000 * c / n }')
   read -r cu cs ce < "$dir/client.time"
   echo "workers: $workers worker(s): ${fps[$workers]} frames/s; CPU seconds: server ${server_cpu}, client $(awk -v u="$cu" -v s="$cs" 'BEGIN { print u + s }') in ${ce} s"
 done
 awk -v a="${fps[1]}" -v b="${fps[2]}" 'BEGIN { printf "workers: 2 workers / 1 worker = %.2fx\n", b / a }'
+# The robots' frames are sent at once, so the map each frame meets (and the work of verifying its
+# candidates) depends on how the workers interleave them: the ratio compares throughput only when
+# both runs spent about the same server CPU per frame. Also the ratio at equal cost per frame:
+# the two-worker run's frames per second had its frames cost what the one-worker run's did.
+awk -v a="${fps[1]}" -v b="${fps[2]}" -v c1="${cpu_ms[1]}" -v c2="${cpu_ms[2]}" 'BEGIN {
+  printf "workers: server CPU per frame %d ms with 1 worker, %d ms with 2; at equal cost per frame: %.2fx\n",
+         c1, c2, b / a * c2 / c1
+  if (c2 < 0.9 * c1 || c2 > 1.1 * c1)
+    print "workers: the runs did different work (CPU per frame differs by more than 10 %); compare the ratio at equal cost"
+}'
