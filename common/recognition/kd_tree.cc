@@ -70,8 +70,63 @@ constexpr int kFlannHeapThreshold = 250;
 
 void GrownKdTree::Search(const uint8_t* query, int k, int checks, std::vector<Found>* found) const {
   std::vector<std::vector<Found>> one;
-  SearchMany(query, 1, 0, k, checks, &one);
+  SearchMany(query, 1, 0, k, checks, &one, Order::kOneByOne);
   *found = std::move(one[0]);
+}
+
+template <typename ResultSet>
+void GrownKdTree::SearchOneByOneWith(const uint8_t* queries, size_t count, size_t stride, int k,
+                                     int checks, std::vector<std::vector<Found>>* found) const {
+  // FLANN's getNeighbors with one tree, as SearchManyWith takes its steps, for one query at a
+  // time: descend from a node to a leaf, pushing the branches not taken, then take the closest
+  // branch from the heap, until `checks` leaves were compared (and k found) or none is left.
+  const auto farther_first = [](const Branch& a, const Branch& b) { return b.mindist < a.mindist; };
+  ResultSet result(static_cast<size_t>(k));
+  std::vector<Branch> heap;
+  std::vector<size_t> indices;
+  std::vector<float> distances;
+  for (size_t q = 0; q < count; ++q) {
+    const uint8_t* query = queries + q * stride;
+    result.clear();
+    heap.clear();
+    int checked = 0;
+    int32_t at = 0;
+    float mindist = 0;
+    while (true) {
+      while (result.worstDist() >= mindist) {
+        const Node& node = nodes_[at];
+        if (node.leaf()) {
+          if (checked >= checks && result.full()) break;
+          ++checked;
+          result.addPoint(static_cast<float>(SquaredDistance(points_[node.feature], query)),
+                          static_cast<size_t>(node.feature));
+          break;
+        }
+        const uint8_t value = query[node.feature];
+        const float diff = value - node.value;
+        const int32_t best = diff < 0 ? node.child1 : node.child2;
+        const int32_t other = diff < 0 ? node.child2 : node.child1;
+        const float new_distsq = mindist + diff * diff;
+        if (new_distsq < result.worstDist() || !result.full()) {
+          heap.push_back(Branch{other, new_distsq});
+          std::push_heap(heap.begin(), heap.end(), farther_first);
+        }
+        at = best;
+      }
+      if (heap.empty() || (checked >= checks && result.full())) break;
+      at = heap.front().node;
+      mindist = heap.front().mindist;
+      std::pop_heap(heap.begin(), heap.end(), farther_first);
+      heap.pop_back();
+    }
+    const size_t n = result.size();
+    indices.resize(n);
+    distances.resize(n);
+    result.copy(indices.data(), distances.data(), n, /*sorted=*/true);
+    std::vector<Found>& out = (*found)[q];
+    out.resize(n);
+    for (size_t i = 0; i < n; ++i) out[i] = Found{static_cast<int32_t>(indices[i]), distances[i]};
+  }
 }
 
 template <typename ResultSet>
@@ -194,13 +249,25 @@ void GrownKdTree::SearchManyWith(const uint8_t* queries, size_t count, size_t st
 }
 
 void GrownKdTree::SearchMany(const uint8_t* queries, size_t count, size_t stride, int k, int checks,
-                             std::vector<std::vector<Found>>* found) const {
+                             std::vector<std::vector<Found>>* found, Order order) const {
   found->assign(count, {});
   if (nodes_.empty() || k <= 0 || count == 0) return;
+  const bool in_step = order == Order::kInStep ||
+                       (order == Order::kAuto && points_.size() >= kInStepMinPoints && count > 1);
   if (k > kFlannHeapThreshold) {
-    SearchManyWith<flann::KNNResultSet2<float>>(queries, count, stride, k, checks, found);
+    using Result = flann::KNNResultSet2<float>;
+    if (in_step) {
+      SearchManyWith<Result>(queries, count, stride, k, checks, found);
+    } else {
+      SearchOneByOneWith<Result>(queries, count, stride, k, checks, found);
+    }
   } else {
-    SearchManyWith<flann::KNNSimpleResultSet<float>>(queries, count, stride, k, checks, found);
+    using Result = flann::KNNSimpleResultSet<float>;
+    if (in_step) {
+      SearchManyWith<Result>(queries, count, stride, k, checks, found);
+    } else {
+      SearchOneByOneWith<Result>(queries, count, stride, k, checks, found);
+    }
   }
 }
 

@@ -45,8 +45,14 @@ class GrownKdTree {
   // with the same answers as one Search per query. Several queries are searched in step, each
   // asking for the memory its next step reads while the others work: the tree and the
   // descriptors are far larger than the caches, and one query alone waits on nearly every node.
+  //
+  // Searching in step pays where the tree and its points outgrow the caches; a smaller tree is
+  // searched one query at a time, which skips the bookkeeping of taking turns (the same answers
+  // either way). kAuto chooses by the tree's size (kInStepMinPoints).
+  enum class Order { kAuto, kOneByOne, kInStep };
+  static constexpr size_t kInStepMinPoints = 1 << 14;
   void SearchMany(const uint8_t* queries, size_t count, size_t stride, int k, int checks,
-                  std::vector<std::vector<Found>>* found) const;
+                  std::vector<std::vector<Found>>* found, Order order = Order::kAuto) const;
 
   // Writes the tree in pre-order through `writer` (`writer->save(value)` for each value): for
   // every node its split dimension (a leaf: its point's index), its split value and whether it is
@@ -80,6 +86,10 @@ class GrownKdTree {
   template <typename ResultSet>
   void SearchManyWith(const uint8_t* queries, size_t count, size_t stride, int k, int checks,
                       std::vector<std::vector<Found>>* found) const;
+  // The same search, one query after the other.
+  template <typename ResultSet>
+  void SearchOneByOneWith(const uint8_t* queries, size_t count, size_t stride, int k, int checks,
+                          std::vector<std::vector<Found>>* found) const;
 
   std::vector<Node> nodes_;  // nodes_[0] is the root
   std::vector<const uint8_t*> points_;

@@ -90,12 +90,18 @@ TEST(GrownKdTreeTest, FindsWhatFlannsGrownTreeFinds) {
       flann::SearchParams params(checks);
       params.cores = 1;
       flann_tree.index.knnSearch(query_matrix, index_matrix, distance_matrix, k, params);
-      // One query at a time, and all of them in step (the first 299: a count that does not
-      // fill the last group).
+      // One query at a time, and all of them one by one and in step (the first 299: a count
+      // that does not fill the last group).
       std::vector<std::vector<GrownKdTree::Found>> many;
-      tree.SearchMany(queries.data(), rows - 1, kSize, k, checks, &many);
+      std::vector<std::vector<GrownKdTree::Found>> in_step;
+      tree.SearchMany(queries.data(), rows - 1, kSize, k, checks, &many,
+                      GrownKdTree::Order::kOneByOne);
+      tree.SearchMany(queries.data(), rows - 1, kSize, k, checks, &in_step,
+                      GrownKdTree::Order::kInStep);
       ASSERT_EQ(many.size(), static_cast<size_t>(rows - 1));
+      ASSERT_EQ(in_step.size(), static_cast<size_t>(rows - 1));
       int differences = 0;
+      int differences_many = 0;
       int differences_in_step = 0;
       for (int q = 0; q < rows; ++q) {
         tree.Search(&queries[static_cast<size_t>(q) * kSize], k, checks, &found);
@@ -108,14 +114,20 @@ TEST(GrownKdTreeTest, FindsWhatFlannsGrownTreeFinds) {
         }
         if (q == rows - 1) continue;
         ASSERT_EQ(many[q].size(), static_cast<size_t>(k));
+        ASSERT_EQ(in_step[q].size(), static_cast<size_t>(k));
         for (int j = 0; j < k; ++j) {
           if (many[q][j].point != static_cast<int32_t>(index_matrix[q][j]) ||
               many[q][j].distance != distance_matrix[q][j]) {
+            ++differences_many;
+          }
+          if (in_step[q][j].point != static_cast<int32_t>(index_matrix[q][j]) ||
+              in_step[q][j].distance != distance_matrix[q][j]) {
             ++differences_in_step;
           }
         }
       }
       EXPECT_EQ(differences, 0);
+      EXPECT_EQ(differences_many, 0);
       EXPECT_EQ(differences_in_step, 0);
     }
   }
