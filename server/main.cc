@@ -6,6 +6,8 @@
 #include <optional>
 #include <string>
 
+#include <opencv2/core.hpp>
+
 #include "common/pipeline/flags.h"
 #include "common/util/logging.h"
 #include "common/util/options.h"
@@ -43,6 +45,7 @@ int Main(int argc, char** argv) {
   std::string auth = "on";
   FlagParser parser(kUsage);
   std::string robots;
+  int opencv_threads = 1;
   parser.Add("db", &options.db_path,
              "the map: a SQLite file (created when missing), or a PostgreSQL URL such as "
              "postgresql://user@host/placerec or postgresql:///placerec?host=/run/pg (a unix "
@@ -71,6 +74,11 @@ int Main(int argc, char** argv) {
              "each key's counters are remembered against replays");
   parser.Add("workers", &options.workers,
              "worker threads running the pipeline (one robot's frames never run at once)");
+  parser.Add("opencv-threads", &opencv_threads,
+             "threads OpenCV's own parallel loops (SIFT) may use in this process; 1: each frame "
+             "runs on its worker's thread alone and --workers runs frames side by side; 0: "
+             "OpenCV's default (all cores; one worker then finished fewer frames per second, "
+             "docs/results.md \"Two workers\")");
   parser.Add("queue", &options.queue_capacity,
              "frames waiting for a worker before new ones are answered 'overloaded'");
   parser.Add("status-period", &options.status_period_s,
@@ -121,6 +129,12 @@ int Main(int argc, char** argv) {
     std::fprintf(stderr, "placerec-server: %s\n", error.c_str());
     return 2;
   }
+  if (opencv_threads < 0 || opencv_threads > 256) {
+    std::fprintf(stderr, "placerec-server: --opencv-threads must be between 0 and 256\n");
+    return 2;
+  }
+  // A process-wide setting of OpenCV: 0 asks for its default.
+  cv::setNumThreads(opencv_threads == 0 ? -1 : opencv_threads);
   if (options.auth.enabled && options.auth.keys_file.empty()) {
     std::fprintf(stderr, "placerec-server: %s\n", MissingKeysAdvice().c_str());
     return 2;

@@ -1353,9 +1353,9 @@ TEST(ServiceCommandLineTest, HelpAndErrors) {
   const std::string client = BinaryPath("placerec-client");
   auto [help_rc, help] = run({server, "--help"});
   EXPECT_EQ(help_rc, 0);
-  for (const char* flag :
-       {"--db", "--lcm-url", "--keys", "--auth", "--auth-window", "--workers", "--queue",
-        "--status-period", "--loop-min-score", "--max-image-width", "--landmark-history"}) {
+  for (const char* flag : {"--db", "--lcm-url", "--keys", "--auth", "--auth-window", "--workers",
+                           "--opencv-threads", "--queue", "--status-period", "--loop-min-score",
+                           "--max-image-width", "--landmark-history"}) {
     EXPECT_NE(help.find(flag), std::string::npos) << flag;
   }
   auto [bad_rc, bad] = run({server, "--no-such-flag"});
@@ -1364,6 +1364,9 @@ TEST(ServiceCommandLineTest, HelpAndErrors) {
   auto [workers_rc, workers] = run({server, "--workers", "0"});
   EXPECT_EQ(workers_rc, 2);
   EXPECT_NE(workers.find("--workers"), std::string::npos) << workers;
+  auto [threads_rc, threads] = run({server, "--opencv-threads", "-1"});
+  EXPECT_EQ(threads_rc, 2);
+  EXPECT_NE(threads.find("--opencv-threads"), std::string::npos) << threads;
   auto [url_rc, url] =
       run({server, "--db", dir + "/map.db", "--auth", "off"}, "LCM_DEFAULT_URL=nosuchprovider://x");
   EXPECT_EQ(url_rc, 1);
