@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <type_traits>
 
 #include <flann/util/result_set.h>
 
@@ -254,20 +255,20 @@ void GrownKdTree::SearchMany(const uint8_t* queries, size_t count, size_t stride
   if (nodes_.empty() || k <= 0 || count == 0) return;
   const bool in_step = order == Order::kInStep ||
                        (order == Order::kAuto && points_.size() >= kInStepMinPoints && count > 1);
+  // FLANN keeps more than kFlannHeapThreshold neighbours in another result set (the pointer
+  // names the type only).
+  const auto search = [&](auto* result_type) {
+    using Result = std::remove_pointer_t<decltype(result_type)>;
+    if (in_step) {
+      SearchManyWith<Result>(queries, count, stride, k, checks, found);
+    } else {
+      SearchOneByOneWith<Result>(queries, count, stride, k, checks, found);
+    }
+  };
   if (k > kFlannHeapThreshold) {
-    using Result = flann::KNNResultSet2<float>;
-    if (in_step) {
-      SearchManyWith<Result>(queries, count, stride, k, checks, found);
-    } else {
-      SearchOneByOneWith<Result>(queries, count, stride, k, checks, found);
-    }
+    search(static_cast<flann::KNNResultSet2<float>*>(nullptr));
   } else {
-    using Result = flann::KNNSimpleResultSet<float>;
-    if (in_step) {
-      SearchManyWith<Result>(queries, count, stride, k, checks, found);
-    } else {
-      SearchOneByOneWith<Result>(queries, count, stride, k, checks, found);
-    }
+    search(static_cast<flann::KNNSimpleResultSet<float>*>(nullptr));
   }
 }
 
