@@ -7,6 +7,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cstdlib>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -42,6 +43,9 @@ int64_t NowUtime() {
       .count();
 }
 
+// ServerOptions::workers at most (and the most that 0, one per core, gives).
+constexpr int kMaxWorkers = 256;
+
 std::string DescribeUrl(const std::string& url) {
   if (!url.empty()) return url;
   const char* env = std::getenv("LCM_DEFAULT_URL");
@@ -66,13 +70,20 @@ std::string OpenAdvice(const std::string& url) {
 
 }  // namespace
 
+int ServerOptions::ResolvedWorkers() const {
+  if (workers > 0) return workers;
+  // hardware_concurrency() is 0 when the machine does not say.
+  const int cores = static_cast<int>(std::thread::hardware_concurrency());
+  return std::clamp(cores, 1, kMaxWorkers);
+}
+
 bool ServerOptions::Check(std::string* error) const {
   if (db_path.empty()) {
     *error = "--db must name the map file";
     return false;
   }
-  if (workers < 1 || workers > 256) {
-    *error = "--workers must be between 1 and 256";
+  if (workers < 0 || workers > kMaxWorkers) {
+    *error = "--workers must be between 1 and 256, or 0 for one per core";
     return false;
   }
   if (queue_capacity < 1) {
@@ -172,7 +183,7 @@ Server::Server(const ServerOptions& options, std::unique_ptr<PlaceMap> map,
     networks_.push_back(std::make_unique<Network>(this, networks_.size(), url));
   }
   queue_ = std::make_unique<LaneWorkQueue<Job>>(
-      options_.workers, options_.queue_capacity, [this](Job& job) { Work(job); },
+      options_.ResolvedWorkers(), options_.queue_capacity, [this](Job& job) { Work(job); },
       [this] { idle_since_.store(std::chrono::steady_clock::now().time_since_epoch().count()); });
 }
 
@@ -197,7 +208,7 @@ Status Server::Run() {
   LOG(INFO) << "placerec-server " << PLACEREC_VERSION << " serving " << map_->Describe() << " ("
             << counts.places << " places, " << counts.landmarks << " landmarks, loaded in "
             << map_->open_ms() << " ms) over " << DescribeUrls(options_.lcm_urls) << " with "
-            << options_.workers << " workers, queue of " << options_.queue_capacity;
+            << queue_->workers() << " workers, queue of " << options_.queue_capacity;
   if (options_.auth.enabled) {
     std::string ids;
     for (const std::string& id : auth_.KeyIds()) ids += (ids.empty() ? "" : ", ") + id;

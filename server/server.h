@@ -52,8 +52,10 @@ struct ServerOptions {
   // network the frame came from; heartbeats go to all. Empty (or an empty URL) uses LCM's
   // default: the LCM_DEFAULT_URL environment variable, else udpm://239.255.76.67:7667?ttl=0.
   std::vector<std::string> lcm_urls;
-  // Worker threads running the pipeline; frames of one robot never run at once.
-  int workers = 2;
+  // Worker threads running the pipeline; frames of one robot never run at once. 0: one per core
+  // of the machine (ResolvedWorkers), so that with OpenCV held to one thread per frame
+  // (--opencv-threads 1) a larger machine still keeps every core busy when robots are many.
+  int workers = 0;
   // Frames waiting for a worker before new ones are answered "overloaded".
   int queue_capacity = 16;
   // Seconds between two heartbeats on PLACEREC_STATUS.
@@ -72,6 +74,9 @@ struct ServerOptions {
   RecognizerOptions recognizer;
 
   bool Check(std::string* error) const;
+  // The worker threads the server runs: `workers`, or for 0 the machine's cores (at least 1, at
+  // most 256).
+  int ResolvedWorkers() const;
 };
 
 class Server {

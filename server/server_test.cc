@@ -6,6 +6,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -98,7 +99,7 @@ TEST(ServerOptionsTest, DefaultsPassAndBadValuesNameTheirFlag) {
   EXPECT_TRUE(ServerOptions().Check(&error)) << error;
   options_test::ExpectEachRefusedByName<ServerOptions>({
       {"--db", [](ServerOptions* o) { o->db_path.clear(); }},
-      {"--workers", [](ServerOptions* o) { o->workers = 0; }},
+      {"--workers", [](ServerOptions* o) { o->workers = -1; }},
       {"--workers", [](ServerOptions* o) { o->workers = 257; }},
       {"--queue", [](ServerOptions* o) { o->queue_capacity = 0; }},
       {"--status-period", [](ServerOptions* o) { o->status_period_s = 0; }},
@@ -139,7 +140,7 @@ TEST(ServerOptionsTest, DefaultsPassAndBadValuesNameTheirFlag) {
 TEST(ServerTest, CreateSaysWhyItCannotServe) {
   const TempDir dir("create");
   ServerOptions bad = TestOptions(dir.File("map.db"));
-  bad.workers = 0;
+  bad.workers = -1;
   StatusOr<std::unique_ptr<Server>> server = Server::Create(bad);
   ASSERT_FALSE(server.ok());
   EXPECT_EQ(server.status().code(), StatusCode::kInvalidArgument);
@@ -230,6 +231,17 @@ TEST(ServerTest, CreateRefusesToServeWithoutKeys) {
   ASSERT_FALSE(server.ok());
   EXPECT_NE(server.status().message().find("missing_keys"), std::string::npos)
       << server.status().message();
+}
+
+// By default a server runs one worker per core (OpenCV holds each frame to one thread, so fewer
+// would leave cores idle on a larger machine); a given count is kept.
+TEST(ServerOptionsTest, WorkersDefaultToOnePerCore) {
+  ServerOptions options;
+  const int cores = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  EXPECT_EQ(options.workers, 0);
+  EXPECT_EQ(options.ResolvedWorkers(), std::min(cores, 256));
+  options.workers = 3;
+  EXPECT_EQ(options.ResolvedWorkers(), 3);
 }
 
 // A server opened on an existing map serves all of it; before any frame the heartbeat reports

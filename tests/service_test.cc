@@ -1361,7 +1361,7 @@ TEST(ServiceCommandLineTest, HelpAndErrors) {
   auto [bad_rc, bad] = run({server, "--no-such-flag"});
   EXPECT_EQ(bad_rc, 2);
   EXPECT_NE(bad.find("no-such-flag"), std::string::npos) << bad;
-  auto [workers_rc, workers] = run({server, "--workers", "0"});
+  auto [workers_rc, workers] = run({server, "--workers", "-1"});
   EXPECT_EQ(workers_rc, 2);
   EXPECT_NE(workers.find("--workers"), std::string::npos) << workers;
   auto [threads_rc, threads] = run({server, "--opencv-threads", "-1"});
