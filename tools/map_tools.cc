@@ -355,8 +355,13 @@ StatusOr<int64_t> ParseTimeArgument(const std::string& text) {
     if (ok && at < text.size() && text[at] == 'Z') ++at;
     ok = ok && at == text.size();
   }
-  ok = ok && month >= 1 && month <= 12 && day >= 1 && day <= 31 && hour >= 0 && hour < 24 &&
-       minute >= 0 && minute < 60 && second >= 0 && second < 61 && year >= 1970;
+  // A day the month does not have (2011-02-29, 2011-04-31) is refused, not rolled over into the
+  // next month.
+  static constexpr int kDaysInMonth[12] = {31, 29, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31};
+  const bool leap = (year % 4 == 0 && year % 100 != 0) || year % 400 == 0;
+  ok = ok && month >= 1 && month <= 12 && day >= 1 && day <= kDaysInMonth[month - 1] &&
+       (month != 2 || day <= 28 || leap) && hour >= 0 && hour < 24 && minute >= 0 && minute < 60 &&
+       second >= 0 && second < 60 && year >= 1970;
   if (!ok) {
     return Status::InvalidArgument(
         "cannot read the time '" + text +
@@ -379,6 +384,13 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
   if (!std::filesystem::exists(path, ignored)) {
     return Status::NotFound("no placerec map at " + path);
   }
+  // A server holding the map in another process locks only its shared-memory file while idle,
+  // which the exclusive lock below does not see: look there first.
+  if (!options.dry_run) {
+    const StatusOr<bool> elsewhere = SqliteOpenElsewhere(path);
+    if (!elsewhere.ok()) return elsewhere.status();
+    if (*elsewhere) return Status::IoError("map " + path + kHeldOpenAdvice);
+  }
   StatusOr<SqliteConnection> opened =
       OpenSqliteDatabase(path, SQLITE_OPEN_READWRITE, options.busy_timeout_ms);
   if (!opened.ok()) return opened.status();
@@ -390,9 +402,9 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
                            "prune a writable copy");
   }
   // Exclusive locking mode before the first access: the connection takes the file's exclusive
-  // lock and keeps it until it closes. A server holds a shared lock on its map for as long as it
-  // has it open (WAL mode), so a map in use is refused here instead of changing under the server.
-  // A dry run only reads (one snapshot), and may run beside a server.
+  // lock and keeps it until it closes, so a server that starts meanwhile cannot open the map, and
+  // one in this process (whose locks SQLite shares) is refused here. A dry run only reads (one
+  // snapshot), and may run beside a server.
   if (!options.dry_run) {
     PLACEREC_RETURN_IF_ERROR(SqliteExec(c, "PRAGMA locking_mode = EXCLUSIVE", path));
   }
@@ -687,7 +699,9 @@ StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, cons
     report.renamed.emplace_back(robot, name);
   }
 
-  const std::string temporary = out + ".merging";
+  // This process's own work file: another merge into the same `out` (or what a killed one left)
+  // is not touched; of two merges racing for `out`, the hard link below lets only one in.
+  const std::string temporary = out + ".merging." + std::to_string(getpid());
   RemoveMapFiles(temporary);
   {
     SqliteStoreOptions write;

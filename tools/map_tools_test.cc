@@ -1,5 +1,8 @@
 #include "tools/map_tools.h"
 
+#include <sys/wait.h>
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -261,6 +264,47 @@ TEST(MapToolsTest, PruneRefusesAMapHeldOpenAndLeavesItUnchanged) {
   EXPECT_TRUE(PruneMap(map.path(), options).ok());  // closed: allowed
 }
 
+// A server in another process holds its map with no lock on the map file while it is idle (WAL
+// mode: its connection locks only the shared-memory file, MAP-shm). Prune must still refuse the
+// map: changed under a server, the map was left corrupt.
+TEST(MapToolsTest, PruneRefusesAMapHeldOpenByAnotherProcess) {
+  TempMap map("prune_held_elsewhere");
+  BuildSite(map.path());
+  int ready[2], done[2];
+  ASSERT_EQ(pipe(ready), 0);
+  ASSERT_EQ(pipe(done), 0);
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    // The holder: the map opened as the server opens it, idle, until the parent is done.
+    std::unique_ptr<LandmarkStore> holder = Open(map.path());
+    const bool opened = holder != nullptr && holder->Checksum().ok();
+    char byte = opened ? 1 : 0;
+    if (write(ready[1], &byte, 1) != 1) _exit(2);
+    if (read(done[0], &byte, 1) != 1) _exit(3);
+    holder.reset();
+    _exit(opened ? 0 : 1);
+  }
+  char byte = 0;
+  ASSERT_EQ(read(ready[0], &byte, 1), 1);
+  ASSERT_EQ(byte, 1) << "the holder could not open the map";
+  PruneOptions options;
+  options.robot = "left";
+  const StatusOr<PruneReport> report = PruneMap(map.path(), options);
+  byte = 0;
+  ASSERT_EQ(write(done[1], &byte, 1), 1);
+  int status = 0;
+  ASSERT_EQ(waitpid(child, &status, 0), child);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status;
+  for (const int fd : {ready[0], ready[1], done[0], done[1]}) close(fd);
+  ASSERT_FALSE(report.ok()) << "pruned " << report->places << " places under another process";
+  EXPECT_NE(report.status().message().find("open in another process"), std::string::npos)
+      << report.status().ToString();
+  const StatusOr<MapInfo> info = ReadMapInfo(map.path());
+  ASSERT_TRUE(info.ok()) << info.status().ToString();
+  EXPECT_TRUE(PruneMap(map.path(), options).ok());  // the holder is gone: allowed
+}
+
 // The descriptor index's neighbours of every stored descriptor, and their distances.
 std::string IndexAnswers(const std::string& path) {
   StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(Open(path), LandmarkIndexOptions());
@@ -322,6 +366,14 @@ TEST(MapToolsTest, ParseTimeArgument) {
   EXPECT_EQ(*ParseTimeArgument("2025-12-01T01:02:03Z"), (1764547200LL + 3723) * 1000000);
   EXPECT_FALSE(ParseTimeArgument("yesterday").ok());
   EXPECT_FALSE(ParseTimeArgument("2025-13-01").ok());
+  // Days a month does not have are refused, not rolled over.
+  EXPECT_FALSE(ParseTimeArgument("2011-02-29").ok());
+  EXPECT_FALSE(ParseTimeArgument("2011-02-30").ok());
+  EXPECT_FALSE(ParseTimeArgument("2011-04-31").ok());
+  EXPECT_FALSE(ParseTimeArgument("2100-02-29").ok());
+  EXPECT_EQ(*ParseTimeArgument("2012-02-29"), 1330473600LL * 1000000);
+  EXPECT_EQ(*ParseTimeArgument("2000-02-29"), 951782400LL * 1000000);
+  EXPECT_TRUE(ParseTimeArgument("2011-12-31T23:59:59Z").ok());
   EXPECT_FALSE(ParseTimeArgument("2025-12-01T01").ok());
 }
 
@@ -329,6 +381,31 @@ TEST(MapToolsTest, MergedRobotIdRule) {
   EXPECT_EQ(MergedRobotId("r", {"a"}, {"a", "r"}, ".b"), "r");
   EXPECT_EQ(MergedRobotId("r", {"r"}, {"r"}, ".b"), "r.b");
   EXPECT_EQ(MergedRobotId("r", {"r", "r.b"}, {"r", "r.b"}, ".b"), "r.b2");
+}
+
+// Two merges into the same output at once: neither removes the other's work in progress (one
+// had reported a map written that the other had replaced with its own half-written one).
+TEST(MapToolsTest, MergeLeavesAnotherMergesWorkAlone) {
+  TempMap a("merge_race_a");
+  TempMap b("merge_race_b");
+  TempMap c("merge_race_c");
+  BuildSite(a.path());
+  BuildSite(b.path());
+  const std::vector<std::string> others = {c.path() + ".merging", c.path() + ".merging.1"};
+  for (const std::string& other : others) std::ofstream(other) << "another merge's work";
+  StatusOr<MergeReport> report = MergeMaps(a.path(), b.path(), c.path(), MergeOptions());
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  for (const std::string& other : others) {
+    std::ifstream in(other);
+    std::string text;
+    std::getline(in, text);
+    EXPECT_EQ(text, "another merge's work") << other;
+    std::filesystem::remove(other);
+  }
+  // The second merge into the same output is refused and leaves the first's map whole.
+  StatusOr<MergeReport> again = MergeMaps(a.path(), b.path(), c.path(), MergeOptions());
+  EXPECT_FALSE(again.ok());
+  EXPECT_EQ(Places(c.path()).size(), 2 * Places(a.path()).size());
 }
 
 TEST(MapToolsTest, MergeKeepsBothMapsContentsAndRobotsApart) {
@@ -348,7 +425,7 @@ TEST(MapToolsTest, MergeKeepsBothMapsContentsAndRobotsApart) {
   EXPECT_EQ(report->landmarks, 13);
   ASSERT_EQ(report->renamed.size(), 1u);
   EXPECT_EQ(report->renamed[0], std::make_pair(std::string("right"), std::string("right.b")));
-  EXPECT_FALSE(std::filesystem::exists(c.path() + ".merging"));
+  EXPECT_FALSE(std::filesystem::exists(c.path() + ".merging." + std::to_string(getpid())));
 
   // Content preserved: C's places and landmarks are A's then B's, ids shifted, B's robot renamed,
   // sightings following their landmarks.
@@ -419,7 +496,7 @@ TEST(MapToolsTest, MergeRefusesARenamedRobotIdOverTheLimit) {
   EXPECT_NE(report.status().message().find("47-byte"), std::string::npos)
       << report.status().ToString();
   EXPECT_FALSE(std::filesystem::exists(c.path()));
-  EXPECT_FALSE(std::filesystem::exists(c.path() + ".merging"));
+  EXPECT_FALSE(std::filesystem::exists(c.path() + ".merging." + std::to_string(getpid())));
   MergeOptions short_suffix;
   short_suffix.suffix = "b";
   EXPECT_TRUE(MergeMaps(a.path(), b.path(), c.path(), short_suffix).ok());

@@ -145,7 +145,10 @@ int MergeCommand(int argc, char** argv) {
       "(new ids; sightings follow their landmarks). Robot ids stay apart: a robot id of B that\n"
       "A also has becomes ID + suffix (ID.b; ID.b2, ID.b3, ... when that is taken in A or B).\n"
       "A new id over the 47-byte robot id limit is refused before anything is written. C must\n"
-      "not exist; it is written to C.merging and renamed when complete. Reads A and B only.");
+      "not exist; it is written to C.merging.<pid> and linked to C when complete. A and B are\n"
+      "opened as the server opens a map: their content is not changed, but a map of an older\n"
+      "schema version is upgraded in place, and a write-ahead log (MAP-wal) a killed server\n"
+      "left is folded into the file.");
   parser.AddPositional("maps", &maps, "the two maps A and B");
   parser.AddRequired("out", &out, "the merged map to write (must not exist)");
   parser.Add("suffix", &options.suffix,
@@ -187,7 +190,8 @@ int CheckCommand(int argc, char** argv) {
       "place, every sighting's place and landmark), each place's landmark count, then every\n"
       "place and landmark read back and validated (reading stops at the first damaged\n"
       "landmark). Exit code 0 when the map is whole, 1 when it is damaged or cannot be read.\n"
-      "Reads only (a schema version 1 map is upgraded to version 2 as the server would).");
+      "Changes no content; but as the server would, it upgrades a map of an older schema\n"
+      "version in place and folds a write-ahead log (MAP-wal) a killed server left into the file.");
   parser.AddRequired("db", &db, "map file");
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-map check")) {
     return *exit;

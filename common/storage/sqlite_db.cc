@@ -1,5 +1,9 @@
 #include "common/storage/sqlite_db.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cstring>
 
 #include "common/util/logging.h"
@@ -100,6 +104,31 @@ int SqliteTransaction::Commit() {
   const int rc = sqlite3_exec(db_, "COMMIT", nullptr, nullptr, nullptr);
   if (rc == SQLITE_OK) active_ = false;
   return rc;
+}
+
+StatusOr<bool> SqliteOpenElsewhere(const std::string& path) {
+  const std::string shm = path + "-shm";
+  const int fd = open(shm.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    if (errno == ENOENT) return false;
+    return Status::IoError("cannot examine " + shm + ": " + std::strerror(errno));
+  }
+  // Would a write lock over the whole file conflict with anybody's lock? F_OFD_GETLK reports
+  // conflicts with every other lock holder, this process's ordinary (POSIX) locks included.
+  struct flock probe = {};
+  probe.l_type = F_WRLCK;
+  probe.l_whence = SEEK_SET;
+  probe.l_start = 0;
+  probe.l_len = 0;  // to the end
+  const int rc = fcntl(fd, F_OFD_GETLK, &probe);
+  const int error = errno;
+  // Closing a descriptor drops this process's POSIX locks on the file (SQLite's, of a connection
+  // of this process to the same map): the caller asks before opening the map itself, and a map
+  // held in this process is refused by SQLite's own locking, so none is in use here.
+  close(fd);
+  if (rc != 0)
+    return Status::IoError("cannot examine the locks of " + shm + ": " + std::strerror(error));
+  return probe.l_type != F_UNLCK;
 }
 
 }  // namespace placerec
