@@ -179,6 +179,11 @@ TEST(EndToEndTest, CorridorLoopSceneChanges) {
   ASSERT_LT(best_iou, header.size());
   ASSERT_LT(in_view, header.size());
   ASSERT_LT(difference, header.size());
+  const size_t found_class = column("found_class"),
+               class_confidence = column("found_class_confidence");
+  ASSERT_LT(found_class, header.size());
+  ASSERT_LT(class_confidence, header.size());
+  const double min_class_confidence = RecognizerOptions().change.min_class_confidence;
   int hits = 0;
   while (std::getline(cases, line)) {
     removed += line.find(",removed,") != std::string::npos;
@@ -190,11 +195,17 @@ TEST(EndToEndTest, CorridorLoopSceneChanges) {
       ++hits;
       EXPECT_GT(std::stod(fields[in_view]), 0.3) << line;
       EXPECT_GT(std::stod(fields[difference]), 0.1) << line;
+      // A class is named only where the classifier was sure enough of it: an alarm says
+      // "object" rather than the least unlikely of the classes.
+      if (!fields[found_class].empty()) {
+        EXPECT_GE(std::stod(fields[class_confidence]), min_class_confidence) << line;
+      }
     }
   }
   EXPECT_EQ(removed, j["removed"]["cases"].get<int>());
   EXPECT_EQ(unchanged, j["unchanged"].get<int>());
   EXPECT_EQ(hits, j["appeared"]["found"].get<int>() + j["removed"]["found"].get<int>());
+  EXPECT_EQ(j["appeared_classes"]["found"].get<int>(), j["appeared"]["found"].get<int>());
 
   // The changed run to replay live (--write-run): every frame, each revisit's case as counted,
   // the changed frames written with the change inside their true box.

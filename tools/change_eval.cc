@@ -143,6 +143,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   const int frames = eval.max_frames > 0 ? std::min<int>(eval.max_frames, run.frames.size())
                                          : static_cast<int>(run.frames.size());
   ChangeTally pasted, removed;
+  ClassTally classes;  // of the pasted objects found
   int unchanged = 0, unchanged_checked = 0, false_alarms = 0, loop_closures = 0;
   int revisits = 0;
   std::vector<double> change_ms, sift_ms;
@@ -169,7 +170,8 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   }
   std::ofstream cases(eval.out_dir + "/revisits.csv");
   cases << "frame,case,truth_x,truth_y,truth_w,truth_h,loop_closure,best_inliers,compared,why_not,"
-           "changes,best_iou,boxes,truth_in_view,truth_difference,threshold,dropped_by,dropped\n";
+           "changes,best_iou,boxes,truth_in_view,truth_difference,threshold,dropped_by,dropped,"
+           "pasted_class,found_class,found_class_confidence\n";
   for (int i = 0; i < frames; ++i) {
     const RunFrame& frame = run.frames[i];
     StatusOr<cv::Mat> image = ReadImageFile(frame.image);
@@ -292,11 +294,16 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
         const char* what_case = ChangeCaseKindName(written_case.kind);
         double best = 0;
         std::string boxes;
+        const SceneChange* found = nullptr;  // the change over the truth (best IoU), if a hit
         for (const SceneChange& change : report.changes) {
           const double to_frame = 1.0 / asked.scale;
           const cv::Rect box(cv::Point(change.box.tl() * to_frame),
                              cv::Point(change.box.br() * to_frame));
-          best = std::max(best, BoxIoU(box, truth));
+          const double iou = BoxIoU(box, truth);
+          if (iou > best) {
+            best = iou;
+            if (iou >= eval.min_iou) found = &change;
+          }
           boxes += (boxes.empty() ? "" : ";") + std::to_string(box.x) + " " +
                    std::to_string(box.y) + " " + std::to_string(box.width) + " " +
                    std::to_string(box.height) + " " + std::to_string(change.confidence);
@@ -327,7 +334,11 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
         for (const auto& [rule, count] : dropped_rules) {
           cases << (rule == dropped_rules.begin()->first ? "" : " ") << rule << ':' << count;
         }
-        cases << "\"\n";
+        cases << "\"," << pasted_class << ',' << (found ? found->object_class : "") << ','
+              << (found ? found->class_confidence : 0.f) << '\n';
+        if (found != nullptr && !removal) {
+          classes.Add(pasted_class, found->object_class, found->class_confidence);
+        }
       }
       if (!kind.empty()) {
         char name[256];
@@ -365,6 +376,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
                          {"segment_difference", options.change.segment_difference}};
   j["appeared"] = ChangeTallyJson(pasted);
   j["removed"] = ChangeTallyJson(removed);
+  j["appeared_classes"] = ClassTallyJson(classes);
   j["detection_recall"] = j["appeared"]["detection_recall"];
   j["detection_recall_2pct"] = j["appeared"]["detection_recall_2pct"];
   j["localisation_iou"] = j["appeared"]["localisation_iou_median"];

@@ -30,6 +30,35 @@ void ChangeTally::Add(double share, bool found, double iou) {
   ious.push_back(iou);
 }
 
+bool ClassAgrees(const std::string& pasted, const std::string& given) {
+  if (given.empty()) return false;
+  if (pasted == "pedestrian") return given == "body";
+  if (pasted == "bicyclist") return given == "bicycle" || given == "body";
+  if (pasted == "signsymbol") return given == "sign";
+  return pasted == given;
+}
+
+nlohmann::json ClassTallyJson(const ClassTally& tally) {
+  const auto count = [&](float min_confidence, bool agreeing) {
+    int n = 0;
+    for (const ClassTally::Case& c : tally.cases) {
+      if (c.given.empty() || c.confidence < min_confidence) continue;
+      n += !agreeing || ClassAgrees(c.pasted, c.given) ? 1 : 0;
+    }
+    return n;
+  };
+  nlohmann::json j;
+  j["found"] = tally.cases.size();
+  j["labelled"] = count(0.f, false);
+  j["agreeing"] = count(0.f, true);
+  j["at_confidence"] = nlohmann::json::array();
+  for (const float at : {0.5f, 0.6f, 0.7f, 0.8f, 0.9f}) {
+    j["at_confidence"].push_back(
+        {{"min_confidence", at}, {"labelled", count(at, false)}, {"agreeing", count(at, true)}});
+  }
+  return j;
+}
+
 double ShareOf(int hits, int cases) { return cases > 0 ? static_cast<double>(hits) / cases : 0.0; }
 
 nlohmann::json ChangeTallyJson(const ChangeTally& t) {

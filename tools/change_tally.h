@@ -2,6 +2,7 @@
 // changes made to revisits were found, counted by the object's share of the frame.
 #pragma once
 
+#include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -27,6 +28,31 @@ struct ChangeTally {
 // {cases, found, compared, detection_recall, by_size{band: {cases, found, recall}},
 // detection_recall_2pct (objects of at least 2 % of the frame), localisation_iou_median}.
 nlohmann::json ChangeTallyJson(const ChangeTally& tally);
+
+// The classes given to the pasted objects that were found (SceneChange::object_class), against
+// the class each was cut as.
+struct ClassTally {
+  struct Case {
+    std::string pasted;  // the dataset's class (CamVid's car, pedestrian, signsymbol, ...)
+    std::string given;   // the change's class ("" when it was given none)
+    float confidence = 0;
+  };
+  std::vector<Case> cases;
+
+  void Add(const std::string& pasted, const std::string& given, float confidence) {
+    cases.push_back({pasted, given, confidence});
+  }
+};
+
+// Whether `given`, a class of the object models (MSRC-21 names), names an object cut as
+// `pasted`: CamVid's car is a car, pedestrian a body, bicyclist a bicycle or a body, signsymbol a
+// sign; other names must be equal.
+bool ClassAgrees(const std::string& pasted, const std::string& given);
+
+// {found, labelled, agreeing, at_confidence: [{min_confidence, labelled, agreeing}, ...]}: how
+// many found objects got a class and how many the right one, keeping classes of at least each
+// confidence.
+nlohmann::json ClassTallyJson(const ClassTally& tally);
 
 // hits / cases, 0 without cases.
 double ShareOf(int hits, int cases);

@@ -74,6 +74,9 @@ bool ChangeOptions::Check(std::string* error) const {
   }
   if (max_changes < 1) return fail("change max_changes must be at least 1");
   if (max_references < 1) return fail("change max_references must be at least 1");
+  if (!(min_class_confidence >= 0.0 && min_class_confidence <= 1.0)) {
+    return fail("change min class confidence must be in [0, 1]");
+  }
   if (!(reference_window_seconds >= 0.0 && reference_window_seconds <= 86400.0)) {
     return fail("change reference window must be in [0, 86400] seconds (a day)");
   }
@@ -381,7 +384,12 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
   // thumbnail).
   std::vector<std::pair<cv::Mat, cv::Mat>> compared;
   // Stored landmarks mapped into the frame (thumbnail pixels) that the frame did not match.
-  std::vector<std::pair<cv::Rect, std::string>> unmatched_landmarks;
+  struct UnmatchedLandmark {
+    cv::Rect box;
+    std::string name;  // "" when not named (see ChangeReference)
+    float confidence = 0;
+  };
+  std::vector<UnmatchedLandmark> unmatched_landmarks;
   // The frame's segments at the thumbnail's size, and per segment the smallest difference of its
   // means over the references that see enough of it (negative: none does).
   cv::Mat segment_labels;
@@ -498,9 +506,16 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
       cv::Rect in_frame =
           cv::boundingRect(mapped) & cv::Rect(0, 0, frame_size.width, frame_size.height);
       if (in_frame.area() <= 0) continue;
-      unmatched_landmarks.emplace_back(
-          Scaled(in_frame, to_thumb),
-          i < reference.landmark_classes.size() ? reference.landmark_classes[i] : std::string());
+      UnmatchedLandmark unmatched;
+      unmatched.box = Scaled(in_frame, to_thumb);
+      unmatched.confidence = i < reference.landmark_class_confidences.size()
+                                 ? reference.landmark_class_confidences[i]
+                                 : 0.f;
+      if (i < reference.landmark_classes.size() &&
+          unmatched.confidence >= options.min_class_confidence) {
+        unmatched.name = reference.landmark_classes[i];
+      }
+      unmatched_landmarks.push_back(std::move(unmatched));
     }
   }
   if (result.references == 0) return result;
@@ -595,12 +610,13 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
     change.box = Scaled(box, 1.0 / to_thumb) & cv::Rect(0, 0, frame_size.width, frame_size.height);
     // A stored landmark that was not matched where the region lies: it disappeared.
     double best = 0.3;
-    for (const auto& [landmark_box, name] : unmatched_landmarks) {
-      const double overlap = IoU(landmark_box, box);
+    for (const UnmatchedLandmark& landmark : unmatched_landmarks) {
+      const double overlap = IoU(landmark.box, box);
       if (overlap >= best) {
         best = overlap;
         change.kind = SceneChange::Kind::kDisappeared;
-        change.object_class = name;
+        change.object_class = landmark.name;
+        change.class_confidence = landmark.name.empty() ? 0.f : landmark.confidence;
       }
     }
     changes->push_back(change);

@@ -109,6 +109,11 @@ struct ChangeOptions {
   double segment_min_side = 0.04;
   // At most this many changes per frame, most confident first.
   int max_changes = 5;
+  // A change is named by an object class (seed Ch. 4) only when the classifier's confidence in
+  // it is at least this; otherwise it is an "object". 0.5 is where the boosted sum turns
+  // positive (ObjectLabel::confidence): the classifier votes for the class rather than against.
+  // The class it would name then is the least unlikely one, seldom the object's.
+  double min_class_confidence = 0.5;
   // Matched places of the best place's route (same robot, within this many seconds of it) that
   // serve as further references, at most max_references of them in all.
   int max_references = 3;
@@ -127,19 +132,22 @@ struct ChangeReference {
   int image_width = 0;  // width of the processed frame its points and boxes refer to (pixels)
   // Verified keypoint pairs (frame point, place point) in processed pixels of each frame.
   std::vector<std::pair<cv::Point2f, cv::Point2f>> point_pairs;
-  // The place's stored landmarks (place pixels) and their classes ("" unclassified), with
-  // whether the frame matched them.
+  // The place's stored landmarks (place pixels), their classes ("" unclassified) and how sure
+  // the classifier was of each (a disappearance is named by its landmark's class when at least
+  // min_class_confidence), with whether the frame matched them.
   std::vector<cv::Rect> landmark_boxes;
   std::vector<std::string> landmark_classes;
+  std::vector<float> landmark_class_confidences;
   std::vector<bool> landmark_matched;
 };
 
 struct SceneChange {
   enum class Kind { kAppeared = 0, kDisappeared = 1 };
   Kind kind = Kind::kAppeared;
-  cv::Rect box;              // in the frame, processed pixels
-  std::string object_class;  // "" when not classified
-  float confidence = 0.0f;   // in [0, 1]
+  cv::Rect box;                   // in the frame, processed pixels
+  std::string object_class;       // "" when not classified
+  float class_confidence = 0.0f;  // the classifier's, in [0, 1] (ObjectLabel::confidence)
+  float confidence = 0.0f;        // of the change, in [0, 1]
 };
 
 // A grown region that differed but was judged no change, and the rule that said so ("weak": no

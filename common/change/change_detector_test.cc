@@ -464,13 +464,24 @@ TEST(ChangeDetectorTest, MissingLandmarkIsADisappearance) {
   ChangeReference reference = Reference(scene, kOffset, gone);
   reference.landmark_boxes = {gone + kOffset, cv::Rect(0, 0, 50, 50)};
   reference.landmark_classes = {"sign", "building"};
+  reference.landmark_class_confidences = {0.9f, 0.8f};
   reference.landmark_matched = {false, true};
   const ChangeResult result =
       DetectChanges(Thumbnail(frame), frame.size(), {reference}, ChangeOptions());
   ASSERT_EQ(result.changes.size(), 1u);
   EXPECT_EQ(result.changes[0].kind, SceneChange::Kind::kDisappeared);
   EXPECT_EQ(result.changes[0].object_class, "sign");
+  EXPECT_FLOAT_EQ(result.changes[0].class_confidence, 0.9f);
   EXPECT_GT(IoU(result.changes[0].box, gone), 0.5);
+
+  // A landmark whose class the classifier voted against is gone all the same, but unnamed: the
+  // alarm says "object" rather than a class that is probably wrong.
+  reference.landmark_class_confidences = {0.2f, 0.8f};
+  const ChangeResult unsure =
+      DetectChanges(Thumbnail(frame), frame.size(), {reference}, ChangeOptions());
+  ASSERT_EQ(unsure.changes.size(), 1u);
+  EXPECT_EQ(unsure.changes[0].kind, SceneChange::Kind::kDisappeared);
+  EXPECT_EQ(unsure.changes[0].object_class, "");
 }
 
 TEST(ChangeDetectorTest, ObjectSeenFromANeighbourIsNotAChange) {

@@ -294,6 +294,9 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add("change-min-inlier-share", &o->change.min_inlier_share,
          "compare a place only when this share of the verified point pairs fits one homography "
          "(a view that a plane does not describe is not compared)");
+  p->Add("change-min-class-confidence", &o->change.min_class_confidence,
+         "name a change's object class only when the classifier is at least this sure of it "
+         "(0.5: its boosted sum is positive); otherwise the change is an 'object'");
   p->Add("change-max-references", &o->change.max_references,
          "stored views compared with a frame: the matched place and its route neighbours among "
          "the matches (a pixel differs only when every view that sees it differs)");

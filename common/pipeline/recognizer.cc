@@ -244,6 +244,7 @@ ChangeReport Recognizer::DetectSceneChanges(const FrameObservation& observation,
     for (const Landmark& landmark : map_->LandmarkOutlines(match.place.id)) {
       reference.landmark_boxes.push_back(landmark.box);
       reference.landmark_classes.push_back(landmark.object_class);
+      reference.landmark_class_confidences.push_back(landmark.class_confidence);
       reference.landmark_matched.push_back(matched.count(landmark.id) > 0);
     }
     references.push_back(std::move(reference));
@@ -274,7 +275,10 @@ ChangeReport Recognizer::DetectSceneChanges(const FrameObservation& observation,
       if (cover == nullptr) continue;
       const ObjectLabel label =
           labeler_->Classify(observation.filter_bank, *cover, &observation.textons);
-      change.object_class = label.name;
+      change.class_confidence = label.confidence;
+      if (label.confidence >= options_.change.min_class_confidence) {
+        change.object_class = label.name;
+      }
     }
   }
   if (!observation.preview.empty()) {
