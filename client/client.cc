@@ -389,24 +389,35 @@ FrameResult PlacerecClient::Wait(const PendingFrame& pending, double timeout_s) 
   const bool retries = options_.retry_after_s > 0 && pending.message != nullptr;
   auto next_send = pending.sent + retry;
   int sends = pending.sends;
+  const auto grace = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(kUntrustedGraceSeconds));
+  // Until when to wait for a signed answer once an untrusted one came.
+  const auto give_up = [&] {
+    const auto it = untrusted_.find(pending.request_id);
+    return it == untrusted_.end() ? deadline : std::min(deadline, it->second.first + grace);
+  };
   std::unique_lock lock(mutex_);
   for (;;) {
-    const auto until = retries ? std::min(deadline, next_send) : deadline;
-    if (answered_.wait_until(lock, until, [&] { return answers_.count(pending.request_id) > 0; }) ||
-        until == deadline) {
-      break;
+    if (answers_.count(pending.request_id) > 0) break;
+    const auto stop = give_up();
+    if (std::chrono::steady_clock::now() >= stop) break;
+    // Woken by an answer (trusted or not), or at the time to send again or to stop.
+    answered_.wait_until(lock, retries ? std::min(stop, next_send) : stop);
+    if (answers_.count(pending.request_id) > 0) break;
+    if (retries && std::chrono::steady_clock::now() >= next_send &&
+        std::chrono::steady_clock::now() < give_up()) {
+      // No answer yet: send the same frame (same request id) again.
+      lock.unlock();
+      if (PublishFrame(*pending.message) == 0) ++sends;
+      next_send = std::chrono::steady_clock::now() + retry;
+      lock.lock();
     }
-    // No answer yet: send the same frame (same request id) again.
-    lock.unlock();
-    if (PublishFrame(*pending.message) == 0) ++sends;
-    next_send = std::chrono::steady_clock::now() + retry;
-    lock.lock();
   }
   auto it = answers_.find(pending.request_id);
   auto untrusted = untrusted_.find(pending.request_id);
   std::string ignored;
   if (untrusted != untrusted_.end()) {
-    ignored = std::move(untrusted->second);
+    ignored = std::move(untrusted->second.said);
     untrusted_.erase(untrusted);
   }
   if (it == answers_.end()) {
@@ -417,12 +428,18 @@ FrameResult PlacerecClient::Wait(const PendingFrame& pending, double timeout_s) 
     timeout.sequence = pending.sequence;
     timeout.request_id = pending.request_id;
     char text[200];
-    std::snprintf(text, sizeof(text),
-                  "no answer within %.1f s, sent %d time%s (is placerec-server running on this "
-                  "LCM network?)",
-                  timeout_s, sends, sends == 1 ? "" : "s");
-    timeout.message = text;
-    if (!ignored.empty()) timeout.message += "; " + ignored;
+    if (ignored.empty()) {
+      std::snprintf(text, sizeof(text),
+                    "no answer within %.1f s, sent %d time%s (is placerec-server running on this "
+                    "LCM network?)",
+                    timeout_s, sends, sends == 1 ? "" : "s");
+      timeout.message = text;
+    } else {
+      // The server (or something posing as it) answered, but not with our key.
+      timeout.message = ignored +
+                        "; no answer signed with this key came: check that --key-file holds "
+                        "the key the server's --keys file has for this robot or device";
+    }
     return timeout;
   }
   FrameResult result = std::move(it->second);
@@ -463,11 +480,14 @@ void PlacerecClient::OnResult(const lcm::ReceiveBuffer* buffer, const std::strin
     std::lock_guard lock(mutex_);
     auto it = awaited_.find(answer.request_id);
     if (it != awaited_.end() && it->second.sequence == answer.sequence) {
-      untrusted_[answer.request_id] =
+      Untrusted& untrusted = untrusted_[answer.request_id];
+      if (untrusted.said.empty()) untrusted.first = now;
+      untrusted.said =
           "an answer not signed with key '" + key_->id + "' was ignored (" +
           (answer.key_id.empty() ? std::string("unsigned") : "signed as '" + answer.key_id + "'") +
           "; it said: " + WireStatusText(answer.status) +
           (answer.message.empty() ? "" : ": " + answer.message) + ")";
+      answered_.notify_all();
     }
     return;
   }

@@ -211,8 +211,13 @@ class PlacerecClient {
   // background. An error when LCM refuses the message.
   StatusOr<PendingFrame> Publish(const OutgoingFrame& frame);
   // Waits up to `timeout_s` for the answer, sending the frame again every
-  // options().retry_after_s; code kTimeout when none came.
+  // options().retry_after_s; code kTimeout when none came. When an answer not signed with our
+  // key came (a server that does not have it, or refuses it), it waits kUntrustedGraceSeconds
+  // more for a signed one and then gives up, naming what the untrusted answer said: a wrong key
+  // is told in seconds, not at the timeout, while a forged answer racing the server's cuts off
+  // only an answer slower than the grace.
   FrameResult Wait(const PendingFrame& pending, double timeout_s);
+  static constexpr double kUntrustedGraceSeconds = 10.0;
   // Publish, then wait options.timeout_s.
   FrameResult Send(const OutgoingFrame& frame);
 
@@ -245,8 +250,13 @@ class PlacerecClient {
   std::condition_variable answered_;
   std::unordered_map<int64_t, PendingFrame> awaited_;  // by request id
   std::unordered_map<int64_t, FrameResult> answers_;   // by request id
-  // Answers to awaited frames that were not signed with our key, by request id: what they said.
-  std::unordered_map<int64_t, std::string> untrusted_;
+  // Answers to awaited frames that were not signed with our key, by request id: what they said,
+  // and when the first came.
+  struct Untrusted {
+    std::string said;
+    std::chrono::steady_clock::time_point first;
+  };
+  std::unordered_map<int64_t, Untrusted> untrusted_;
   std::unique_ptr<SigningKey> key_;  // null: unsigned
   int64_t last_counter_ = 0;         // the last replay-guard counter signed (publish_mutex_)
   std::set<std::string> subscribed_;

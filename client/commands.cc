@@ -16,6 +16,7 @@
 #include "common/eval/run.h"
 #include "common/util/options.h"
 #include "common/util/paths.h"
+#include "proto/channels.h"
 
 namespace placerec {
 namespace {
@@ -56,6 +57,14 @@ StatusOr<std::unique_ptr<PlacerecClient>> ConnectOrReport(const ClientOptions& o
   return client;
 }
 
+// The exit code of a failed Connect: a keys file that does not read or lacks the key asked for
+// is a bad argument (2); LCM that does not open is a failure (1).
+int ConnectExitCode(const Status& status) {
+  return status.code() == StatusCode::kInvalidArgument || status.code() == StatusCode::kNotFound
+             ? kExitUsage
+             : kExitFailed;
+}
+
 // Sends each image as one frame of `robot`, one after the other; prints each answer.
 int SendImages(const std::vector<std::string>& images, const std::string& robot,
                int64_t first_sequence, bool insert, const ClientOptions& options,
@@ -64,8 +73,14 @@ int SendImages(const std::vector<std::string>& images, const std::string& robot,
     std::fprintf(stderr, "placerec-client %s: give at least one image (see --help)\n", command);
     return kExitUsage;
   }
+  // The server would refuse the id, and its refusal cannot be signed with the robot's key.
+  if (std::string why; !IsValidWireRobotId(robot, &why)) {
+    std::fprintf(stderr, "placerec-client %s: --robot '%s': %s\n", command, robot.c_str(),
+                 why.c_str());
+    return kExitUsage;
+  }
   StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, command);
-  if (!client.ok()) return kExitFailed;
+  if (!client.ok()) return ConnectExitCode(client.status());
   int failures = 0;
   int64_t sequence = first_sequence;
   for (const std::string& path : images) {
@@ -183,7 +198,7 @@ int StatusCommand(int argc, const char* const* argv) {
     return *exit;
   }
   StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "status");
-  if (!client.ok()) return kExitFailed;
+  if (!client.ok()) return ConnectExitCode(client.status());
   StatusOr<ServerStatus> status = (*client)->WaitForStatus(options.timeout_s);
   if (!status.ok()) {
     std::fprintf(stderr, "placerec-client status: %s\n", status.status().message().c_str());
@@ -231,7 +246,7 @@ int WatchCommand(int argc, const char* const* argv) {
     return kExitUsage;
   }
   if (!out.empty() && !MakeDirectories(out)) {
-    std::fprintf(stderr, "placerec-client watch: cannot create %s\n", out.c_str());
+    std::fprintf(stderr, "placerec-client watch: cannot create or write in %s\n", out.c_str());
     return kExitFailed;
   }
   std::ofstream alarms_csv;
@@ -250,7 +265,7 @@ int WatchCommand(int argc, const char* const* argv) {
   int alarms = 0;
   bool write_failed = false;
   StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "watch");
-  if (!client.ok()) return kExitFailed;
+  if (!client.ok()) return ConnectExitCode(client.status());
   const auto save = [](const std::string& path, const std::vector<uint8_t>& bytes) {
     if (bytes.empty()) return true;
     std::ofstream file(path, std::ios::binary);
@@ -358,7 +373,7 @@ int RunCommand(int argc, const char* const* argv, const std::string& data_defaul
     return kExitFailed;
   }
   StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "run");
-  if (!client.ok()) return kExitFailed;
+  if (!client.ok()) return ConnectExitCode(client.status());
   StatusOr<FeedReport> report = FeedRun(client->get(), *run, feed);
   if (!report.ok()) {
     std::fprintf(stderr, "placerec-client run: %s\n", report.status().ToString().c_str());
@@ -446,14 +461,14 @@ int FleetCommand(int argc, const char* const* argv, const std::string& data_defa
     return kExitFailed;
   }
   StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "fleet");
-  if (!client.ok()) return kExitFailed;
+  if (!client.ok()) return ConnectExitCode(client.status());
   StatusOr<FleetReport> report = RunFleet(client->get(), *run, fleet);
   if (!report.ok()) {
     std::fprintf(stderr, "placerec-client fleet: %s\n", report.status().ToString().c_str());
     return kExitFailed;
   }
   if (!MakeDirectories(out)) {
-    std::fprintf(stderr, "placerec-client fleet: cannot create %s\n", out.c_str());
+    std::fprintf(stderr, "placerec-client fleet: cannot create or write in %s\n", out.c_str());
     return kExitFailed;
   }
   std::ofstream(out + "/fleet.json") << report->summary.dump(2) << "\n";

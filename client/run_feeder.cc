@@ -312,7 +312,7 @@ StatusOr<FeedReport> FeedRun(PlacerecClient* client, const Run& run, const FeedO
 }
 
 Status WriteFeedReport(const std::string& out_dir, const FeedReport& report) {
-  if (!MakeDirectories(out_dir)) return Status::IoError("cannot create " + out_dir);
+  if (!MakeDirectories(out_dir)) return Status::IoError("cannot create or write in " + out_dir);
   PLACEREC_RETURN_IF_ERROR(WriteAnswers(out_dir + "/answers.csv", report.answers));
   {
     std::ofstream out(out_dir + "/summary.json");

@@ -1196,6 +1196,33 @@ TEST_F(ServiceTest, TheClientRejectsForgedAnswers) {
       << alone.message;
 }
 
+// A robot whose key file holds the wrong key for its id hears, within seconds and not at the
+// timeout, what the server said and what to check (the server's refusal is unsigned: the client
+// cannot trust it, so it waits a grace period for a signed answer first).
+TEST_F(ServiceTest, AWrongKeyIsToldBeforeTheTimeout) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
+  StartTheServer();
+  const std::string wrong_keys = dir_ + "/wrong_keys";
+  WriteKeys(wrong_keys, {{"robots", "both"}});  // the right id, another key
+  ClientOptions options = Options();
+  options.key_file = wrong_keys;
+  options.timeout_s = 60;
+  StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(options);
+  ASSERT_TRUE(client.ok()) << client.status().ToString();
+  const auto start = std::chrono::steady_clock::now();
+  const FrameResult r = (*client)->Send(FrameOfRun(run, 0));
+  const double waited =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(r.code, AnswerCode::kTimeout) << DescribeResult(r);
+  EXPECT_NE(r.message.find("signature does not match key 'robots'"), std::string::npos)
+      << r.message;
+  EXPECT_NE(r.message.find("--key-file"), std::string::npos) << r.message;
+  EXPECT_LT(waited, options.timeout_s / 2) << r.message;
+  EXPECT_EQ(ReadMap(db_).places.size(), 0u);
+}
+
 // SIGHUP makes the server read its keys file again: a key added is accepted, a key removed is
 // refused, and the server goes on serving.
 TEST_F(ServiceTest, SighupReloadsTheKeysFile) {
@@ -1399,6 +1426,16 @@ TEST(ServiceCommandLineTest, HelpAndErrors) {
   EXPECT_EQ(usage_rc, 2);
   auto [missing_rc, missing] = run({client, "run", "--dataset", "x"});
   EXPECT_EQ(missing_rc, 2);
+  // Bad arguments are told at once, before anything is sent: a robot id the server would refuse,
+  // a keys file that does not read.
+  auto [robot_rc, robot] =
+      run({client, "send", "x.jpg", "--robot", "bad robot", "--lcm-url", "memq://"});
+  EXPECT_EQ(robot_rc, 2);
+  EXPECT_NE(robot.find("--robot 'bad robot'"), std::string::npos) << robot;
+  auto [key_rc, key] =
+      run({client, "send", "x.jpg", "--key-file", dir + "/no_such_keys", "--lcm-url", "memq://"});
+  EXPECT_EQ(key_rc, 2);
+  EXPECT_NE(key.find("no_such_keys"), std::string::npos) << key;
   auto [status_rc, status] = run({client, "status", "--lcm-url", "memq://", "--timeout", "0.3"});
   EXPECT_EQ(status_rc, 1);
   EXPECT_NE(status.find("no status"), std::string::npos) << status;

@@ -115,7 +115,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
     return Status::InvalidArgument("change detection is off (--change-detection false)");
   }
   if (eval.out_dir.empty() || !MakeDirectories(eval.out_dir + "/pictures")) {
-    return Status::IoError("cannot create " + eval.out_dir + "/pictures");
+    return Status::IoError("cannot create or write in " + eval.out_dir + "/pictures");
   }
   // The objects to paste.
   std::vector<CutObject> objects;
@@ -156,7 +156,8 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   if (!eval.write_run_dir.empty()) {
     if (!MakeDirectories(eval.write_run_dir + "/runs") ||
         !MakeDirectories(eval.write_run_dir + "/images")) {
-      return Status::IoError("cannot create " + eval.write_run_dir + "/runs and /images");
+      return Status::IoError("cannot create or write in " + eval.write_run_dir +
+                             "/runs and /images");
     }
     for (RunFrame& f : changed_run.frames) {
       f.image = std::filesystem::absolute(f.image).lexically_normal().string();

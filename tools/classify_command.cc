@@ -314,7 +314,7 @@ int ClassifyCommand(int argc, char** argv, const std::string& default_data_dir) 
       {"per_class_accuracy", report["structured_one_per_class"]["per_class_accuracy"]}};
 
   if (!MakeDirectories(options.out)) {
-    return Fail(Status::IoError("cannot create " + options.out));
+    return Fail(Status::IoError("cannot create or write in " + options.out));
   }
   if (const Status s = WriteManifest(options.out + "/classification.json", report); !s.ok()) {
     return Fail(s);

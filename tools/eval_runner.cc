@@ -329,7 +329,7 @@ Status WriteMatchPictures(const Run& run, const Run& scored, int first, const Ev
                           const EvalReport& report, const FeedTotals& totals,
                           Recognizer& recognizer) {
   const std::string dir = eval.out_dir + "/matches";
-  if (!MakeDirectories(dir)) return Status::IoError("cannot create " + dir);
+  if (!MakeDirectories(dir)) return Status::IoError("cannot create or write in " + dir);
   for (const auto& [i, is_correct] : ChoosePictures(scored, report, totals, eval.pictures)) {
     const int f = report.answers[i].frame;
     const int reference = report.answers[i].reference;

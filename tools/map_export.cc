@@ -192,7 +192,8 @@ StatusOr<ExportReport> ExportMap(const std::string& path, const std::string& out
   StatusOr<std::vector<PlaceSummary>> places = ReadPlaceSummaries(path);
   if (!places.ok()) return places.status();
   if (!MakeDirectories(out_dir)) {
-    return Status::IoError("cannot create " + out_dir + ": choose a folder you can write");
+    return Status::IoError("cannot create or write in " + out_dir +
+                           ": choose a folder you can write");
   }
   ExportReport report;
   report.csv_path = out_dir + "/places.csv";
@@ -208,7 +209,7 @@ StatusOr<ExportReport> ExportMap(const std::string& path, const std::string& out
   std::vector<cv::Mat> tiles;
   int64_t seen = 0;
   if (with_thumbnail > 0 && !MakeDirectories(out_dir + "/thumbnails")) {
-    return Status::IoError("cannot create " + out_dir + "/thumbnails");
+    return Status::IoError("cannot create or write in " + out_dir + "/thumbnails");
   }
   Status written = Status::Ok();
   PLACEREC_RETURN_IF_ERROR(

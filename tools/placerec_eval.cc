@@ -9,6 +9,7 @@
 #include <cstring>
 #include <fstream>
 #include <optional>
+#include <set>
 #include <string>
 
 #include <opencv2/imgcodecs.hpp>
@@ -113,7 +114,7 @@ int RunCommand(int argc, char** argv) {
   if (repeat > 1) {
     *run = RepeatFrames(*run, repeat, static_cast<int64_t>(repeat_interval_ms * 1000.0));
     if (!MakeDirectories(out)) {
-      std::fprintf(stderr, "placerec-eval run: cannot create %s\n", out.c_str());
+      std::fprintf(stderr, "placerec-eval run: cannot create or write in %s\n", out.c_str());
       return 1;
     }
     const Status written = WriteRun(*run, out + "/run");
@@ -148,6 +149,15 @@ int RunCommand(int argc, char** argv) {
   return 0;
 }
 
+// cv::imwrite, false when the file was not written (it returns false, or throws for some causes).
+bool WritePicture(const std::string& file, const cv::Mat& picture) {
+  try {
+    return cv::imwrite(file, picture);
+  } catch (const cv::Exception&) {
+    return false;
+  }
+}
+
 int AnalyzeCommand(int argc, char** argv) {
   std::vector<std::string> images;
   std::string out = ".";
@@ -155,8 +165,9 @@ int AnalyzeCommand(int argc, char** argv) {
   FlagParser parser(
       "placerec-eval analyze IMAGE... [--out DIR] [options]\n\n"
       "Runs the stateless half of the pipeline (SIFT, segmentation, objects) on each image and\n"
-      "writes DIR/<name>_analysis.png: segments tinted with boundaries, keypoints as dots,\n"
-      "objects outlined with their SIFT count and dominant colour invariants.");
+      "writes DIR/<name>_analysis.png (<name>_2_analysis.png, ... for a name given before):\n"
+      "segments tinted with boundaries, keypoints as dots, objects outlined with their SIFT\n"
+      "count and dominant colour invariants.");
   parser.AddPositional("image", &images, "image files");
   parser.Add("out", &out, "output directory");
   AddRecognizerFlags(&parser, &options);
@@ -173,7 +184,7 @@ int AnalyzeCommand(int argc, char** argv) {
     return 2;
   }
   if (!MakeDirectories(out)) {
-    std::fprintf(stderr, "placerec-eval analyze: cannot create %s\n", out.c_str());
+    std::fprintf(stderr, "placerec-eval analyze: cannot create or write in %s\n", out.c_str());
     return 1;
   }
   StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.analyzer);
@@ -182,6 +193,7 @@ int AnalyzeCommand(int argc, char** argv) {
     return 1;
   }
   const FrameAnalyzer analyzer(options.analyzer, std::move(*segmenter));
+  std::set<std::string> written;  // pictures of this call: same-named images do not overwrite
   for (const std::string& path : images) {
     StatusOr<cv::Mat> image = ReadImageFile(path);
     if (!image.ok()) {
@@ -192,8 +204,15 @@ int AnalyzeCommand(int argc, char** argv) {
     const cv::Mat picture = DrawAnalysis(*image, observation);
     std::string name = path.substr(path.find_last_of('/') + 1);
     name = name.substr(0, name.find_last_of('.'));
-    const std::string file = out + "/" + name + "_analysis.png";
-    cv::imwrite(file, picture);
+    std::string file = out + "/" + name + "_analysis.png";
+    for (int n = 2; !written.insert(file).second; ++n) {
+      file = out + "/" + name + "_" + std::to_string(n) + "_analysis.png";
+    }
+    if (!WritePicture(file, picture)) {
+      std::fprintf(stderr, "placerec-eval analyze: cannot write %s; choose another --out\n",
+                   file.c_str());
+      return 1;
+    }
     std::printf(
         "%s: %dx%d, %d keypoints, %d segments, %d objects holding %d keypoints -> %s\n",
         path.c_str(), image->cols, image->rows, observation.features.size(),
@@ -319,7 +338,7 @@ int AlarmsCommand(int argc, char** argv) {
     return 1;
   }
   if (!MakeDirectories(out)) {
-    std::fprintf(stderr, "placerec-eval alarms: cannot create %s\n", out.c_str());
+    std::fprintf(stderr, "placerec-eval alarms: cannot create or write in %s\n", out.c_str());
     return 1;
   }
   const nlohmann::json j = ScoreAlarms(*cases, *watched, min_iou);

@@ -336,7 +336,8 @@ int GroupingEnsembleCommand(int argc, char** argv) {
     return 2;
   }
   if (!MakeDirectories(out)) {
-    std::fprintf(stderr, "placerec-train grouping-ensemble: cannot create %s\n", out.c_str());
+    std::fprintf(stderr, "placerec-train grouping-ensemble: cannot create or write in %s\n",
+                 out.c_str());
     return 1;
   }
   const RegionMergeModel ensemble = RegionMergeModel::Ensemble(models);

@@ -478,7 +478,7 @@ bool SegmentRun::ReadInputs(std::string* error) {
 bool SegmentRun::SegmentImages(std::string* error) {
   for (const char* sub : {"segments", "classes", "overlays"}) {
     if (!MakeDirectories(options_.out + "/" + sub)) {
-      *error = "cannot create " + options_.out + "/" + sub;
+      *error = "cannot create or write in " + options_.out + "/" + sub;
       return false;
     }
   }

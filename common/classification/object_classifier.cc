@@ -193,7 +193,7 @@ std::vector<int> ObjectClassifier::Decide(const cv::Mat& scores, const std::vect
 
 Status ObjectClassifier::Save(const std::string& directory) const {
   if (boosts_.empty()) return Status::InvalidArgument("no object classifiers to save");
-  if (!MakeDirectories(directory)) return Status::IoError("cannot create " + directory);
+  if (!MakeDirectories(directory)) return Status::IoError("cannot create or write in " + directory);
   try {
     cv::FileStorage fs(IndexFile(directory), cv::FileStorage::WRITE);
     if (!fs.isOpened()) return Status::IoError("cannot write " + IndexFile(directory));

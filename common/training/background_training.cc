@@ -823,7 +823,8 @@ bool BackgroundTrainingConfig::Check(std::string* error) const {
 
 StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& config) {
   namespace fs = std::filesystem;
-  if (!MakeDirectories(config.out)) return Status::IoError("cannot create " + config.out);
+  if (!MakeDirectories(config.out))
+    return Status::IoError("cannot create or write in " + config.out);
   // Everything is written to a staging directory inside `out` and moved into place only when
   // the whole training has succeeded, so that a failed or interrupted run leaves the models
   // directory as it was (new textons beside old classifiers would load and be silently wrong).
@@ -831,7 +832,8 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
   staged.out = config.out + "/.training-" + std::to_string(getpid());
   std::error_code ec;
   fs::remove_all(staged.out, ec);
-  if (!MakeDirectories(staged.out)) return Status::IoError("cannot create " + staged.out);
+  if (!MakeDirectories(staged.out))
+    return Status::IoError("cannot create or write in " + staged.out);
   StatusOr<nlohmann::json> manifest = TrainInto(staged);
   if (manifest.ok()) {
     // The manifest last: it describes the files beside it.

@@ -174,7 +174,8 @@ StatusOr<nlohmann::json> TrainBoundaryModel(const BoundaryTrainingConfig& config
     if (!eval.ok()) return eval.status();
     eval_ids = std::move(*eval);
   }
-  if (!MakeDirectories(config.out)) return Status::IoError("cannot create " + config.out);
+  if (!MakeDirectories(config.out))
+    return Status::IoError("cannot create or write in " + config.out);
 
   Timer timer;
   std::mt19937_64 rng(config.seed);

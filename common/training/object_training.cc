@@ -269,7 +269,7 @@ StatusOr<nlohmann::json> TrainObjectModels(const ObjectTrainingConfig& config) {
   const std::string staging = config.out + "/.training-" + std::to_string(getpid());
   std::error_code ec;
   fs::remove_all(staging, ec);
-  if (!MakeDirectories(staging)) return Status::IoError("cannot create " + staging);
+  if (!MakeDirectories(staging)) return Status::IoError("cannot create or write in " + staging);
   const RemoveOnExit cleanup{staging};
 
   Timer timer;

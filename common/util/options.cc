@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <sstream>
 
@@ -60,6 +62,15 @@ std::optional<int> FlagParser::ParseOrExit(int argc, const char* const* argv, in
     return 2;
   }
   return std::nullopt;
+}
+
+std::string ShortestText(double value, bool single) {
+  // std::to_chars without a precision writes the shortest text that reads back as the value.
+  char text[64];
+  const std::to_chars_result written =
+      single ? std::to_chars(text, text + sizeof(text), static_cast<float>(value))
+             : std::to_chars(text, text + sizeof(text), value);
+  return std::string(text, written.ptr);
 }
 
 std::string FlagParser::Help() const {

@@ -5,6 +5,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include <boost/program_options.hpp>
@@ -12,6 +13,10 @@
 #include "common/util/status.h"
 
 namespace placerec {
+
+// The shortest decimal text (%g with 1 to 17 digits) that reads back as `value` (as a float
+// when `single`).
+std::string ShortestText(double value, bool single = false);
 
 class FlagParser {
  public:
@@ -22,8 +27,18 @@ class FlagParser {
   // Adds `--name` bound to *field; `help` should give units and the seed section.
   template <typename T>
   void Add(const std::string& name, T* field, const std::string& help) {
-    options_.add_options()(
-        name.c_str(), boost::program_options::value<T>(field)->default_value(*field), help.c_str());
+    if constexpr (std::is_floating_point_v<T>) {
+      // Shown as the shortest text that reads back as the value (0.3, not 0.29999999999999999).
+      options_.add_options()(
+          name.c_str(),
+          boost::program_options::value<T>(field)->default_value(
+              *field, ShortestText(static_cast<double>(*field), std::is_same_v<T, float>)),
+          help.c_str());
+    } else {
+      options_.add_options()(name.c_str(),
+                             boost::program_options::value<T>(field)->default_value(*field),
+                             help.c_str());
+    }
   }
   // A flag without a default that must be given.
   template <typename T>

@@ -1,5 +1,7 @@
 #include "common/util/paths.h"
 
+#include <unistd.h>
+
 #include <cstdlib>
 #include <filesystem>
 #include <system_error>
@@ -31,7 +33,9 @@ bool PathExists(const std::string& path) {
 bool MakeDirectories(const std::string& path) {
   std::error_code ec;
   std::filesystem::create_directories(path, ec);
-  return std::filesystem::is_directory(path, ec);
+  // An existing folder that cannot be written in (its permissions, a read-only file system) is
+  // refused too: a command finds out before its work, not when it writes its results.
+  return std::filesystem::is_directory(path, ec) && access(path.c_str(), W_OK | X_OK) == 0;
 }
 
 }  // namespace placerec

@@ -142,6 +142,25 @@ TEST(FlagParserTest, BindsFieldsAndKeepsDefaults) {
   EXPECT_NE(parser.Help().find("--ratio"), std::string::npos);
 }
 
+// --help shows a floating-point default as the shortest text that reads back as it.
+TEST(FlagParserTest, HelpShowsShortDefaults) {
+  double iou = 0.3, area = 0.004, third = 1.0 / 3.0;
+  float confidence = 0.7f;
+  FlagParser parser("test");
+  parser.Add("iou", &iou, "iou");
+  parser.Add("area", &area, "area");
+  parser.Add("third", &third, "third");
+  parser.Add("confidence", &confidence, "confidence");
+  const std::string help = parser.Help();
+  EXPECT_NE(help.find("--iou arg (=0.3)"), std::string::npos) << help;
+  EXPECT_NE(help.find("--area arg (=0.004)"), std::string::npos) << help;
+  EXPECT_NE(help.find("(=0.3333333333333333)"), std::string::npos) << help;
+  EXPECT_NE(help.find("--confidence arg (=0.7)"), std::string::npos) << help;
+  EXPECT_EQ(ShortestText(2.0), "2");
+  EXPECT_EQ(ShortestText(10.0), "10");
+  EXPECT_EQ(ShortestText(-1e-9), "-1e-09");
+}
+
 TEST(FlagParserTest, ReportsUnknownFlagsAndHelp) {
   int k = 1;
   FlagParser parser("test");
