@@ -122,10 +122,11 @@ int SendImages(const std::vector<std::string>& images, const std::string& robot,
 
 // A dataset given by name (e.g. gardens_point) is looked up under PLACEREC_DATA or
 // ../shared/data when it is not a directory itself.
-std::string ResolveDataset(const std::string& dataset, const std::string& data_default) {
-  if (PathExists(dataset)) return dataset;
-  const std::string under = DataDir("", data_default) + "/" + dataset;
-  return PathExists(under) ? under : dataset;
+StatusOr<Run> LoadNamedRun(const std::string& dataset, const std::string& run_name,
+                           const std::string& data_default) {
+  StatusOr<std::string> dir = FindDataset(dataset, DataDir("", data_default));
+  if (!dir.ok()) return dir.status();
+  return LoadRun(*dir, run_name);
 }
 
 }  // namespace
@@ -367,7 +368,7 @@ int RunCommand(int argc, const char* const* argv, const std::string& data_defaul
     std::fprintf(stderr, "placerec-client run: %s\n", error.c_str());
     return kExitUsage;
   }
-  StatusOr<Run> run = LoadRun(ResolveDataset(dataset, data_default), run_name);
+  StatusOr<Run> run = LoadNamedRun(dataset, run_name, data_default);
   if (!run.ok()) {
     std::fprintf(stderr, "placerec-client run: %s\n", run.status().ToString().c_str());
     return kExitFailed;
@@ -455,7 +456,7 @@ int FleetCommand(int argc, const char* const* argv, const std::string& data_defa
     std::fprintf(stderr, "placerec-client fleet: %s\n", error.c_str());
     return kExitUsage;
   }
-  StatusOr<Run> run = LoadRun(ResolveDataset(dataset, data_default), run_name);
+  StatusOr<Run> run = LoadNamedRun(dataset, run_name, data_default);
   if (!run.ok()) {
     std::fprintf(stderr, "placerec-client fleet: %s\n", run.status().ToString().c_str());
     return kExitFailed;

@@ -12,6 +12,7 @@
 #include "common/storage/postgres_store.h"
 #include "common/storage/sqlite_store.h"
 #include "common/util/logging.h"
+#include "proto/auth/signing.h"
 
 namespace placerec {
 namespace {
@@ -159,6 +160,26 @@ StatusOr<std::unique_ptr<Gateway>> Gateway::Create(const GatewayOptions& options
     return Status::InvalidArgument(options.tokens_file +
                                    " lists no device: nobody could use the gateway");
   }
+  if (options.client.key_file.empty()) {
+    LOG(WARNING) << "no --key-file: the gateway's queries go unsigned, and only a placerec-server "
+                    "started with --auth off answers them; give it a query key "
+                    "(scripts/make-key.sh gateway query) that the server's --keys file has";
+  } else {
+    std::string warning;
+    StatusOr<std::vector<SigningKey>> keys = ReadKeysFile(options.client.key_file, &warning);
+    if (keys.ok()) {
+      // The key the gateway signs with: --key-id's, or the file's first.
+      for (const SigningKey& key : *keys) {
+        if (!options.client.key_id.empty() && key.id != options.client.key_id) continue;
+        if (key.may_insert) {
+          LOG(WARNING) << "key '" << key.id << "' of " << options.client.key_file
+                       << " may insert: the gateway only queries, so a query-only key is enough "
+                          "and limits what a stolen gateway key can do";
+        }
+        break;
+      }
+    }
+  }
   std::unique_ptr<Gateway> gateway(new Gateway(options, std::move(*tokens)));
   for (const std::string& key_id : gateway->tokens_.KeyIds()) {
     ClientOptions client_options = options.client;
@@ -264,16 +285,26 @@ HttpReply Gateway::Query(const std::string& authorization, const std::string& im
     return ErrorReply(502, "cannot reach the server: " + pending.status().message());
   const FrameResult result = client.Wait(*pending, options_.query_timeout_s);
   if (!result.ok()) {
-    std::string why = result.code == AnswerCode::kTimeout
-                          ? "no answer from the placerec server within " +
-                                std::to_string(static_cast<int>(options_.query_timeout_s)) +
-                                " s; is it running on the gateway's LCM network?"
-                          : std::string(AnswerCodeName(result.code)) + ": " + result.message;
-    // An answer the client ignored (not signed with the device's key, e.g. the server no
-    // longer knows the key) says why the device got none.
-    const size_t ignored = result.message.find("; an answer not signed");
+    // An answer the client ignored (not signed with the key the query was signed with, e.g. the
+    // server does not know that key) says why the device got none.
+    const size_t ignored = result.message.find("an answer not signed");
+    std::string why;
     if (result.code == AnswerCode::kTimeout && ignored != std::string::npos) {
-      why += result.message.substr(ignored);
+      why =
+          "the placerec server answered, but not with the gateway's key: its operator must "
+          "give placerec-gateway --key-file with a query key of the server's --keys file (" +
+          result.message.substr(ignored) + ")";
+    } else if (result.code == AnswerCode::kTimeout) {
+      why = "no answer from the placerec server within " +
+            std::to_string(static_cast<int>(options_.query_timeout_s)) +
+            " s; is it running on the gateway's LCM network?";
+    } else if (result.code == AnswerCode::kUnauthorised) {
+      why = "unauthorised: the placerec server refused the query of device '" + device.device +
+            "' (its operator must give placerec-gateway --key-file with a query key that the "
+            "server's --keys file has): " +
+            result.message;
+    } else {
+      why = std::string(AnswerCodeName(result.code)) + ": " + result.message;
     }
     return ErrorReply(HttpStatusOf(result.code), why);
   }

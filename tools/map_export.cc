@@ -2,6 +2,7 @@
 // (map_tools.h).
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <string>
@@ -194,6 +195,24 @@ StatusOr<ExportReport> ExportMap(const std::string& path, const std::string& out
   if (!MakeDirectories(out_dir)) {
     return Status::IoError("cannot create or write in " + out_dir +
                            ": choose a folder you can write");
+  }
+  // What an earlier export into the same folder wrote and this one may not (a pruned map has
+  // fewer places, an old map no pictures): its thumbnails and contact sheet, nothing else.
+  {
+    std::error_code ignored;
+    std::filesystem::remove(out_dir + "/contact_sheet.jpg", ignored);
+    std::filesystem::directory_iterator it(out_dir + "/thumbnails", ignored);
+    for (; !ignored && it != std::filesystem::directory_iterator(); it.increment(ignored)) {
+      const std::string name = it->path().filename().string();
+      const size_t dot = name.find('.');
+      if (dot == std::string::npos || dot == 0 || name.substr(dot) != ".jpg" ||
+          !std::all_of(name.begin(), name.begin() + static_cast<std::ptrdiff_t>(dot),
+                       [](char c) { return c >= '0' && c <= '9'; })) {
+        continue;
+      }
+      std::error_code remove_error;
+      std::filesystem::remove(it->path(), remove_error);
+    }
   }
   ExportReport report;
   report.csv_path = out_dir + "/places.csv";

@@ -48,7 +48,17 @@ StatusOr<SqliteConnection> OpenReadOnly(const std::string& path, int* version) {
   if (!opened.ok()) return opened.status();
   SqliteConnection db = std::move(opened).value();
   StatusOr<int> read = ReadSchemaVersion(db.get(), path);
-  if (!read.ok()) return read.status();
+  if (!read.ok()) {
+    // A map in WAL mode is read through its MAP-shm file, which SQLite creates beside it.
+    const std::filesystem::path folder = std::filesystem::absolute(path).parent_path();
+    if (access(folder.c_str(), W_OK | X_OK) != 0) {
+      return Status::IoError(read.status().message() + "; SQLite reads a map through its -shm " +
+                             "file, kept beside it, and cannot write in " + folder.string() +
+                             ": copy the map (with its -wal file, if any) to a folder you can "
+                             "write");
+    }
+    return read.status();
+  }
   if (*read > kSqliteSchemaVersion) return NewerSchemaVersionError(path, *read);
   if (*read == 0) return Status::NotFound(path + " holds no placerec map (an empty database)");
   *version = *read;
@@ -436,6 +446,21 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
                            std::to_string(kSqliteSchemaVersion) + "), then prune it");
   }
 
+  if (!options.robot.empty()) {
+    // A misspelt robot would prune nothing and say so only as a count: name the map's robots.
+    std::vector<std::string> robots;
+    PLACEREC_RETURN_IF_ERROR(ForEachRow(
+        c, "SELECT DISTINCT robot FROM places ORDER BY robot", path, "select robots", nullptr,
+        [&](const SqliteStatement& row) { robots.push_back(row.ColumnText(0)); }));
+    if (std::find(robots.begin(), robots.end(), options.robot) == robots.end()) {
+      std::string names;
+      for (const std::string& robot : robots) names += (names.empty() ? "" : ", ") + robot;
+      return Status::NotFound(
+          "map " + path + " has no robot '" + options.robot + "' (" +
+          (robots.empty() ? std::string("it has no places") : "its robots: " + names) +
+          "); nothing was pruned");
+    }
+  }
   const std::string doomed =
       "SELECT id FROM places WHERE (?1 IS NULL OR utime < ?1) AND (?2 IS NULL OR robot = ?2)";
   const std::string doomed_landmarks =

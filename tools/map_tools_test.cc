@@ -158,6 +158,19 @@ TEST(MapToolsTest, ExportWritesPlacesCsvAndRoutePicture) {
   EXPECT_EQ(report->contact_sheet_path, out + "/contact_sheet.jpg");
   const cv::Mat sheet = cv::imread(report->contact_sheet_path);
   EXPECT_EQ(sheet.cols, 3 * 162);
+
+  // Exported again into the same folder after a prune, the pictures of the places gone go too
+  // (files that are no export's stay).
+  std::ofstream(out + "/thumbnails/notes.txt") << "mine";
+  PruneOptions prune;
+  prune.robot = "left";
+  ASSERT_TRUE(PruneMap(map.path(), prune).ok());
+  report = ExportMap(map.path(), out);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_EQ(report->thumbnails, 0);
+  EXPECT_FALSE(std::filesystem::exists(out + "/thumbnails/1.jpg"));
+  EXPECT_FALSE(std::filesystem::exists(out + "/contact_sheet.jpg"));
+  EXPECT_TRUE(std::filesystem::exists(out + "/thumbnails/notes.txt"));
   std::filesystem::remove_all(out);
 }
 
@@ -165,6 +178,13 @@ TEST(MapToolsTest, PruneByRobotDropsItsPlacesLandmarksAndSightings) {
   TempMap map("prune_robot");
   BuildSite(map.path());
   PruneOptions options;
+  // A robot the map does not have (a misspelt id) is an error naming the robots it has.
+  options.robot = "lfet";
+  const StatusOr<PruneReport> misspelt = PruneMap(map.path(), options);
+  ASSERT_FALSE(misspelt.ok());
+  EXPECT_EQ(misspelt.status().code(), StatusCode::kNotFound);
+  EXPECT_NE(misspelt.status().message().find("its robots: left, right"), std::string::npos)
+      << misspelt.status().message();
   options.robot = "left";
   StatusOr<PruneReport> report = PruneMap(map.path(), options);
   ASSERT_TRUE(report.ok()) << report.status().ToString();

@@ -44,10 +44,15 @@ constexpr char kUsage[] =
 
 // A dataset given by name (e.g. gardens_point) is looked up under PLACEREC_DATA or
 // ../shared/data when it is not a directory itself.
-std::string ResolveDataset(const std::string& dataset) {
-  if (PathExists(dataset)) return dataset;
-  const std::string under = DataDir("", PLACEREC_DEFAULT_DATA_DIR) + "/" + dataset;
-  return PathExists(under) ? under : dataset;
+StatusOr<std::string> ResolveDataset(const std::string& dataset) {
+  return FindDataset(dataset, DataDir("", PLACEREC_DEFAULT_DATA_DIR));
+}
+
+// The run `run_name` of a dataset given as ResolveDataset takes it.
+StatusOr<Run> LoadNamedRun(const std::string& dataset, const std::string& run_name) {
+  StatusOr<std::string> dir = ResolveDataset(dataset);
+  if (!dir.ok()) return dir.status();
+  return LoadRun(*dir, run_name);
 }
 
 int RunCommand(int argc, char** argv) {
@@ -106,7 +111,7 @@ int RunCommand(int argc, char** argv) {
   }
   eval.out_dir = out;
   eval.progress = !quiet;
-  StatusOr<Run> run = LoadRun(ResolveDataset(dataset), run_name);
+  StatusOr<Run> run = LoadNamedRun(dataset, run_name);
   if (!run.ok()) {
     std::fprintf(stderr, "placerec-eval run: %s\n", run.status().ToString().c_str());
     return 1;
@@ -280,11 +285,18 @@ int ChangeCommand(int argc, char** argv) {
   eval.progress = !quiet;
   for (size_t start = 0; start <= objects.size();) {
     const size_t end = std::min(objects.find(',', start), objects.size());
-    if (end > start)
-      eval.object_datasets.push_back(ResolveDataset(objects.substr(start, end - start)));
+    if (end > start) {
+      StatusOr<std::string> dir = ResolveDataset(objects.substr(start, end - start));
+      if (!dir.ok()) {
+        std::fprintf(stderr, "placerec-eval change: --objects: %s\n",
+                     dir.status().message().c_str());
+        return 1;
+      }
+      eval.object_datasets.push_back(*dir);
+    }
     start = end + 1;
   }
-  StatusOr<Run> run = LoadRun(ResolveDataset(dataset), run_name);
+  StatusOr<Run> run = LoadNamedRun(dataset, run_name);
   if (!run.ok()) {
     std::fprintf(stderr, "placerec-eval change: %s\n", run.status().ToString().c_str());
     return 1;

@@ -26,7 +26,7 @@ constexpr char kUsage[] =
     "refuses a map another process holds open, and merge writes a new file.\n\n"
     "Commands:\n"
     "  info     places, landmarks and descriptors by robot and by object class, size, version\n"
-    "  export   DIR/places.csv and DIR/route.png, a picture of the map per robot\n"
+    "  export   DIR/places.csv, DIR/route.png (the map per robot), the place thumbnails\n"
     "  prune    drop places before a time or of a robot, with their landmarks and sightings\n"
     "  merge    two maps into a new one, robot ids kept apart\n"
     "  check    the full integrity check (exit code 0: whole, 1: damaged)\n"
@@ -66,10 +66,12 @@ int ExportCommand(int argc, char** argv) {
   std::string out;
   FlagParser parser(
       "placerec-map export --db FILE --out DIR\n\n"
-      "Writes DIR/places.csv (id,robot,sequence,utime,landmarks,descriptors,classes; classes as\n"
-      "building:3;sign:1, unclassified landmarks last) and DIR/route.png: per robot a timeline\n"
-      "strip of its places coloured by landmark count, the class shares of their landmarks and\n"
-      "the robot's class counts. Reads only.");
+      "Writes DIR/places.csv (id,robot,sequence,utime,landmarks,descriptors,classes,thumbnail;\n"
+      "classes as building:3;sign:1, unclassified landmarks last), DIR/route.png: per robot a\n"
+      "timeline strip of its places coloured by landmark count, the class shares of their\n"
+      "landmarks and the robot's class counts, and, for maps with place pictures (schema 3),\n"
+      "DIR/thumbnails/<place id>.jpg and DIR/contact_sheet.jpg, the route's pictures in order.\n"
+      "Reads only.");
   parser.AddRequired("db", &db, "map file");
   parser.AddRequired("out", &out, "output directory (created if missing)");
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-map export")) {
@@ -77,9 +79,15 @@ int ExportCommand(int argc, char** argv) {
   }
   StatusOr<ExportReport> report = ExportMap(db, out);
   if (!report.ok()) return Fail("placerec-map export", report.status());
-  std::printf("%lld places of %lld robots: wrote %s and %s\n",
+  std::printf("%lld places of %lld robot%s: wrote %s and %s",
               static_cast<long long>(report->places), static_cast<long long>(report->robots),
-              report->csv_path.c_str(), report->picture_path.c_str());
+              report->robots == 1 ? "" : "s", report->csv_path.c_str(),
+              report->picture_path.c_str());
+  if (report->thumbnails > 0) {
+    std::printf(", %lld thumbnails and %s", static_cast<long long>(report->thumbnails),
+                report->contact_sheet_path.c_str());
+  }
+  std::printf("\n");
   return 0;
 }
 

@@ -1,6 +1,7 @@
 #include "common/eval/run.h"
 
 #include <algorithm>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -271,6 +272,30 @@ Run FirstFrames(const Run& run, int frames) {
   for (const auto& p : cut.positives) cut.is_revisit[p.first] = true;
   for (bool r : cut.is_revisit) cut.num_revisits += r ? 1 : 0;
   return cut;
+}
+
+StatusOr<std::string> FindDataset(const std::string& dataset, const std::string& data_root) {
+  if (dataset.empty()) return Status::InvalidArgument("no dataset given (--dataset)");
+  std::error_code ec;
+  if (std::filesystem::is_directory(dataset, ec)) return dataset;
+  const std::string under = JoinPath(data_root, dataset);
+  if (std::filesystem::is_directory(under, ec)) return under;
+  std::vector<std::string> datasets;
+  std::filesystem::directory_iterator it(data_root, ec);
+  for (; !ec && it != std::filesystem::directory_iterator(); it.increment(ec)) {
+    std::error_code type_ec;
+    if (it->is_directory(type_ec)) datasets.push_back(it->path().filename().string());
+  }
+  std::sort(datasets.begin(), datasets.end());
+  const char* env = std::getenv("PLACEREC_DATA");
+  const std::string root_from = env != nullptr && env[0] != '\0'
+                                    ? "PLACEREC_DATA"
+                                    : "the build's default; set PLACEREC_DATA to change it";
+  return Status::NotFound("no dataset '" + dataset +
+                          "': it is no folder, nor one under the data root " + data_root + " (" +
+                          root_from + "); " +
+                          (datasets.empty() ? std::string("that root holds no datasets")
+                                            : "datasets there: " + JoinNames(datasets)));
 }
 
 }  // namespace placerec

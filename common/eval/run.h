@@ -60,4 +60,9 @@ Status WriteRun(const Run& run, const std::string& prefix);
 // the folder does not exist.
 std::vector<std::string> ListRuns(const std::string& dataset_dir);
 
+// A dataset given as a folder, or by name under `data_root` (PLACEREC_DATA, or the build's
+// ../shared/data): that folder. NotFound when it is neither, naming where it looked and the
+// datasets `data_root` holds.
+StatusOr<std::string> FindDataset(const std::string& dataset, const std::string& data_root);
+
 }  // namespace placerec

@@ -152,6 +152,27 @@ TEST_F(RunTest, RejectsMalformedFilesNamingTheLine) {
   EXPECT_NE(run.status().message().find(positives + " does not exist"), std::string::npos);
 }
 
+// A dataset is a folder, or a name under the data root; a name that is neither is told with
+// where it was looked for and the datasets the root holds.
+TEST_F(RunTest, FindDatasetByFolderOrNameAndListsTheRootOtherwise) {
+  const std::string root = dir_ + "/data";
+  fs::create_directories(root + "/gardens_point");
+  fs::create_directories(root + "/rtabmap_indoor");
+  std::ofstream(root + "/README.md") << "not a dataset";
+  EXPECT_EQ(*FindDataset("rtabmap_indoor", root), root + "/rtabmap_indoor");
+  EXPECT_EQ(*FindDataset(dir_, root), dir_);
+  const StatusOr<std::string> misspelt = FindDataset("rtabmap_indor", root);
+  ASSERT_FALSE(misspelt.ok());
+  EXPECT_EQ(misspelt.status().code(), StatusCode::kNotFound);
+  EXPECT_NE(misspelt.status().message().find(root), std::string::npos);
+  EXPECT_NE(misspelt.status().message().find("datasets there: gardens_point, rtabmap_indoor"),
+            std::string::npos)
+      << misspelt.status().message();
+  EXPECT_FALSE(FindDataset("README.md", root).ok());  // a file is no dataset
+  EXPECT_NE(FindDataset("x", dir_ + "/nowhere").status().message().find("holds no datasets"),
+            std::string::npos);
+}
+
 TEST(FirstFramesTest, KeepsOnlyTheRevisitsOfTheFramesKept) {
   // Ten frames; revisits 5 (of 0 and 1), 6 (of 1), 7 (of 2), 8 (of 3).
   placerec::Run run;
