@@ -1,6 +1,7 @@
 // `placerec-map export`: places.csv, route.png, the place thumbnails and their contact sheet
 // (map_tools.h).
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -30,11 +31,16 @@ std::string CsvField(const std::string& text) {
 }
 
 // Colours (BGR) of the object classes in the picture, by their order of name; unclassified grey.
+// Hues a golden angle apart, with alternating saturation and value, stay apart for the 21
+// classes of MSRC and more.
 cv::Scalar ClassColour(size_t index) {
-  static const cv::Scalar kPalette[] = {
-      {180, 119, 31}, {14, 127, 255},  {44, 160, 44},  {40, 39, 214},  {189, 103, 148},
-      {75, 86, 140},  {194, 119, 227}, {34, 189, 188}, {207, 190, 23}, {127, 127, 127}};
-  return kPalette[index % (sizeof(kPalette) / sizeof(kPalette[0]) - 1)];
+  const double hue = std::fmod(static_cast<double>(index) * 0.6180339887, 1.0) * 180.0;
+  const double saturation = index % 2 == 0 ? 220 : 140;
+  const double value = index % 3 == 0 ? 170 : 230;
+  cv::Mat hsv(1, 1, CV_8UC3, cv::Scalar(hue, saturation, value)), bgr;
+  cv::cvtColor(hsv, bgr, cv::COLOR_HSV2BGR);
+  const cv::Vec3b c = bgr.at<cv::Vec3b>(0, 0);
+  return cv::Scalar(c[0], c[1], c[2]);
 }
 const cv::Scalar kUnclassified(200, 200, 200);
 
@@ -64,12 +70,31 @@ cv::Mat DrawRoute(const std::vector<PlaceSummary>& places) {
   for (const auto& [name, count] : class_totals) {
     colours[name] = name.empty() ? kUnclassified : ClassColour(next_colour++);
   }
+  // The legend's class entries, row by row after the count scale (every class is listed).
+  constexpr int kLegendX = kLeft + 340, kLegendRow = 18;
+  std::vector<std::pair<cv::Point, std::string>> legend;  // offset from the legend's top, class
+  {
+    int x = kLegendX, row = 0;
+    for (const auto& [name, colour] : colours) {
+      const std::string label = name.empty() ? "unclassified" : name;
+      const int width = 24 + 8 * static_cast<int>(label.size());
+      if (x + width > kLeft + kWidth && x > kLegendX) {
+        x = kLegendX;
+        ++row;
+      }
+      legend.emplace_back(cv::Point(x, row * kLegendRow), name);
+      x += width;
+    }
+  }
+  const int legend_rows = legend.empty() ? 1 : legend.back().first.y / kLegendRow + 1;
   const int block = kCaption + kCountStrip + kClassStrip + kClassLine + kGap;
-  const int height = 30 + block * static_cast<int>(robots.size()) + kLegend;
+  const int height = 30 + block * static_cast<int>(robots.size()) +
+                     std::max(kLegend, (legend_rows + 1) * kLegendRow);
   cv::Mat image(height, kLeft * 2 + kWidth, CV_8UC3, cv::Scalar(255, 255, 255));
   Text(&image,
        std::to_string(places.size()) + " places of " + std::to_string(robots.size()) +
-           " robots; colour: landmarks per place (0 .. " + std::to_string(max_landmarks) + ")",
+           (robots.size() == 1 ? " robot" : " robots") + "; colour: landmarks per place (0 .. " +
+           std::to_string(max_landmarks) + ")",
        kLeft, 20, 0.5);
   cv::Mat scale(1, 256, CV_8UC1);
   for (int i = 0; i < 256; ++i) scale.at<uint8_t>(0, i) = static_cast<uint8_t>(i);
@@ -139,13 +164,9 @@ cv::Mat DrawRoute(const std::vector<PlaceSummary>& places) {
   }
   Text(&image, "0", kLeft, y + 28, 0.4);
   Text(&image, std::to_string(max_landmarks) + " landmarks", kLeft + 220, y + 28, 0.4);
-  int x = kLeft + 340;
-  for (const auto& [name, colour] : colours) {
-    const std::string label = name.empty() ? "unclassified" : name;
-    cv::rectangle(image, cv::Rect(x, y, 12, 12), colour, cv::FILLED);
-    Text(&image, label, x + 16, y + 11, 0.4);
-    x += 24 + 8 * static_cast<int>(label.size());
-    if (x > kLeft + kWidth - 80) break;
+  for (const auto& [at, name] : legend) {
+    cv::rectangle(image, cv::Rect(at.x, y + at.y, 12, 12), colours[name], cv::FILLED);
+    Text(&image, name.empty() ? "unclassified" : name, at.x + 16, y + at.y + 11, 0.4);
   }
   return image;
 }

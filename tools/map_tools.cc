@@ -439,6 +439,7 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
   StatusOr<int> version = ReadSchemaVersion(c, path);
   if (!version.ok()) return version.status();
   if (*version > kSqliteSchemaVersion) return NewerSchemaVersionError(path, *version);
+  if (*version == 0) return Status::NotFound(path + " holds no placerec map (an empty database)");
   if (*version < kSqliteSchemaVersion) {
     return Status::IoError("map " + path + " has schema version " + std::to_string(*version) +
                            ": open it once with this build's placerec-server (which upgrades it "

@@ -8,6 +8,7 @@
 // The work is in map_tools.h; this file parses flags and prints the reports.
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -245,6 +246,12 @@ int IndexCommand(int argc, char** argv) {
                 report->open_ms / 1000.0,
                 report->started_from_snapshot ? " from an older snapshot" : "",
                 report->write_ms / 1000.0);
+  } else if (report->descriptors == 0) {
+    // An emptied map (pruned to nothing): a snapshot of what it held is of no use.
+    std::error_code error;
+    const bool removed = std::filesystem::remove(report->snapshot, error);
+    std::printf("the map holds no descriptors: nothing to index%s\n",
+                removed ? ("; removed the stale " + report->snapshot).c_str() : "");
   } else {
     std::printf("%s already covers the map's %lld descriptors: nothing written\n",
                 report->snapshot.c_str(), static_cast<long long>(report->descriptors));
