@@ -241,6 +241,10 @@ bool ClientOptions::Check(std::string* error) const {
     *error = "--retry-after must be between 0 and 3600 seconds";
     return false;
   }
+  if (!(untrusted_grace_s >= 0) || untrusted_grace_s > 3600) {
+    *error = "--untrusted-grace must be between 0 and 3600 seconds";
+    return false;
+  }
   if (key_file.empty() && !key_id.empty()) {
     *error = "--key-id needs --key-file";
     return false;
@@ -390,11 +394,13 @@ FrameResult PlacerecClient::Wait(const PendingFrame& pending, double timeout_s) 
   auto next_send = pending.sent + retry;
   int sends = pending.sends;
   const auto grace = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-      std::chrono::duration<double>(kUntrustedGraceSeconds));
+      std::chrono::duration<double>(options_.untrusted_grace_s));
   // Until when to wait for a signed answer once an untrusted one came.
   const auto give_up = [&] {
     const auto it = untrusted_.find(pending.request_id);
-    return it == untrusted_.end() ? deadline : std::min(deadline, it->second.first + grace);
+    return it == untrusted_.end() || options_.untrusted_grace_s <= 0
+               ? deadline
+               : std::min(deadline, it->second.first + grace);
   };
   std::unique_lock lock(mutex_);
   for (;;) {
@@ -404,8 +410,9 @@ FrameResult PlacerecClient::Wait(const PendingFrame& pending, double timeout_s) 
     // Woken by an answer (trusted or not), or at the time to send again or to stop.
     answered_.wait_until(lock, retries ? std::min(stop, next_send) : stop);
     if (answers_.count(pending.request_id) > 0) break;
+    // Not again when too little time is left for its answer to count.
     if (retries && std::chrono::steady_clock::now() >= next_send &&
-        std::chrono::steady_clock::now() < give_up()) {
+        std::chrono::steady_clock::now() + retry / 2 < give_up()) {
       // No answer yet: send the same frame (same request id) again.
       lock.unlock();
       if (PublishFrame(*pending.message) == 0) ++sends;
@@ -436,9 +443,11 @@ FrameResult PlacerecClient::Wait(const PendingFrame& pending, double timeout_s) 
       timeout.message = text;
     } else {
       // The server (or something posing as it) answered, but not with our key.
-      timeout.message = ignored +
-                        "; no answer signed with this key came: check that --key-file holds "
-                        "the key the server's --keys file has for this robot or device";
+      std::snprintf(text, sizeof(text), "; no answer signed with this key came (sent %d time%s)",
+                    sends, sends == 1 ? "" : "s");
+      timeout.message = ignored + text +
+                        ": check that --key-file holds the key the server's --keys file has "
+                        "for this robot or device";
     }
     return timeout;
   }

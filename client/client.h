@@ -177,6 +177,12 @@ struct ClientOptions {
   // further interval until the timeout; the server answers a frame it already processed from its
   // record instead of processing it twice. 0 never sends again.
   double retry_after_s = 5.0;
+  // Once an answer to a frame came that is not signed with our key (a server without that key,
+  // or one refusing it, answers unsigned), wait this many seconds more for a signed answer, then
+  // give up with what the unsigned one said: a wrong key is told in seconds, not at the timeout.
+  // Anyone on the network can send such an answer, so this is also how soon a forgery can make
+  // the client give up on a frame whose genuine answer is slower. 0: wait the whole timeout.
+  double untrusted_grace_s = 10.0;
   // A keys file (server/README.md "Keys"; scripts/make-key.sh): frames are signed with its key
   // and only answers the server signed with that key are accepted (others are ignored and named
   // in the timeout message). Empty: frames go unsigned (a server with --auth off).
@@ -211,13 +217,9 @@ class PlacerecClient {
   // background. An error when LCM refuses the message.
   StatusOr<PendingFrame> Publish(const OutgoingFrame& frame);
   // Waits up to `timeout_s` for the answer, sending the frame again every
-  // options().retry_after_s; code kTimeout when none came. When an answer not signed with our
-  // key came (a server that does not have it, or refuses it), it waits kUntrustedGraceSeconds
-  // more for a signed one and then gives up, naming what the untrusted answer said: a wrong key
-  // is told in seconds, not at the timeout, while a forged answer racing the server's cuts off
-  // only an answer slower than the grace.
+  // options().retry_after_s; code kTimeout when none came, or options().untrusted_grace_s after
+  // an answer not signed with our key (its message then says what that answer said).
   FrameResult Wait(const PendingFrame& pending, double timeout_s);
-  static constexpr double kUntrustedGraceSeconds = 10.0;
   // Publish, then wait options.timeout_s.
   FrameResult Send(const OutgoingFrame& frame);
 

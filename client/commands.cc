@@ -46,6 +46,10 @@ void AddConnectionFlags(FlagParser* parser, ClientOptions* options) {
   parser->Add("retry-after", &options->retry_after_s,
               "send a frame again (same request id) when its answer has not come after this "
               "many seconds, and again after each further interval until the timeout; 0: never");
+  parser->Add("untrusted-grace", &options->untrusted_grace_s,
+              "seconds to wait on for a signed answer once an answer not signed with the key came "
+              "(a wrong key: the server's refusal is unsigned), then give up with what it said; "
+              "0: wait the whole --timeout");
 }
 
 StatusOr<std::unique_ptr<PlacerecClient>> ConnectOrReport(const ClientOptions& options,

@@ -4,6 +4,7 @@
 
 #include <charconv>
 #include <chrono>
+#include <set>
 #include <string>
 #include <utility>
 
@@ -167,16 +168,21 @@ StatusOr<std::unique_ptr<Gateway>> Gateway::Create(const GatewayOptions& options
   } else {
     std::string warning;
     StatusOr<std::vector<SigningKey>> keys = ReadKeysFile(options.client.key_file, &warning);
-    if (keys.ok()) {
-      // The key the gateway signs with: --key-id's, or the file's first.
-      for (const SigningKey& key : *keys) {
-        if (!options.client.key_id.empty() && key.id != options.client.key_id) continue;
-        if (key.may_insert) {
-          LOG(WARNING) << "key '" << key.id << "' of " << options.client.key_file
+    if (keys.ok() && !keys->empty()) {
+      // Every key the gateway signs with: its own (--key-id, or the file's first) and the
+      // devices' own keys that the tokens file names.
+      std::set<std::string> ids = {options.client.key_id.empty() ? keys->front().id
+                                                                 : options.client.key_id};
+      for (const std::string& key_id : tokens->KeyIds()) {
+        if (!key_id.empty()) ids.insert(key_id);
+      }
+      for (const std::string& id : ids) {
+        const SigningKey* key = FindKey(*keys, id);
+        if (key != nullptr && key->may_insert) {
+          LOG(WARNING) << "key '" << id << "' of " << options.client.key_file
                        << " may insert: the gateway only queries, so a query-only key is enough "
-                          "and limits what a stolen gateway key can do";
+                          "and limits what a stolen key can do";
         }
-        break;
       }
     }
   }

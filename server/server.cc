@@ -2,6 +2,7 @@
 
 #include <malloc.h>
 #include <poll.h>
+#include <sched.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -72,8 +73,12 @@ std::string OpenAdvice(const std::string& url) {
 
 int ServerOptions::ResolvedWorkers() const {
   if (workers > 0) return workers;
-  // hardware_concurrency() is 0 when the machine does not say.
-  const int cores = static_cast<int>(std::thread::hardware_concurrency());
+  // The cores this process may run on (taskset, a container's cpuset), not the machine's; a CPU
+  // quota of a cgroup is not seen. hardware_concurrency() is 0 when the machine does not say.
+  int cores = static_cast<int>(std::thread::hardware_concurrency());
+  cpu_set_t allowed;
+  CPU_ZERO(&allowed);
+  if (sched_getaffinity(0, sizeof(allowed), &allowed) == 0) cores = CPU_COUNT(&allowed);
   return std::clamp(cores, 1, kMaxWorkers);
 }
 

@@ -4,6 +4,7 @@
 // tests/service_test.cc's, each test in a private network namespace.
 #include "server/server.h"
 
+#include <sched.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -237,9 +238,20 @@ TEST(ServerTest, CreateRefusesToServeWithoutKeys) {
 // would leave cores idle on a larger machine); a given count is kept.
 TEST(ServerOptionsTest, WorkersDefaultToOnePerCore) {
   ServerOptions options;
-  const int cores = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   EXPECT_EQ(options.workers, 0);
+  // The cores this process may use: held to one (as taskset would), one worker.
+  cpu_set_t all, one;
+  ASSERT_EQ(sched_getaffinity(0, sizeof(all), &all), 0);
+  const int cores = CPU_COUNT(&all);
   EXPECT_EQ(options.ResolvedWorkers(), std::min(cores, 256));
+  int first = 0;
+  while (!CPU_ISSET(first, &all)) ++first;
+  CPU_ZERO(&one);
+  CPU_SET(first, &one);
+  ASSERT_EQ(sched_setaffinity(0, sizeof(one), &one), 0);
+  const int held = options.ResolvedWorkers();
+  ASSERT_EQ(sched_setaffinity(0, sizeof(all), &all), 0);
+  EXPECT_EQ(held, 1);
   options.workers = 3;
   EXPECT_EQ(options.ResolvedWorkers(), 3);
 }

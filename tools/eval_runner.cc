@@ -160,16 +160,17 @@ Status FeedFrames(const Run& run, const EvalOptions& eval, int first, int frames
     request.utime = frame.utime;
     RecognitionResult result = recognizer.Recognize(request, last_observation);
     if (!result.status.ok()) {
+      // A frame the map --db refuses (its robot and sequence stored, or not after the robot's
+      // last) is the usual InvalidArgument of a run fed into a map that already holds it.
       std::string advice;
-      const std::string& why = result.status.message();
-      if (!eval.db_path.empty() && (why.find("already stored") != std::string::npos ||
-                                    why.find("not after") != std::string::npos)) {
-        advice = "; the map " + eval.db_path +
-                 " already holds this robot's frames up to there: give a new --db, or "
-                 "--first-frame after the last frame it holds (placerec-map info --db " +
+      if (!eval.db_path.empty() && result.status.code() == StatusCode::kInvalidArgument) {
+        advice = "; if the map " + eval.db_path +
+                 " already holds this run's frames, give a new --db, or --first-frame after "
+                 "the last frame it holds (placerec-map info --db " +
                  eval.db_path + " shows each robot's sequences)";
       }
-      return Status(result.status.code(), "frame " + std::to_string(f) + ": " + why + advice);
+      return Status(result.status.code(),
+                    "frame " + std::to_string(f) + ": " + result.status.message() + advice);
     }
     totals->total_ms.push_back(frame_timer.ElapsedMs());
     totals->stage_ms["decode"].push_back(decode_ms);

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,20 @@
 
 namespace placerec {
 namespace {
+
+constexpr char kCsvHeader[] = "id,robot,sequence,utime,landmarks,descriptors,classes,thumbnail";
+
+// Whether `file` is a thumbnail as places.csv names it: thumbnails/<place id>.jpg.
+bool IsThumbnailName(const std::string& file) {
+  const std::string prefix = "thumbnails/", suffix = ".jpg";
+  if (file.size() <= prefix.size() + suffix.size() || file.compare(0, prefix.size(), prefix) != 0 ||
+      file.compare(file.size() - suffix.size(), suffix.size(), suffix) != 0) {
+    return false;
+  }
+  return std::all_of(file.begin() + static_cast<std::ptrdiff_t>(prefix.size()),
+                     file.end() - static_cast<std::ptrdiff_t>(suffix.size()),
+                     [](char c) { return c >= '0' && c <= '9'; });
+}
 
 // A CSV field, quoted when it holds a separator, a quote or a line break.
 std::string CsvField(const std::string& text) {
@@ -217,22 +232,20 @@ StatusOr<ExportReport> ExportMap(const std::string& path, const std::string& out
     return Status::IoError("cannot create or write in " + out_dir +
                            ": choose a folder you can write");
   }
-  // What an earlier export into the same folder wrote and this one may not (a pruned map has
-  // fewer places, an old map no pictures): its thumbnails and contact sheet, nothing else.
+  // What an earlier export into this folder listed in its places.csv (this export's own format):
+  // its thumbnails, removed below when this export does not write them again.
+  std::set<std::string> earlier_thumbnails;
+  bool earlier_export = false;
   {
-    std::error_code ignored;
-    std::filesystem::remove(out_dir + "/contact_sheet.jpg", ignored);
-    std::filesystem::directory_iterator it(out_dir + "/thumbnails", ignored);
-    for (; !ignored && it != std::filesystem::directory_iterator(); it.increment(ignored)) {
-      const std::string name = it->path().filename().string();
-      const size_t dot = name.find('.');
-      if (dot == std::string::npos || dot == 0 || name.substr(dot) != ".jpg" ||
-          !std::all_of(name.begin(), name.begin() + static_cast<std::ptrdiff_t>(dot),
-                       [](char c) { return c >= '0' && c <= '9'; })) {
-        continue;
+    std::ifstream earlier(out_dir + "/places.csv");
+    std::string line;
+    if (std::getline(earlier, line) && line == kCsvHeader) {
+      earlier_export = true;
+      while (std::getline(earlier, line)) {
+        const size_t comma = line.find_last_of(',');
+        const std::string file = comma == std::string::npos ? "" : line.substr(comma + 1);
+        if (IsThumbnailName(file)) earlier_thumbnails.insert(file);
       }
-      std::error_code remove_error;
-      std::filesystem::remove(it->path(), remove_error);
     }
   }
   ExportReport report;
@@ -280,7 +293,7 @@ StatusOr<ExportReport> ExportMap(const std::string& path, const std::string& out
   }
   {
     std::ofstream csv(report.csv_path);
-    csv << "id,robot,sequence,utime,landmarks,descriptors,classes,thumbnail\n";
+    csv << kCsvHeader << '\n';
     std::map<std::string, int> robots;
     for (const PlaceSummary& place : *places) {
       csv << place.id << ',' << CsvField(place.robot) << ',' << place.sequence << ',' << place.utime
@@ -296,6 +309,19 @@ StatusOr<ExportReport> ExportMap(const std::string& path, const std::string& out
   const cv::Mat picture = DrawRoute(*places);
   if (!cv::imwrite(report.picture_path, picture)) {
     return Status::IoError("cannot write " + report.picture_path);
+  }
+  // Written whole: what the earlier export had and this one has not goes (a pruned map's places,
+  // an old map's pictures), and nothing that no export listed.
+  for (const PlaceSummary& place : *places) {
+    if (place.thumbnail)
+      earlier_thumbnails.erase("thumbnails/" + std::to_string(place.id) + ".jpg");
+  }
+  std::error_code ignored;
+  for (const std::string& file : earlier_thumbnails) {
+    std::filesystem::remove(out_dir + "/" + file, ignored);
+  }
+  if (earlier_export && report.contact_sheet_path.empty()) {
+    std::filesystem::remove(out_dir + "/contact_sheet.jpg", ignored);
   }
   return report;
 }

@@ -371,7 +371,7 @@ StatusOr<int64_t> ParseTimeArgument(const std::string& text) {
   const bool leap = (year % 4 == 0 && year % 100 != 0) || year % 400 == 0;
   ok = ok && month >= 1 && month <= 12 && day >= 1 && day <= kDaysInMonth[month - 1] &&
        (month != 2 || day <= 28 || leap) && hour >= 0 && hour < 24 && minute >= 0 && minute < 60 &&
-       second >= 0 && second < 60 && year >= 1970;
+       second >= 0 && second < 61 && year >= 1970;
   if (!ok) {
     return Status::InvalidArgument(
         "cannot read the time '" + text +
@@ -412,9 +412,8 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
                            "prune a writable copy");
   }
   // Exclusive locking mode before the first access: the connection takes the file's exclusive
-  // lock and keeps it until it closes, so a server that starts meanwhile cannot open the map, and
-  // one in this process (whose locks SQLite shares) is refused here. A dry run only reads (one
-  // snapshot), and may run beside a server.
+  // lock and keeps it until it closes, so a server that starts from now on cannot open the map.
+  // A dry run only reads (one snapshot), and may run beside a server.
   if (!options.dry_run) {
     PLACEREC_RETURN_IF_ERROR(SqliteExec(c, "PRAGMA locking_mode = EXCLUSIVE", path));
   }
@@ -426,6 +425,15 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
   }
   if (rc != SQLITE_OK) {
     return Status::IoError("cannot lock map " + path + ": " + SqliteMessage(c, rc));
+  }
+  if (!options.dry_run) {
+    // A server that opened the map between the first look and the lock (and went idle).
+    const StatusOr<bool> elsewhere = SqliteOpenElsewhere(path);
+    if (!elsewhere.ok() || *elsewhere) {
+      sqlite3_exec(c, "ROLLBACK", nullptr, nullptr, nullptr);
+      if (!elsewhere.ok()) return elsewhere.status();
+      return Status::IoError("map " + path + kHeldOpenAdvice);
+    }
   }
   // Rolls back unless committed below; every exit before the commit leaves the map unchanged.
   struct Rollback {
@@ -447,20 +455,15 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
                            std::to_string(kSqliteSchemaVersion) + "), then prune it");
   }
 
+  PruneReport report;
+  report.dry_run = options.dry_run;
   if (!options.robot.empty()) {
     // A misspelt robot would prune nothing and say so only as a count: name the map's robots.
-    std::vector<std::string> robots;
     PLACEREC_RETURN_IF_ERROR(ForEachRow(
         c, "SELECT DISTINCT robot FROM places ORDER BY robot", path, "select robots", nullptr,
-        [&](const SqliteStatement& row) { robots.push_back(row.ColumnText(0)); }));
-    if (std::find(robots.begin(), robots.end(), options.robot) == robots.end()) {
-      std::string names;
-      for (const std::string& robot : robots) names += (names.empty() ? "" : ", ") + robot;
-      return Status::NotFound(
-          "map " + path + " has no robot '" + options.robot + "' (" +
-          (robots.empty() ? std::string("it has no places") : "its robots: " + names) +
-          "); nothing was pruned");
-    }
+        [&](const SqliteStatement& row) { report.robots.push_back(row.ColumnText(0)); }));
+    report.robot_unknown =
+        std::find(report.robots.begin(), report.robots.end(), options.robot) == report.robots.end();
   }
   const std::string doomed =
       "SELECT id FROM places WHERE (?1 IS NULL OR utime < ?1) AND (?2 IS NULL OR robot = ?2)";
@@ -478,8 +481,6 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
       statement.BindNull(2);
     }
   };
-  PruneReport report;
-  report.dry_run = options.dry_run;
   PLACEREC_RETURN_IF_ERROR(ForEachRow(
       c,
       "SELECT robot, COUNT(*) FROM places WHERE (?1 IS NULL OR utime < ?1) AND (?2 IS NULL OR "
@@ -846,6 +847,11 @@ StatusOr<IndexSnapshotReport> WriteIndexSnapshot(const std::string& path) {
   Timer write_timer;
   PLACEREC_RETURN_IF_ERROR((*map)->SaveIndexSnapshot(&report.written));
   report.write_ms = write_timer.ElapsedMs();
+  if (!report.written && report.descriptors == 0) {
+    // An emptied map (pruned to nothing): a snapshot of what it held is of no use.
+    std::error_code ignored;
+    report.removed_stale = std::filesystem::remove(report.snapshot, ignored);
+  }
   return report;
 }
 

@@ -124,6 +124,10 @@ struct PruneReport {
   std::map<std::string, int64_t> places_by_robot;
   int64_t places_kept = 0;
   int64_t landmarks_kept = 0;
+  // PruneOptions::robot names no robot of the map (a misspelt id, or one pruned before): the
+  // map's robots, for the message. Nothing was pruned.
+  bool robot_unknown = false;
+  std::vector<std::string> robots;
 };
 
 // Drops the places options select, their landmarks, and the sightings by them or of their
@@ -192,6 +196,7 @@ StatusOr<CheckReport> CheckMap(const std::string& path);
 struct IndexSnapshotReport {
   std::string snapshot;                // the file written (MAP.index)
   bool written = false;                // false: the snapshot on disk already covered the whole map
+  bool removed_stale = false;          // the map holds no descriptors: a snapshot was removed
   bool started_from_snapshot = false;  // the map opened from an older snapshot
   int64_t descriptors = 0;             // descriptors the snapshot covers
   double open_ms = 0;                  // opening the map (PlaceMap::Open)

@@ -160,8 +160,9 @@ TEST(MapToolsTest, ExportWritesPlacesCsvAndRoutePicture) {
   EXPECT_EQ(sheet.cols, 3 * 162);
 
   // Exported again into the same folder after a prune, the pictures of the places gone go too
-  // (files that are no export's stay).
+  // (files the earlier export's places.csv did not list stay).
   std::ofstream(out + "/thumbnails/notes.txt") << "mine";
+  std::ofstream(out + "/thumbnails/77.jpg") << "mine too";  // no export listed it
   PruneOptions prune;
   prune.robot = "left";
   ASSERT_TRUE(PruneMap(map.path(), prune).ok());
@@ -171,6 +172,7 @@ TEST(MapToolsTest, ExportWritesPlacesCsvAndRoutePicture) {
   EXPECT_FALSE(std::filesystem::exists(out + "/thumbnails/1.jpg"));
   EXPECT_FALSE(std::filesystem::exists(out + "/contact_sheet.jpg"));
   EXPECT_TRUE(std::filesystem::exists(out + "/thumbnails/notes.txt"));
+  EXPECT_TRUE(std::filesystem::exists(out + "/thumbnails/77.jpg"));
   std::filesystem::remove_all(out);
 }
 
@@ -178,16 +180,18 @@ TEST(MapToolsTest, PruneByRobotDropsItsPlacesLandmarksAndSightings) {
   TempMap map("prune_robot");
   BuildSite(map.path());
   PruneOptions options;
-  // A robot the map does not have (a misspelt id) is an error naming the robots it has.
+  // A robot the map does not have (a misspelt id) prunes nothing, and the report names the
+  // robots it has (a scheduled prune of a robot already gone is no error).
   options.robot = "lfet";
   const StatusOr<PruneReport> misspelt = PruneMap(map.path(), options);
-  ASSERT_FALSE(misspelt.ok());
-  EXPECT_EQ(misspelt.status().code(), StatusCode::kNotFound);
-  EXPECT_NE(misspelt.status().message().find("its robots: left, right"), std::string::npos)
-      << misspelt.status().message();
+  ASSERT_TRUE(misspelt.ok()) << misspelt.status().ToString();
+  EXPECT_TRUE(misspelt->robot_unknown);
+  EXPECT_EQ(misspelt->robots, (std::vector<std::string>{"left", "right"}));
+  EXPECT_EQ(misspelt->places, 0);
   options.robot = "left";
   StatusOr<PruneReport> report = PruneMap(map.path(), options);
   ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_FALSE(report->robot_unknown);
   EXPECT_EQ(report->places, 3);
   EXPECT_EQ(report->landmarks, 6);
   EXPECT_EQ(report->sightings, 1);  // right's sighting of left's landmark
@@ -372,6 +376,27 @@ TEST(MapToolsTest, IndexWritesTheSnapshotThatAPruneMakesStale) {
   ASSERT_TRUE(report.ok());
   EXPECT_FALSE(report->started_from_snapshot);
   EXPECT_TRUE(report->written);
+
+  // Pruned to nothing, the map's snapshot is stale and goes.
+  PruneOptions everything;
+  everything.before_utime = kStart + 100 * kDay;
+  ASSERT_TRUE(PruneMap(map.path(), everything).ok());
+  report = WriteIndexSnapshot(map.path());
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_FALSE(report->written);
+  EXPECT_EQ(report->descriptors, 0);
+  EXPECT_TRUE(report->removed_stale);
+  EXPECT_FALSE(std::filesystem::exists(report->snapshot));
+
+  // An empty database is no map to prune.
+  TempMap empty("prune_empty");
+  std::ofstream(empty.path()).flush();
+  PruneOptions some;
+  some.robot = "left";
+  const StatusOr<PruneReport> pruned_empty = PruneMap(empty.path(), some);
+  ASSERT_FALSE(pruned_empty.ok());
+  EXPECT_NE(pruned_empty.status().message().find("holds no placerec map"), std::string::npos)
+      << pruned_empty.status().message();
 
   // A missing map is an error, and no snapshot appears for it.
   TempMap missing("index_missing");

@@ -8,7 +8,6 @@
 // The work is in map_tools.h; this file parses flags and prints the reports.
 #include <cstdio>
 #include <cstring>
-#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -72,7 +71,9 @@ int ExportCommand(int argc, char** argv) {
       "timeline strip of its places coloured by landmark count, the class shares of their\n"
       "landmarks and the robot's class counts, and, for maps with place pictures (schema 3),\n"
       "DIR/thumbnails/<place id>.jpg and DIR/contact_sheet.jpg, the route's pictures in order.\n"
-      "Reads only.");
+      "Reads the map only. Into the folder of an earlier export it removes, once done, the\n"
+      "thumbnails that export's places.csv listed and this one does not write again (and its\n"
+      "contact sheet when this one has none); other files are left alone.");
   parser.AddRequired("db", &db, "map file");
   parser.AddRequired("out", &out, "output directory (created if missing)");
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-map export")) {
@@ -130,6 +131,13 @@ int PruneCommand(int argc, char** argv) {
   }
   StatusOr<PruneReport> report = PruneMap(db, options);
   if (!report.ok()) return Fail("placerec-map prune", report.status());
+  if (report->robot_unknown) {
+    std::string robots;
+    for (const std::string& robot : report->robots) robots += (robots.empty() ? "" : ", ") + robot;
+    std::fprintf(stderr, "placerec-map prune: warning: %s has no robot '%s' (%s)\n", db.c_str(),
+                 options.robot.c_str(),
+                 robots.empty() ? "it has no places" : ("its robots: " + robots).c_str());
+  }
   std::printf("%s %lld places, %lld landmarks (%lld descriptors), %lld sightings\n",
               report->dry_run ? "would drop" : "dropped", static_cast<long long>(report->places),
               static_cast<long long>(report->landmarks),
@@ -247,11 +255,8 @@ int IndexCommand(int argc, char** argv) {
                 report->started_from_snapshot ? " from an older snapshot" : "",
                 report->write_ms / 1000.0);
   } else if (report->descriptors == 0) {
-    // An emptied map (pruned to nothing): a snapshot of what it held is of no use.
-    std::error_code error;
-    const bool removed = std::filesystem::remove(report->snapshot, error);
     std::printf("the map holds no descriptors: nothing to index%s\n",
-                removed ? ("; removed the stale " + report->snapshot).c_str() : "");
+                report->removed_stale ? ("; removed the stale " + report->snapshot).c_str() : "");
   } else {
     std::printf("%s already covers the map's %lld descriptors: nothing written\n",
                 report->snapshot.c_str(), static_cast<long long>(report->descriptors));

@@ -616,7 +616,7 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
         best = overlap;
         change.kind = SceneChange::Kind::kDisappeared;
         change.object_class = landmark.name;
-        change.class_confidence = landmark.name.empty() ? 0.f : landmark.confidence;
+        change.class_confidence = landmark.confidence;
       }
     }
     changes->push_back(change);

@@ -482,6 +482,7 @@ TEST(ChangeDetectorTest, MissingLandmarkIsADisappearance) {
   ASSERT_EQ(unsure.changes.size(), 1u);
   EXPECT_EQ(unsure.changes[0].kind, SceneChange::Kind::kDisappeared);
   EXPECT_EQ(unsure.changes[0].object_class, "");
+  EXPECT_FLOAT_EQ(unsure.changes[0].class_confidence, 0.2f);
 }
 
 TEST(ChangeDetectorTest, ObjectSeenFromANeighbourIsNotAChange) {

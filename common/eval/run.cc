@@ -291,11 +291,12 @@ StatusOr<std::string> FindDataset(const std::string& dataset, const std::string&
   const std::string root_from = env != nullptr && env[0] != '\0'
                                     ? "PLACEREC_DATA"
                                     : "the build's default; set PLACEREC_DATA to change it";
-  return Status::NotFound("no dataset '" + dataset +
-                          "': it is no folder, nor one under the data root " + data_root + " (" +
-                          root_from + "); " +
-                          (datasets.empty() ? std::string("that root holds no datasets")
-                                            : "datasets there: " + JoinNames(datasets)));
+  return Status::NotFound(
+      "no dataset '" + dataset + "': it is no folder, nor one under the data root " + data_root +
+      " (" + root_from + "); " +
+      (!std::filesystem::is_directory(data_root, ec) ? std::string("that root does not exist")
+       : datasets.empty()                            ? std::string("that root holds no datasets")
+                                                     : "datasets there: " + JoinNames(datasets)));
 }
 
 }  // namespace placerec

@@ -169,7 +169,10 @@ TEST_F(RunTest, FindDatasetByFolderOrNameAndListsTheRootOtherwise) {
             std::string::npos)
       << misspelt.status().message();
   EXPECT_FALSE(FindDataset("README.md", root).ok());  // a file is no dataset
-  EXPECT_NE(FindDataset("x", dir_ + "/nowhere").status().message().find("holds no datasets"),
+  EXPECT_NE(FindDataset("x", dir_ + "/nowhere").status().message().find("does not exist"),
+            std::string::npos);
+  fs::create_directories(dir_ + "/empty");
+  EXPECT_NE(FindDataset("x", dir_ + "/empty").status().message().find("holds no datasets"),
             std::string::npos);
 }
 

@@ -79,6 +79,11 @@ TEST(RecognizerOptionsTest, ChangeFlagsReachTheDetectorAndBadValuesAreNamed) {
   ASSERT_TRUE(parser.Parse(3, too_few, 1, &help).ok());
   EXPECT_FALSE(options.Check(&error));
   EXPECT_NE(error.find("min_points"), std::string::npos) << error;
+  const char* sure[] = {"prog", "--change-min-points", "12", "--change-min-class-confidence",
+                        "1.5"};
+  ASSERT_TRUE(parser.Parse(5, sure, 1, &help).ok());
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("min class confidence"), std::string::npos) << error;
 }
 
 TEST(RecognizerTest, RejectsBadRequestsWithoutChangingAnything) {

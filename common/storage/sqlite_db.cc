@@ -122,9 +122,10 @@ StatusOr<bool> SqliteOpenElsewhere(const std::string& path) {
   probe.l_len = 0;  // to the end
   const int rc = fcntl(fd, F_OFD_GETLK, &probe);
   const int error = errno;
-  // Closing a descriptor drops this process's POSIX locks on the file (SQLite's, of a connection
-  // of this process to the same map): the caller asks before opening the map itself, and a map
-  // held in this process is refused by SQLite's own locking, so none is in use here.
+  // Closing a descriptor drops this process's POSIX locks on the file: those of a connection of
+  // this process to the same map (seen above, so the caller refuses the map; that connection's
+  // next transactions take their locks anew). A connection in SQLite's exclusive locking mode
+  // holds none there.
   close(fd);
   if (rc != 0)
     return Status::IoError("cannot examine the locks of " + shm + ": " + std::strerror(error));

@@ -36,8 +36,9 @@ StatusOr<SqliteConnection> OpenSqliteDatabase(const std::string& path, int flags
 // even when idle, while it holds no lock on the database file itself between transactions (so
 // SQLite's own exclusive locking does not see it). False when there is no -shm file or nobody
 // locks it; IoError when the file cannot be examined. Linux (open-file-description locks: it
-// sees connections of this process too). Ask before this process opens the map: examining the
-// file drops this process's own SQLite locks on it, as closing any descriptor of a file does.
+// sees connections of this process too). Examining the file drops this process's own POSIX
+// locks on it, as closing any descriptor of a file does: ask before this process opens the map,
+// or while holding it in exclusive locking mode (which keeps no lock there).
 StatusOr<bool> SqliteOpenElsewhere(const std::string& path);
 
 // Runs constant SQL without results; the error names the SQL and `path` (for messages only).

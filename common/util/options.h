@@ -14,8 +14,8 @@
 
 namespace placerec {
 
-// The shortest decimal text (%g with 1 to 17 digits) that reads back as `value` (as a float
-// when `single`).
+// The shortest decimal text that reads back as `value` (as a float when `single`): std::to_chars,
+// fixed or scientific notation, whichever is shorter.
 std::string ShortestText(double value, bool single = false);
 
 class FlagParser {
