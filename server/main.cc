@@ -74,7 +74,7 @@ int Main(int argc, char** argv) {
              "each key's counters are remembered against replays");
   parser.Add("workers", &options.workers,
              "worker threads running the pipeline (one robot's frames never run at once); 0: one "
-             "per core of the machine");
+             "per core this process may use (CPU affinity, a container's CPU quota)");
   parser.Add("opencv-threads", &opencv_threads,
              "threads OpenCV's own parallel loops (SIFT) may use in this process; 1: each frame "
              "runs on its worker's thread alone and --workers runs frames side by side; 0: "

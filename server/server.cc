@@ -8,6 +8,9 @@
 #include <cerrno>
 #include <chrono>
 #include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -69,16 +72,57 @@ std::string OpenAdvice(const std::string& url) {
   return "check the URL and that the network has multicast";
 }
 
+// Whole cores for `quota` microseconds of CPU per `period`, rounded up; 0 for no quota.
+int CoresOfQuota(int64_t quota, int64_t period) {
+  if (quota <= 0 || period <= 0) return 0;
+  return static_cast<int>(std::min<int64_t>((quota + period - 1) / period, kMaxWorkers));
+}
+
+// The first line of a small file ("" when it does not read).
+std::string FirstLine(const std::string& path) {
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);
+  return line;
+}
+
 }  // namespace
+
+int CoresOfCpuMax(const std::string& cpu_max) {
+  std::istringstream in(cpu_max);
+  std::string quota;
+  int64_t period = 0;
+  if (!(in >> quota >> period) || quota == "max") return 0;
+  char* end = nullptr;
+  const long long value = std::strtoll(quota.c_str(), &end, 10);
+  return *end == '\0' ? CoresOfQuota(value, period) : 0;
+}
+
+int CoresOfCfsQuota(const std::string& quota_us, const std::string& period_us) {
+  char* quota_end = nullptr;
+  char* period_end = nullptr;
+  const long long quota = std::strtoll(quota_us.c_str(), &quota_end, 10);
+  const long long period = std::strtoll(period_us.c_str(), &period_end, 10);
+  if (quota_end == quota_us.c_str() || period_end == period_us.c_str()) return 0;
+  return CoresOfQuota(quota, period);
+}
 
 int ServerOptions::ResolvedWorkers() const {
   if (workers > 0) return workers;
-  // The cores this process may run on (taskset, a container's cpuset), not the machine's; a CPU
-  // quota of a cgroup is not seen. hardware_concurrency() is 0 when the machine does not say.
+  // The cores this process may run on (taskset, a container's cpuset), not the machine's.
+  // hardware_concurrency() is 0 when the machine does not say.
   int cores = static_cast<int>(std::thread::hardware_concurrency());
   cpu_set_t allowed;
   CPU_ZERO(&allowed);
   if (sched_getaffinity(0, sizeof(allowed), &allowed) == 0) cores = CPU_COUNT(&allowed);
+  // A CPU quota of the cgroup the process runs in (a container's --cpus), as its own cgroup root
+  // shows it (cgroup v2, or v1's cpu controller).
+  int quota = CoresOfCpuMax(FirstLine("/sys/fs/cgroup/cpu.max"));
+  if (quota == 0) {
+    quota = CoresOfCfsQuota(FirstLine("/sys/fs/cgroup/cpu/cpu.cfs_quota_us"),
+                            FirstLine("/sys/fs/cgroup/cpu/cpu.cfs_period_us"));
+  }
+  if (quota > 0) cores = std::min(cores, quota);
   return std::clamp(cores, 1, kMaxWorkers);
 }
 

@@ -74,10 +74,17 @@ struct ServerOptions {
   RecognizerOptions recognizer;
 
   bool Check(std::string* error) const;
-  // The worker threads the server runs: `workers`, or for 0 the machine's cores (at least 1, at
-  // most 256).
+  // The worker threads the server runs: `workers`, or for 0 the cores this process may use (its
+  // CPU affinity, and a cgroup's CPU quota where one is set: a container given 2 CPUs of a large
+  // host runs 2), at least 1, at most 256.
   int ResolvedWorkers() const;
 };
+
+// Whole cores a cgroup CPU quota allows, rounded up: cgroup v2's cpu.max text ("max 100000": no
+// quota, "200000 100000": 2), or v1's cpu.cfs_quota_us and cpu.cfs_period_us (-1: no quota). 0
+// when there is no quota or the text does not read.
+int CoresOfCpuMax(const std::string& cpu_max);
+int CoresOfCfsQuota(const std::string& quota_us, const std::string& period_us);
 
 class Server {
  public:

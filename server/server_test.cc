@@ -243,7 +243,9 @@ TEST(ServerOptionsTest, WorkersDefaultToOnePerCore) {
   cpu_set_t all, one;
   ASSERT_EQ(sched_getaffinity(0, sizeof(all), &all), 0);
   const int cores = CPU_COUNT(&all);
-  EXPECT_EQ(options.ResolvedWorkers(), std::min(cores, 256));
+  // At most those cores (fewer under a cgroup's CPU quota).
+  EXPECT_GE(options.ResolvedWorkers(), 1);
+  EXPECT_LE(options.ResolvedWorkers(), std::min(cores, 256));
   int first = 0;
   while (!CPU_ISSET(first, &all)) ++first;
   CPU_ZERO(&one);
@@ -254,6 +256,20 @@ TEST(ServerOptionsTest, WorkersDefaultToOnePerCore) {
   EXPECT_EQ(held, 1);
   options.workers = 3;
   EXPECT_EQ(options.ResolvedWorkers(), 3);
+}
+
+// A cgroup's CPU quota in whole cores, rounded up; no quota or unreadable text gives 0.
+TEST(ServerOptionsTest, CpuQuotaInCores) {
+  EXPECT_EQ(CoresOfCpuMax("max 100000"), 0);
+  EXPECT_EQ(CoresOfCpuMax("200000 100000"), 2);
+  EXPECT_EQ(CoresOfCpuMax("150000 100000"), 2);
+  EXPECT_EQ(CoresOfCpuMax("50000 100000"), 1);
+  EXPECT_EQ(CoresOfCpuMax(""), 0);
+  EXPECT_EQ(CoresOfCpuMax("lots 100000"), 0);
+  EXPECT_EQ(CoresOfCfsQuota("-1", "100000"), 0);
+  EXPECT_EQ(CoresOfCfsQuota("400000", "100000"), 4);
+  EXPECT_EQ(CoresOfCfsQuota("", ""), 0);
+  EXPECT_EQ(CoresOfCpuMax("100000000 1000"), 256);  // never more workers than the limit
 }
 
 // A server opened on an existing map serves all of it; before any frame the heartbeat reports
