@@ -78,8 +78,7 @@ int Main(int argc, char** argv) {
   parser.Add("opencv-threads", &opencv_threads,
              "threads OpenCV's own parallel loops (SIFT) may use in this process; 1: each frame "
              "runs on its worker's thread alone and --workers runs frames side by side; 0: "
-             "OpenCV's default (all cores; one worker then finished fewer frames per second, "
-             "docs/results.md, Speed)");
+             "OpenCV's default (all cores; docs/results.md, Speed, compares the two)");
   parser.Add("queue", &options.queue_capacity,
              "frames waiting for a worker before new ones are answered 'overloaded'");
   parser.Add("status-period", &options.status_period_s,

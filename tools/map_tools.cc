@@ -395,12 +395,14 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
     return Status::NotFound("no placerec map at " + path);
   }
   // A server holding the map in another process locks only its shared-memory file while idle,
-  // which the exclusive lock below does not see: look there first.
-  if (!options.dry_run) {
+  // which the exclusive lock below does not see: look there before opening the map, and again
+  // once the lock is held (a server that opened it in between).
+  const auto refuse_if_held = [&path]() -> Status {
     const StatusOr<bool> elsewhere = SqliteOpenElsewhere(path);
     if (!elsewhere.ok()) return elsewhere.status();
-    if (*elsewhere) return Status::IoError("map " + path + kHeldOpenAdvice);
-  }
+    return *elsewhere ? Status::IoError("map " + path + kHeldOpenAdvice) : Status::Ok();
+  };
+  if (!options.dry_run) PLACEREC_RETURN_IF_ERROR(refuse_if_held());
   StatusOr<SqliteConnection> opened =
       OpenSqliteDatabase(path, SQLITE_OPEN_READWRITE, options.busy_timeout_ms);
   if (!opened.ok()) return opened.status();
@@ -427,12 +429,12 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
     return Status::IoError("cannot lock map " + path + ": " + SqliteMessage(c, rc));
   }
   if (!options.dry_run) {
-    // A server that opened the map between the first look and the lock (and went idle).
-    const StatusOr<bool> elsewhere = SqliteOpenElsewhere(path);
-    if (!elsewhere.ok() || *elsewhere) {
+    const Status held = refuse_if_held();
+    if (!held.ok()) {
       sqlite3_exec(c, "ROLLBACK", nullptr, nullptr, nullptr);
-      if (!elsewhere.ok()) return elsewhere.status();
-      return Status::IoError("map " + path + kHeldOpenAdvice);
+      // Closing, this connection must not checkpoint the other's write-ahead log and remove it.
+      sqlite3_db_config(c, SQLITE_DBCONFIG_NO_CKPT_ON_CLOSE, 1, nullptr);
+      return held;
     }
   }
   // Rolls back unless committed below; every exit before the commit leaves the map unchanged.

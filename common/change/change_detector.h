@@ -111,8 +111,8 @@ struct ChangeOptions {
   int max_changes = 5;
   // A change is named by an object class (seed Ch. 4) only when the classifier's confidence in
   // it is at least this; otherwise it is an "object". 0.5 is where the boosted sum turns
-  // positive (ObjectLabel::confidence): the classifier votes for the class rather than against.
-  // The class it would name then is the least unlikely one, seldom the object's.
+  // positive (ObjectLabel::confidence): the classifier votes for the class rather than against;
+  // below it the best class is only the least unlikely one.
   double min_class_confidence = 0.5;
   // Matched places of the best place's route (same robot, within this many seconds of it) that
   // serve as further references, at most max_references of them in all.

@@ -1,7 +1,6 @@
 #include "common/eval/run.h"
 
 #include <algorithm>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -287,13 +286,9 @@ StatusOr<std::string> FindDataset(const std::string& dataset, const std::string&
     if (it->is_directory(type_ec)) datasets.push_back(it->path().filename().string());
   }
   std::sort(datasets.begin(), datasets.end());
-  const char* env = std::getenv("PLACEREC_DATA");
-  const std::string root_from = env != nullptr && env[0] != '\0'
-                                    ? "PLACEREC_DATA"
-                                    : "the build's default; set PLACEREC_DATA to change it";
   return Status::NotFound(
       "no dataset '" + dataset + "': it is no folder, nor one under the data root " + data_root +
-      " (" + root_from + "); " +
+      " (PLACEREC_DATA, else the build's default); " +
       (!std::filesystem::is_directory(data_root, ec) ? std::string("that root does not exist")
        : datasets.empty()                            ? std::string("that root holds no datasets")
                                                      : "datasets there: " + JoinNames(datasets)));
