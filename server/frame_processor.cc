@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "common/util/logging.h"
+#include "common/util/stage.h"
 #include "common/util/timer.h"
 #include "proto/channels.h"
 #include "server/protocol.h"
@@ -54,11 +55,14 @@ result_t FrameProcessor::Process(const frame_t& frame, std::vector<change_t>* al
   try {
     return ProcessOrThrow(frame, alarms);
   } catch (const std::exception& e) {
-    LOG(ERROR) << "frame " << frame.sequence << " of robot '" << frame.robot
-               << "' failed: " << e.what();
+    // Where it happened: a library's exception names only the library's own function.
+    const std::string stage = ScopedStage::FailedStage();
+    const std::string where = stage.empty() ? "" : " (in " + stage + ")";
+    LOG(ERROR) << "frame " << frame.sequence << " of robot '" << frame.robot << "' failed" << where
+               << ": " << e.what();
     result_t answer = AnswerTemplate(frame);
     SetError(result_t::STATUS_INTERNAL_ERROR,
-             std::string("internal error while processing the frame: ") + e.what(), &answer);
+             "internal error while processing the frame" + where + ": " + e.what(), &answer);
     return answer;
   }
 }
@@ -124,11 +128,21 @@ result_t FrameProcessor::ProcessOrThrow(const frame_t& frame, std::vector<change
     return fail(result_t::STATUS_BAD_REQUEST, "size field does not match the data");
   }
   Timer timer;
-  StatusOr<cv::Mat> image = DecodeImage(frame.data.data(), frame.data.size(), *encoding,
-                                        frame.width, frame.height, decode_);
+  StatusOr<cv::Mat> image = [&] {
+    ScopedStage stage("decode");
+    return DecodeImage(frame.data.data(), frame.data.size(), *encoding, frame.width, frame.height,
+                       decode_);
+  }();
   if (!image.ok()) return fail(WireStatus(image.status().code()), image.status().message());
   const double decode_ms = timer.ElapsedMs();
-  RecognitionResult result = recognizer->Recognize(request, analyzer_.Analyze(*image));
+  const FrameObservation observation = [&] {
+    ScopedStage stage("analyze");
+    return analyzer_.Analyze(*image);
+  }();
+  RecognitionResult result = [&] {
+    ScopedStage stage("recognize");
+    return recognizer->Recognize(request, observation);
+  }();
   result.timings.insert(result.timings.begin(), {"decode", decode_ms});
   if (request.insert && result.status.ok()) {
     gate_.Accepted(request.robot, request.sequence, result.place.IsValid(),
@@ -143,7 +157,10 @@ result_t FrameProcessor::ProcessOrThrow(const frame_t& frame, std::vector<change
     }
   }
   FillAnswer(result, &answer);
-  if (alarms != nullptr) *alarms = AlarmMessages(result, frame, image->size());
+  if (alarms != nullptr) {
+    ScopedStage stage("alarms");
+    *alarms = AlarmMessages(result, frame, image->size());
+  }
   if (!result.status.ok()) {
     LOG(WARNING) << "frame " << frame.sequence << " of robot '" << frame.robot
                  << "': " << result.status.ToString();

@@ -85,6 +85,35 @@ class TempMap {
   std::string path_;
 };
 
+// A segmenter that fails as OpenCV does when given arrays it cannot combine.
+class ThrowingSegmenter : public Segmenter {
+ public:
+  SceneSegmentation Segment(const WorkingImage&, cv::Mat*, TextonMap*) const override {
+    cv::Mat a(2, 2, CV_8U, cv::Scalar(1)), b(2, 2, CV_32F, cv::Scalar(1));
+    cv::Mat sum;
+    cv::add(a, b, sum);  // throws: different types and no output type
+    return SceneSegmentation();
+  }
+  std::string name() const override { return "throwing"; }
+  int working_width() const override { return 160; }
+};
+
+// An exception inside the pipeline is answered "internal error" with the stage it left: a
+// library's message names only its own function (the soak's one such answer said only
+// "arithm_op"). The processor goes on with the next frame.
+TEST(FrameProcessorTest, AnInternalErrorNamesTheStageItHappenedIn) {
+  TempMap temp;
+  std::unique_ptr<PlaceMap> map = OpenMap(temp.path());
+  FrameProcessor processor(TestOptions(), DecodeOptions(), map.get(),
+                           std::make_unique<ThrowingSegmenter>(), SequenceRuleOptions());
+  const result_t answer = processor.Process(Frame("r", 0, 0), nullptr);
+  EXPECT_EQ(answer.status, int{result_t::STATUS_INTERNAL_ERROR});
+  EXPECT_NE(answer.message.find("(in analyze > segmentation)"), std::string::npos)
+      << answer.message;
+  EXPECT_NE(answer.message.find("arithm_op"), std::string::npos) << answer.message;
+  EXPECT_EQ(map->Counts().places, 0);
+}
+
 // The attack of issue 23 item 3: one insert with sequence 2^63-1 made every later insert of the
 // robot fail until the server restarted. Now the robot is refused for the restart gap only, and
 // the forged place keeps its sequence.

@@ -2,11 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include <opencv2/imgproc.hpp>
 
 #include "common/organization/filter_bank.h"
 #include "common/util/logging.h"
+#include "common/util/stage.h"
 
 namespace placerec {
 
@@ -85,6 +87,7 @@ FrameObservation FrameAnalyzer::Analyze(const cv::Mat& bgr) const {
   FrameObservation observation;
   observation.original_size = bgr.size();
   Timer timer;
+  std::optional<ScopedStage> stage(std::in_place, "resize");
   const cv::Mat frame =
       FitWidth(bgr, bgr.cols < options_.small_frame_width ? options_.upscaled_width : 0,
                options_.max_image_width, &observation.scale);
@@ -102,10 +105,12 @@ FrameObservation FrameAnalyzer::Analyze(const cv::Mat& bgr) const {
   observation.timings.emplace_back("resize", timer.ElapsedMs());
 
   timer.Restart();
+  stage.emplace("sift");
   observation.features = ExtractFeatures(frame, options_.features);
   observation.timings.emplace_back("sift", timer.ElapsedMs());
 
   timer.Restart();
+  stage.emplace("segmentation");
   const WorkingImage working = MakeWorkingImage(frame, segmenter_->working_width());
   observation.segmentation =
       segmenter_->Segment(working, options_.keep_filter_bank ? &observation.filter_bank : nullptr,
@@ -116,6 +121,7 @@ FrameObservation FrameAnalyzer::Analyze(const cv::Mat& bgr) const {
   observation.timings.emplace_back("segmentation", timer.ElapsedMs());
 
   timer.Restart();
+  stage.emplace("objects");
   cv::Mat h_valid;
   const cv::Mat h = ColourInvariantH(working.bgr, options_.colour, &h_valid);
   observation.colourless = MeanChroma(working.lab) < options_.min_frame_chroma;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <functional>
+#include <optional>
 #include <set>
 #include <tuple>
 
@@ -10,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/util/logging.h"
+#include "common/util/stage.h"
 
 namespace placerec {
 
@@ -305,6 +307,7 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
 
   // Landmark selection (seed §5.7 step 4).
   Timer timer;
+  std::optional<ScopedStage> stage(std::in_place, "landmarks");
   std::vector<cv::Mat> object_descriptors;
   object_descriptors.reserve(observation.objects.size());
   for (const SceneObject& object : observation.objects) {
@@ -316,6 +319,7 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   // The robot's own recent past (seed §5.7 step 6) moves on with every inserted frame; a query
   // only reads it.
   timer.Restart();
+  stage.emplace("recent_past");
   RecentPastUpdate recent;
   if (request.insert) {
     recent =
@@ -339,6 +343,7 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   }
 
   // Lookup (seed §5.7 step 5) and decision (step 6).
+  stage.emplace("lookup");
   MapLookup lookup;
   lookup.recent = state->recent_past.Filter(request.robot, request.utime);
   lookup.image_width = observation.processed_size.width;
@@ -452,6 +457,7 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   if (!result.matches.empty() &&
       CompareAtRevisit(result.loop_closure, result.matches.front().inliers, options_.change)) {
     timer.Restart();
+    stage.emplace("change");
     result.change = DetectSceneChanges(observation, result.matches);
     result.timings.emplace_back("change", timer.ElapsedMs());
   }
@@ -464,6 +470,7 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   // Store this frame's landmarks, committed before the answer goes out; a frame that shows
   // nothing new since the robot's last distinct frame is not stored.
   timer.Restart();
+  stage.emplace("classes");
   result.duplicate = recent.duplicate;
   std::vector<Landmark> landmarks;
   std::set<LandmarkId> seen;  // kSeed: stored landmarks this frame saw again
@@ -494,6 +501,7 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
     }
     result.timings.emplace_back("classes", timer.ElapsedMs());
     timer.Restart();
+    stage.emplace("insert");
     landmarks = BuildLandmarks(observation, stored, labels);
   }
   for (const Landmark& landmark : landmarks) {

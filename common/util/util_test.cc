@@ -3,7 +3,9 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -12,6 +14,7 @@
 #include "common/util/ids.h"
 #include "common/util/memory.h"
 #include "common/util/options.h"
+#include "common/util/stage.h"
 #include "common/util/status.h"
 
 namespace placerec {
@@ -60,6 +63,46 @@ TEST(MemoryTest, NoSuchProcessLeavesTheFiguresAlone) {
   EXPECT_FALSE(ReadResidentMemory(static_cast<pid_t>(pid_max), &memory));
   EXPECT_EQ(memory.current_mib, 7);
   EXPECT_EQ(memory.peak_mib, 0);
+}
+
+TEST(ScopedStageTest, AnExceptionRecordsTheInnermostStageItLeft) {
+  try {
+    ScopedStage outer("recognize");
+    { ScopedStage done("landmarks"); }
+    ScopedStage inner("change");
+    throw std::runtime_error("failed");
+  } catch (const std::runtime_error&) {
+    EXPECT_EQ(ScopedStage::FailedStage(), "recognize > change");
+  }
+  // A stage entered normally afterwards: the handled exception is forgotten.
+  { ScopedStage next("decode"); }
+  EXPECT_EQ(ScopedStage::FailedStage(), "");
+  // An exception thrown between stages names the stage around it only.
+  try {
+    ScopedStage outer("analyze");
+    { ScopedStage done("sift"); }
+    throw std::runtime_error("failed");
+  } catch (const std::runtime_error&) {
+    EXPECT_EQ(ScopedStage::FailedStage(), "analyze");
+  }
+}
+
+TEST(ScopedStageTest, EachThreadHasItsOwnStages) {
+  try {
+    ScopedStage stage("main");
+    std::thread other([] {
+      try {
+        ScopedStage worker("worker");
+        throw std::runtime_error("failed");
+      } catch (const std::runtime_error&) {
+        EXPECT_EQ(ScopedStage::FailedStage(), "worker");
+      }
+    });
+    other.join();
+    throw std::runtime_error("failed");
+  } catch (const std::runtime_error&) {
+    EXPECT_EQ(ScopedStage::FailedStage(), "main");
+  }
 }
 
 TEST(StatusTest, OkAndErrors) {
