@@ -114,6 +114,9 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   if (!options.change.enabled) {
     return Status::InvalidArgument("change detection is off (--change-detection false)");
   }
+  if (!(eval.colour_shift >= 0.0 && eval.colour_shift <= 1.0)) {
+    return Status::InvalidArgument("--paste-colour-shift must be in [0, 1]");
+  }
   if (eval.out_dir.empty() || !MakeDirectories(eval.out_dir + "/pictures")) {
     return Status::IoError("cannot create or write in " + eval.out_dir + "/pictures");
   }
@@ -194,7 +197,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
         const double share =
             eval.min_area_share * std::pow(eval.max_area_share / eval.min_area_share, unit(rng));
         const double x = unit(rng), y = unit(rng);
-        truth = PasteObject(object, share, x, y, &query);
+        truth = PasteObject(object, share, x, y, &query, eval.colour_shift);
         what = object.class_name + " from " + object.source;
         pasted_class = object.class_name;
       } else if (removal) {
@@ -370,6 +373,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   j["revisits"] = revisits;
   j["revisit_loop_closures"] = loop_closures;
   j["seed"] = eval.seed;
+  j["paste_colour_shift"] = eval.colour_shift;
   j["change_options"] = {{"sensitivity", options.change.sensitivity},
                          {"threshold_lab", options.change.Threshold()},
                          {"min_area", options.change.min_area},

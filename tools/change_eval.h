@@ -26,6 +26,9 @@ struct ChangeEvalOptions {
   uint64_t seed = 1;             // positions, sizes, objects
   double min_area_share = 0.01;  // pasted objects cover 1 % to 10 % of the frame (log-uniform)
   double max_area_share = 0.10;
+  // How far a pasted object's mean colour moves towards the region it covers (PasteObject): 0.5
+  // camouflages it halfway, 0 keeps the object's own colours.
+  double colour_shift = 0.5;
   // Every this-many changed revisit is a removal (painted over) instead of a paste (0: none).
   int removal_every = 4;
   double min_iou = 0.3;  // a change found with at least this IoU is a hit

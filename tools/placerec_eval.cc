@@ -262,6 +262,10 @@ int ChangeCommand(int argc, char** argv) {
              "labelled datasets (comma-separated names or folders) whose test-split objects are "
              "pasted");
   parser.Add("seed", &seed, "random seed of objects, sizes and positions");
+  parser.Add("paste-colour-shift", &eval.colour_shift,
+             "how far a pasted object's mean Lab colour moves towards the region it covers (0: "
+             "the object's own colours, 1: the region's mean; the edges are feathered either "
+             "way)");
   parser.Add("removal-every", &eval.removal_every,
              "every N-th changed revisit is a removal instead of a paste (0: none)");
   parser.Add("pictures", &eval.pictures, "pictures per kind (hit, miss, false alarm)");

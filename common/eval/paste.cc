@@ -72,8 +72,8 @@ StatusOr<std::vector<CutObject>> CutTestObjects(const std::string& dataset_dir,
   return cut;
 }
 
-cv::Rect PasteObject(const CutObject& object, double area_share, double x, double y,
-                     cv::Mat* frame) {
+cv::Rect PasteObject(const CutObject& object, double area_share, double x, double y, cv::Mat* frame,
+                     double colour_shift) {
   const double mask_pixels = cv::countNonZero(object.mask);
   if (mask_pixels <= 0 || frame->empty()) return cv::Rect();
   const double scale = std::sqrt(area_share * frame->total() / mask_pixels);
@@ -89,13 +89,13 @@ cv::Rect PasteObject(const CutObject& object, double area_share, double x, doubl
                      static_cast<int>(y * (frame->rows - size.height)));
   const cv::Rect box(at, size);
   cv::Mat region = (*frame)(box);
-  // Colour matched: the object's Lab mean moved halfway to the region's.
+  // Colour matched: the object's Lab mean moved `colour_shift` of the way to the region's.
   cv::Mat object_lab, region_lab;
   pixels.convertTo(object_lab, CV_32FC3, 1.0 / 255.0);
   cv::cvtColor(object_lab, object_lab, cv::COLOR_BGR2Lab);
   region.convertTo(region_lab, CV_32FC3, 1.0 / 255.0);
   cv::cvtColor(region_lab, region_lab, cv::COLOR_BGR2Lab);
-  const cv::Scalar shift = (cv::mean(region_lab) - cv::mean(object_lab, mask > 127)) * 0.5;
+  const cv::Scalar shift = (cv::mean(region_lab) - cv::mean(object_lab, mask > 127)) * colour_shift;
   object_lab += shift;
   cv::cvtColor(object_lab, object_lab, cv::COLOR_Lab2BGR);
   // Feathered edges: the mask blurred over about 1 % of the object's size.

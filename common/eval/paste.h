@@ -39,11 +39,12 @@ StatusOr<std::vector<CutObject>> CutTestObjects(const std::string& dataset_dir,
                                                 const CutOptions& options);
 
 // Pastes `object` into `frame` scaled so that its mask covers `area_share` of the frame, at
-// (x, y) in [0, 1] of the free range; edges feathered over a few pixels and the object's colour
-// moved halfway to that of the region it covers. Returns the mask's box in the frame (empty when
-// the object cannot be scaled to fit).
-cv::Rect PasteObject(const CutObject& object, double area_share, double x, double y,
-                     cv::Mat* frame);
+// (x, y) in [0, 1] of the free range; edges feathered over a few pixels and the object's mean
+// colour (CIE Lab) moved `colour_shift` of the way to that of the region it covers (0: the
+// object's own colours, 1: the region's mean). Returns the mask's box in the frame (empty when the
+// object cannot be scaled to fit).
+cv::Rect PasteObject(const CutObject& object, double area_share, double x, double y, cv::Mat* frame,
+                     double colour_shift = 0.5);
 
 // Paints `box` of `frame` over with the surroundings (inpainting from its border): a landmark
 // removed. Returns the painted box (clipped to the frame).

@@ -32,6 +32,21 @@ TEST(PasteTest, PastedObjectCoversTheAskedShareWhereTheBoxSays) {
   EXPECT_GT(centre[2], centre[0]);
 }
 
+TEST(PasteTest, ColourShiftZeroKeepsTheObjectsOwnColours) {
+  cv::Mat frame(200, 300, CV_8UC3, cv::Scalar(100, 100, 100));
+  const cv::Rect box = PasteObject(Disc(), 0.05, 0.5, 0.25, &frame, 0.0);
+  ASSERT_FALSE(box.empty());
+  const cv::Vec3b centre = frame.at<cv::Vec3b>(box.y + box.height / 2, box.x + box.width / 2);
+  EXPECT_NEAR(centre[0], 0, 3);
+  EXPECT_NEAR(centre[1], 0, 3);
+  EXPECT_NEAR(centre[2], 250, 3);
+  // All the way: the region's grey.
+  cv::Mat grey(200, 300, CV_8UC3, cv::Scalar(100, 100, 100));
+  const cv::Rect all = PasteObject(Disc(), 0.05, 0.5, 0.25, &grey, 1.0);
+  const cv::Vec3b middle = grey.at<cv::Vec3b>(all.y + all.height / 2, all.x + all.width / 2);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(middle[c], 100, 4) << c;
+}
+
 TEST(PasteTest, TooLargeObjectIsNotPasted) {
   cv::Mat frame(20, 20, CV_8UC3, cv::Scalar(0, 0, 0));
   EXPECT_TRUE(PasteObject(Disc(), 2.0, 0, 0, &frame).empty());
