@@ -1,8 +1,10 @@
 #include "tools/map_tools.h"
 
+#include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
@@ -106,6 +108,37 @@ void RemoveMapFiles(const std::string& path) {
   for (const char* suffix : {"", "-wal", "-shm", "-journal"}) {
     std::filesystem::remove(path + suffix, ignored);
   }
+}
+
+// Removes `out`.merging.PID[-wal|-shm|-journal] of every PID that is no longer a running process
+// on this machine: what a killed merge left. Returns the removed main files.
+std::vector<std::string> RemoveKilledMergesWork(const std::string& out) {
+  std::vector<std::string> removed;
+  const std::filesystem::path out_path(out);
+  const std::filesystem::path dir =
+      out_path.has_parent_path() ? out_path.parent_path() : std::filesystem::path(".");
+  const std::string prefix = out_path.filename().string() + ".merging.";
+  std::error_code error;
+  std::set<std::string> stale;
+  for (const auto& entry : std::filesystem::directory_iterator(dir, error)) {
+    const std::string name = entry.path().filename().string();
+    if (name.compare(0, prefix.size(), prefix) != 0) continue;
+    const std::string rest = name.substr(prefix.size());
+    const size_t digits = rest.find_first_not_of("0123456789");
+    const std::string pid_text = rest.substr(0, digits);
+    if (pid_text.empty() || pid_text.size() > 9) continue;
+    const std::string suffix = digits == std::string::npos ? "" : rest.substr(digits);
+    if (!suffix.empty() && suffix != "-wal" && suffix != "-shm" && suffix != "-journal") continue;
+    const pid_t pid = static_cast<pid_t>(std::stol(pid_text));
+    // ESRCH: no such process. EPERM means it runs under another user: left alone.
+    if (pid > 0 && kill(pid, 0) != 0 && errno == ESRCH) stale.insert(pid_text);
+  }
+  for (const std::string& pid : stale) {
+    const std::string path = out + ".merging." + pid;
+    RemoveMapFiles(path);
+    removed.push_back(path);
+  }
+  return removed;
 }
 
 }  // namespace
@@ -731,6 +764,7 @@ StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, cons
   // This process's own work file: another merge into the same `out` (or what a killed one left)
   // is not touched; of two merges racing for `out`, the hard link below lets only one in.
   const std::string temporary = out + ".merging." + std::to_string(getpid());
+  report.removed_work_files = RemoveKilledMergesWork(out);
   RemoveMapFiles(temporary);
   {
     SqliteStoreOptions write;

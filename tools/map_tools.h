@@ -163,13 +163,17 @@ struct MergeReport {
   std::vector<std::pair<std::string, std::string>> renamed;  // B's robot id -> its id in C
   int64_t places = 0;
   int64_t landmarks = 0;
+  // Work files of earlier merges into `out` whose process is gone (killed), removed.
+  std::vector<std::string> removed_work_files;
 };
 
 // Writes a new map `out` holding first every place of `a`, then every place of `b` (in id order,
 // with new ids; sightings follow their landmarks' new ids), B's colliding robot ids renamed by
 // MergeOptions::suffix. Refuses, before writing anything, an existing `out` and a renamed id
-// longer than the 47-byte wire limit of robot ids. The map is written to `out`.merging and
-// renamed to `out` when complete; on error nothing is left behind.
+// longer than the 47-byte wire limit of robot ids. The map is written to `out`.merging.PID and
+// linked to `out` when complete; on error nothing is left behind. What a killed merge left
+// (`out`.merging.PID of a process no longer running on this machine) is removed first; another
+// running merge's work file is left alone.
 StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, const std::string& out,
                                 const MergeOptions& options);
 

@@ -453,6 +453,31 @@ TEST(MapToolsTest, MergeLeavesAnotherMergesWorkAlone) {
   EXPECT_EQ(Places(c.path()).size(), 2 * Places(a.path()).size());
 }
 
+// A merge that was killed left C.merging.<pid> (and its -wal): the next merge into C removes
+// them, while a running process's work file stays.
+TEST(MapToolsTest, MergeRemovesWhatAKilledMergeLeft) {
+  TempMap a("merge_killed_a");
+  TempMap b("merge_killed_b");
+  TempMap c("merge_killed_c");
+  BuildSite(a.path());
+  BuildSite(b.path());
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) _exit(0);
+  ASSERT_EQ(waitpid(child, nullptr, 0), child);  // reaped: no process has that id now
+  const std::string killed = c.path() + ".merging." + std::to_string(child);
+  for (const char* suffix : {"", "-wal"}) std::ofstream(killed + suffix) << "a killed merge's";
+  const std::string running = c.path() + ".merging.1";  // pid 1 runs as long as the machine
+  std::ofstream(running) << "a running merge's work";
+  StatusOr<MergeReport> report = MergeMaps(a.path(), b.path(), c.path(), MergeOptions());
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_FALSE(std::filesystem::exists(killed));
+  EXPECT_FALSE(std::filesystem::exists(killed + "-wal"));
+  EXPECT_EQ(report->removed_work_files, std::vector<std::string>{killed});
+  EXPECT_TRUE(std::filesystem::exists(running));
+  std::filesystem::remove(running);
+}
+
 TEST(MapToolsTest, MergeKeepsBothMapsContentsAndRobotsApart) {
   TempMap a("merge_a");
   TempMap b("merge_b");
