@@ -56,7 +56,7 @@ result_t FrameProcessor::Process(const frame_t& frame, std::vector<change_t>* al
     return ProcessOrThrow(frame, alarms);
   } catch (const std::exception& e) {
     // Where it happened: a library's exception names only the library's own function.
-    const std::string stage = ScopedStage::FailedStage();
+    const std::string stage = ScopedStage::TakeFailedStage();
     const std::string where = stage.empty() ? "" : " (in " + stage + ")";
     LOG(ERROR) << "frame " << frame.sequence << " of robot '" << frame.robot << "' failed" << where
                << ": " << e.what();

@@ -197,7 +197,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
         const double share =
             eval.min_area_share * std::pow(eval.max_area_share / eval.min_area_share, unit(rng));
         const double x = unit(rng), y = unit(rng);
-        truth = PasteObject(object, share, x, y, &query, eval.colour_shift);
+        truth = PasteObject(object, share, x, y, eval.colour_shift, &query);
         what = object.class_name + " from " + object.source;
         pasted_class = object.class_name;
       } else if (removal) {

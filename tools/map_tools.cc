@@ -110,33 +110,59 @@ void RemoveMapFiles(const std::string& path) {
   }
 }
 
-// Removes `out`.merging.PID[-wal|-shm|-journal] of every PID that is no longer a running process
-// on this machine: what a killed merge left. Returns the removed main files.
-std::vector<std::string> RemoveKilledMergesWork(const std::string& out) {
-  std::vector<std::string> removed;
+// This machine's name, for work files: a process id means something on this machine only.
+std::string HostName() {
+  char name[256] = {};
+  if (gethostname(name, sizeof(name) - 1) != 0 || name[0] == '\0') return "localhost";
+  return name;
+}
+
+// The work file of this process's merge into `out`.
+std::string MergeWorkFile(const std::string& out) {
+  return out + ".merging." + HostName() + "." + std::to_string(getpid());
+}
+
+// Removes `out`.merging.HOST.PID[-wal|-shm|-journal] of this machine for every PID that is no
+// longer a running process: what a killed merge left. Another machine's files (a folder shared
+// over the network) and the inputs `a` and `b` are never touched. Returns the removed work files.
+std::vector<std::string> RemoveKilledMergesWork(const std::string& out, const std::string& a,
+                                                const std::string& b) {
   const std::filesystem::path out_path(out);
   const std::filesystem::path dir =
       out_path.has_parent_path() ? out_path.parent_path() : std::filesystem::path(".");
-  const std::string prefix = out_path.filename().string() + ".merging.";
+  const std::string prefix = out_path.filename().string() + ".merging." + HostName() + ".";
+  std::set<std::string> stale;  // pids
   std::error_code error;
-  std::set<std::string> stale;
-  for (const auto& entry : std::filesystem::directory_iterator(dir, error)) {
-    const std::string name = entry.path().filename().string();
+  for (std::filesystem::directory_iterator it(dir, error), end; !error && it != end;
+       it.increment(error)) {
+    const std::string name = it->path().filename().string();
     if (name.compare(0, prefix.size(), prefix) != 0) continue;
     const std::string rest = name.substr(prefix.size());
     const size_t digits = rest.find_first_not_of("0123456789");
     const std::string pid_text = rest.substr(0, digits);
-    if (pid_text.empty() || pid_text.size() > 9) continue;
+    // As std::to_string(getpid()) writes it: 1 to 9 digits, no leading zero.
+    if (pid_text.empty() || pid_text.size() > 9 || pid_text[0] == '0') continue;
     const std::string suffix = digits == std::string::npos ? "" : rest.substr(digits);
     if (!suffix.empty() && suffix != "-wal" && suffix != "-shm" && suffix != "-journal") continue;
     const pid_t pid = static_cast<pid_t>(std::stol(pid_text));
     // ESRCH: no such process. EPERM means it runs under another user: left alone.
-    if (pid > 0 && kill(pid, 0) != 0 && errno == ESRCH) stale.insert(pid_text);
+    if (kill(pid, 0) != 0 && errno == ESRCH) stale.insert(pid_text);
   }
+  std::vector<std::string> removed;
   for (const std::string& pid : stale) {
-    const std::string path = out + ".merging." + pid;
-    RemoveMapFiles(path);
-    removed.push_back(path);
+    const std::string path = out + ".merging." + HostName() + "." + pid;
+    bool is_input = false;
+    for (const std::string& input : {a, b}) {
+      std::error_code ignored;
+      if (std::filesystem::equivalent(path, input, ignored)) is_input = true;
+    }
+    if (is_input) continue;
+    bool any = false;
+    for (const char* suffix : {"", "-wal", "-shm", "-journal"}) {
+      std::error_code ignored;
+      if (std::filesystem::remove(path + suffix, ignored)) any = true;
+    }
+    if (any) removed.push_back(path);
   }
   return removed;
 }
@@ -761,10 +787,11 @@ StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, cons
     report.renamed.emplace_back(robot, name);
   }
 
-  // This process's own work file: another merge into the same `out` (or what a killed one left)
-  // is not touched; of two merges racing for `out`, the hard link below lets only one in.
-  const std::string temporary = out + ".merging." + std::to_string(getpid());
-  report.removed_work_files = RemoveKilledMergesWork(out);
+  // This process's own work file: another running merge into the same `out` is not touched (what
+  // a killed one left is removed); of two merges racing for `out`, the hard link below lets only
+  // one in.
+  const std::string temporary = MergeWorkFile(out);
+  report.removed_work_files = RemoveKilledMergesWork(out, a, b);
   RemoveMapFiles(temporary);
   {
     SqliteStoreOptions write;

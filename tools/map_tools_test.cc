@@ -428,6 +428,25 @@ TEST(MapToolsTest, MergedRobotIdRule) {
   EXPECT_EQ(MergedRobotId("r", {"r", "r.b"}, {"r", "r.b"}, ".b"), "r.b2");
 }
 
+std::string ThisHost() {
+  char name[256] = {};
+  gethostname(name, sizeof(name) - 1);
+  return name[0] == '\0' ? "localhost" : name;
+}
+
+// The work file a merge into `out` by process `pid` of this machine writes.
+std::string WorkFile(const std::string& out, pid_t pid) {
+  return out + ".merging." + ThisHost() + "." + std::to_string(pid);
+}
+
+// A process id that no process has now: a child that exited and was reaped.
+pid_t DeadPid() {
+  const pid_t child = fork();
+  if (child == 0) _exit(0);
+  EXPECT_EQ(waitpid(child, nullptr, 0), child);
+  return child;
+}
+
 // Two merges into the same output at once: neither removes the other's work in progress (one
 // had reported a map written that the other had replaced with its own half-written one).
 TEST(MapToolsTest, MergeLeavesAnotherMergesWorkAlone) {
@@ -436,7 +455,7 @@ TEST(MapToolsTest, MergeLeavesAnotherMergesWorkAlone) {
   TempMap c("merge_race_c");
   BuildSite(a.path());
   BuildSite(b.path());
-  const std::vector<std::string> others = {c.path() + ".merging", c.path() + ".merging.1"};
+  const std::vector<std::string> others = {c.path() + ".merging", WorkFile(c.path(), 1)};
   for (const std::string& other : others) std::ofstream(other) << "another merge's work";
   StatusOr<MergeReport> report = MergeMaps(a.path(), b.path(), c.path(), MergeOptions());
   ASSERT_TRUE(report.ok()) << report.status().ToString();
@@ -453,29 +472,38 @@ TEST(MapToolsTest, MergeLeavesAnotherMergesWorkAlone) {
   EXPECT_EQ(Places(c.path()).size(), 2 * Places(a.path()).size());
 }
 
-// A merge that was killed left C.merging.<pid> (and its -wal): the next merge into C removes
-// them, while a running process's work file stays.
+// A merge that was killed left C.merging.HOST.<pid> (and its -wal): the next merge into C removes
+// them, while a running process's work file, another machine's, files that only look alike and
+// an input stay.
 TEST(MapToolsTest, MergeRemovesWhatAKilledMergeLeft) {
-  TempMap a("merge_killed_a");
   TempMap b("merge_killed_b");
   TempMap c("merge_killed_c");
-  BuildSite(a.path());
+  const pid_t dead = DeadPid();
+  ASSERT_GT(dead, 0);
+  // Input A is itself named like a killed merge's work file (a user salvaging one).
+  const std::string a = WorkFile(c.path(), DeadPid());
+  BuildSite(a);
   BuildSite(b.path());
-  const pid_t child = fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) _exit(0);
-  ASSERT_EQ(waitpid(child, nullptr, 0), child);  // reaped: no process has that id now
-  const std::string killed = c.path() + ".merging." + std::to_string(child);
+  const std::string killed = WorkFile(c.path(), dead);
   for (const char* suffix : {"", "-wal"}) std::ofstream(killed + suffix) << "a killed merge's";
-  const std::string running = c.path() + ".merging.1";  // pid 1 runs as long as the machine
-  std::ofstream(running) << "a running merge's work";
-  StatusOr<MergeReport> report = MergeMaps(a.path(), b.path(), c.path(), MergeOptions());
+  const std::vector<std::string> kept = {
+      WorkFile(c.path(), 1),  // pid 1 runs as long as the machine
+      c.path() + ".merging.another-host." + std::to_string(dead), killed + ".bak",
+      c.path() + ".merging." + ThisHost() + ".0" + std::to_string(dead),
+      WorkFile(c.path() + "2", dead)};
+  for (const std::string& file : kept) std::ofstream(file) << "not a killed merge's";
+  StatusOr<MergeReport> report = MergeMaps(a, b.path(), c.path(), MergeOptions());
   ASSERT_TRUE(report.ok()) << report.status().ToString();
   EXPECT_FALSE(std::filesystem::exists(killed));
   EXPECT_FALSE(std::filesystem::exists(killed + "-wal"));
   EXPECT_EQ(report->removed_work_files, std::vector<std::string>{killed});
-  EXPECT_TRUE(std::filesystem::exists(running));
-  std::filesystem::remove(running);
+  for (const std::string& file : kept) {
+    EXPECT_TRUE(std::filesystem::exists(file)) << file;
+    std::filesystem::remove(file);
+  }
+  EXPECT_EQ(Places(a).size(), 5u);
+  EXPECT_EQ(Places(c.path()).size(), 10u);
+  for (const char* suffix : {"", "-wal", "-shm"}) std::filesystem::remove(a + suffix);
 }
 
 TEST(MapToolsTest, MergeKeepsBothMapsContentsAndRobotsApart) {
@@ -495,7 +523,7 @@ TEST(MapToolsTest, MergeKeepsBothMapsContentsAndRobotsApart) {
   EXPECT_EQ(report->landmarks, 13);
   ASSERT_EQ(report->renamed.size(), 1u);
   EXPECT_EQ(report->renamed[0], std::make_pair(std::string("right"), std::string("right.b")));
-  EXPECT_FALSE(std::filesystem::exists(c.path() + ".merging." + std::to_string(getpid())));
+  EXPECT_FALSE(std::filesystem::exists(WorkFile(c.path(), getpid())));
 
   // Content preserved: C's places and landmarks are A's then B's, ids shifted, B's robot renamed,
   // sightings following their landmarks.
@@ -566,7 +594,7 @@ TEST(MapToolsTest, MergeRefusesARenamedRobotIdOverTheLimit) {
   EXPECT_NE(report.status().message().find("47-byte"), std::string::npos)
       << report.status().ToString();
   EXPECT_FALSE(std::filesystem::exists(c.path()));
-  EXPECT_FALSE(std::filesystem::exists(c.path() + ".merging." + std::to_string(getpid())));
+  EXPECT_FALSE(std::filesystem::exists(WorkFile(c.path(), getpid())));
   MergeOptions short_suffix;
   short_suffix.suffix = "b";
   EXPECT_TRUE(MergeMaps(a.path(), b.path(), c.path(), short_suffix).ok());

@@ -162,8 +162,8 @@ int MergeCommand(int argc, char** argv) {
       "(new ids; sightings follow their landmarks). Robot ids stay apart: a robot id of B that\n"
       "A also has becomes ID + suffix (ID.b; ID.b2, ID.b3, ... when that is taken in A or B).\n"
       "A new id over the 47-byte robot id limit is refused before anything is written. C must\n"
-      "not exist; it is written to C.merging.<pid> and linked to C when complete (what a killed\n"
-      "merge left, C.merging.<pid> of a process no longer running, is removed). A and B are\n"
+      "not exist; it is written to C.merging.<host>.<pid> and linked to C when complete (what a\n"
+      "killed merge on this machine left, its process no longer running, is removed). A and B are\n"
       "opened as the server opens a map: their content is not changed, but a map of an older\n"
       "schema version is upgraded in place, and a write-ahead log (MAP-wal) a killed server\n"
       "left is folded into the file.");

@@ -72,8 +72,8 @@ StatusOr<std::vector<CutObject>> CutTestObjects(const std::string& dataset_dir,
   return cut;
 }
 
-cv::Rect PasteObject(const CutObject& object, double area_share, double x, double y, cv::Mat* frame,
-                     double colour_shift) {
+cv::Rect PasteObject(const CutObject& object, double area_share, double x, double y,
+                     double colour_shift, cv::Mat* frame) {
   const double mask_pixels = cv::countNonZero(object.mask);
   if (mask_pixels <= 0 || frame->empty()) return cv::Rect();
   const double scale = std::sqrt(area_share * frame->total() / mask_pixels);

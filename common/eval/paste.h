@@ -43,8 +43,8 @@ StatusOr<std::vector<CutObject>> CutTestObjects(const std::string& dataset_dir,
 // colour (CIE Lab) moved `colour_shift` of the way to that of the region it covers (0: the
 // object's own colours, 1: the region's mean). Returns the mask's box in the frame (empty when the
 // object cannot be scaled to fit).
-cv::Rect PasteObject(const CutObject& object, double area_share, double x, double y, cv::Mat* frame,
-                     double colour_shift = 0.5);
+cv::Rect PasteObject(const CutObject& object, double area_share, double x, double y,
+                     double colour_shift, cv::Mat* frame);
 
 // Paints `box` of `frame` over with the surroundings (inpainting from its border): a landmark
 // removed. Returns the painted box (clipped to the frame).

@@ -16,7 +16,7 @@ CutObject Disc() {
 
 TEST(PasteTest, PastedObjectCoversTheAskedShareWhereTheBoxSays) {
   cv::Mat frame(200, 300, CV_8UC3, cv::Scalar(100, 100, 100));
-  const cv::Rect box = PasteObject(Disc(), 0.05, 0.5, 0.25, &frame);
+  const cv::Rect box = PasteObject(Disc(), 0.05, 0.5, 0.25, 0.5, &frame);
   ASSERT_FALSE(box.empty());
   // The disc's area is 5 % of the frame: about pi r^2 = 3000 pixels.
   EXPECT_NEAR(box.area() * 3.14159 / 4 / (200.0 * 300.0), 0.05, 0.01);
@@ -34,7 +34,7 @@ TEST(PasteTest, PastedObjectCoversTheAskedShareWhereTheBoxSays) {
 
 TEST(PasteTest, ColourShiftZeroKeepsTheObjectsOwnColours) {
   cv::Mat frame(200, 300, CV_8UC3, cv::Scalar(100, 100, 100));
-  const cv::Rect box = PasteObject(Disc(), 0.05, 0.5, 0.25, &frame, 0.0);
+  const cv::Rect box = PasteObject(Disc(), 0.05, 0.5, 0.25, 0.0, &frame);
   ASSERT_FALSE(box.empty());
   const cv::Vec3b centre = frame.at<cv::Vec3b>(box.y + box.height / 2, box.x + box.width / 2);
   EXPECT_NEAR(centre[0], 0, 3);
@@ -42,14 +42,15 @@ TEST(PasteTest, ColourShiftZeroKeepsTheObjectsOwnColours) {
   EXPECT_NEAR(centre[2], 250, 3);
   // All the way: the region's grey.
   cv::Mat grey(200, 300, CV_8UC3, cv::Scalar(100, 100, 100));
-  const cv::Rect all = PasteObject(Disc(), 0.05, 0.5, 0.25, &grey, 1.0);
+  const cv::Rect all = PasteObject(Disc(), 0.05, 0.5, 0.25, 1.0, &grey);
+  ASSERT_FALSE(all.empty());
   const cv::Vec3b middle = grey.at<cv::Vec3b>(all.y + all.height / 2, all.x + all.width / 2);
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(middle[c], 100, 4) << c;
 }
 
 TEST(PasteTest, TooLargeObjectIsNotPasted) {
   cv::Mat frame(20, 20, CV_8UC3, cv::Scalar(0, 0, 0));
-  EXPECT_TRUE(PasteObject(Disc(), 2.0, 0, 0, &frame).empty());
+  EXPECT_TRUE(PasteObject(Disc(), 2.0, 0, 0, 0.5, &frame).empty());
 }
 
 TEST(PasteTest, PaintOverFillsFromTheSurroundings) {

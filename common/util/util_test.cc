@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -72,18 +73,59 @@ TEST(ScopedStageTest, AnExceptionRecordsTheInnermostStageItLeft) {
     ScopedStage inner("change");
     throw std::runtime_error("failed");
   } catch (const std::runtime_error&) {
-    EXPECT_EQ(ScopedStage::FailedStage(), "recognize > change");
+    EXPECT_EQ(ScopedStage::TakeFailedStage(), "recognize > change");
   }
-  // A stage entered normally afterwards: the handled exception is forgotten.
-  { ScopedStage next("decode"); }
-  EXPECT_EQ(ScopedStage::FailedStage(), "");
+  EXPECT_EQ(ScopedStage::TakeFailedStage(), "");  // taken
   // An exception thrown between stages names the stage around it only.
   try {
     ScopedStage outer("analyze");
     { ScopedStage done("sift"); }
     throw std::runtime_error("failed");
   } catch (const std::runtime_error&) {
-    EXPECT_EQ(ScopedStage::FailedStage(), "analyze");
+    EXPECT_EQ(ScopedStage::TakeFailedStage(), "analyze");
+  }
+}
+
+// The server's worker: frame N fails inside a stage, frame N+1 before any stage. The second
+// answer must not name the first one's stage.
+TEST(ScopedStageTest, AFailureOutsideEveryStageNamesNone) {
+  for (int frame = 0; frame < 2; ++frame) {
+    try {
+      if (frame == 1) throw std::runtime_error("before any stage");
+      ScopedStage stage("analyze");
+      ScopedStage inner("segmentation");
+      throw std::runtime_error("failed");
+    } catch (const std::runtime_error& e) {
+      EXPECT_EQ(ScopedStage::TakeFailedStage(), frame == 0 ? "analyze > segmentation" : "")
+          << e.what();
+    }
+  }
+  // A record nobody took is forgotten when a stage is next entered normally.
+  try {
+    ScopedStage stage("decode");
+    throw std::runtime_error("failed");
+  } catch (const std::runtime_error&) {
+  }
+  { ScopedStage next("analyze"); }
+  EXPECT_EQ(ScopedStage::TakeFailedStage(), "");
+}
+
+TEST(ScopedStageTest, DeepNestingKeepsTheInnermostStages) {
+  const char* names[] = {"s0",  "s1",  "s2",  "s3",  "s4",  "s5",  "s6",  "s7",  "s8",  "s9",
+                         "s10", "s11", "s12", "s13", "s14", "s15", "s16", "s17", "s18", "s19"};
+  std::function<void(int)> nest = [&](int depth) {
+    ScopedStage stage(names[depth]);
+    if (depth == 19) throw std::runtime_error("deep");
+    nest(depth + 1);
+  };
+  try {
+    nest(0);
+  } catch (const std::runtime_error&) {
+    std::string expected;
+    for (int i = 20 - ScopedStage::kMaxDepth; i < 20; ++i) {
+      expected += (expected.empty() ? "" : " > ") + std::string(names[i]);
+    }
+    EXPECT_EQ(ScopedStage::TakeFailedStage(), expected);
   }
 }
 
@@ -95,13 +137,13 @@ TEST(ScopedStageTest, EachThreadHasItsOwnStages) {
         ScopedStage worker("worker");
         throw std::runtime_error("failed");
       } catch (const std::runtime_error&) {
-        EXPECT_EQ(ScopedStage::FailedStage(), "worker");
+        EXPECT_EQ(ScopedStage::TakeFailedStage(), "worker");
       }
     });
     other.join();
     throw std::runtime_error("failed");
   } catch (const std::runtime_error&) {
-    EXPECT_EQ(ScopedStage::FailedStage(), "main");
+    EXPECT_EQ(ScopedStage::TakeFailedStage(), "main");
   }
 }
 
