@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
+#include "common/change/masked_correlation.h"
 #include "common/image/image.h"
 
 namespace placerec {
@@ -284,8 +285,7 @@ bool SeenElsewhere(const cv::Mat& frame, const cv::Rect& box, const cv::Mat& reg
       cv::resize(patch, resized, size, 0, 0, cv::INTER_AREA);
       cv::resize(region, resized_region, size, 0, 0, cv::INTER_NEAREST);
       if (cv::countNonZero(resized_region) < kMinRegionPixels) continue;
-      cv::matchTemplate(thumbnail(around_box), resized, scores, cv::TM_CCOEFF_NORMED,
-                        resized_region);
+      MaskedCorrelation(thumbnail(around_box), resized, resized_region, &scores);
       // A flat stored window makes the masked correlation divide by nearly nothing: NaN, an
       // infinity or a value above 1 say nothing about the region and count as no match.
       cv::patchNaNs(scores, 0.0);
