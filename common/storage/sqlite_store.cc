@@ -45,10 +45,11 @@ enum LandmarkColumn {
   kLandmarkObjectClass,
   kLandmarkClassConfidence,
 };
-// The columns of LandmarkColumn, in order.
-#define PLACEREC_LANDMARK_COLUMNS                                                       \
+// The columns of LandmarkColumn, in order; those a map of schema v1 has, then v2's two.
+#define PLACEREC_LANDMARK_V1_COLUMNS                                                    \
   "id, place_id, sift_count, colour_peaks, segment_class, box_x, box_y, box_w, box_h, " \
-  "num_descriptors, descriptors, keypoints, object_class, class_confidence"
+  "num_descriptors, descriptors, keypoints"
+#define PLACEREC_LANDMARK_COLUMNS PLACEREC_LANDMARK_V1_COLUMNS ", object_class, class_confidence"
 constexpr char kSelectLandmarks[] =
     "SELECT " PLACEREC_LANDMARK_COLUMNS " FROM landmarks ORDER BY id";
 
@@ -72,7 +73,12 @@ constexpr char kSelectPlaceById[] =
     "SELECT robot, sequence, utime, num_landmarks, image_width FROM places WHERE id = ?";
 constexpr char kSelectLandmarkById[] =
     "SELECT " PLACEREC_LANDMARK_COLUMNS " FROM landmarks WHERE id = ?";
+// The same from a map of schema v1 (RepairSqliteMap reads a map as it is): no class, as the
+// v1 -> v2 step leaves its landmarks.
+constexpr char kSelectV1LandmarkById[] =
+    "SELECT " PLACEREC_LANDMARK_V1_COLUMNS ", NULL, 0 FROM landmarks WHERE id = ?";
 #undef PLACEREC_LANDMARK_COLUMNS
+#undef PLACEREC_LANDMARK_V1_COLUMNS
 
 // What every refusal of a damaged map ends with.
 constexpr char kDamagedMapAdvice[] =
@@ -555,9 +561,10 @@ struct WholePlace {
   std::vector<Landmark> landmarks;
 };
 
-// Reads place `id` and its landmarks by point lookups. Returns false with the reason in *why
-// when the place row is missing (*why empty then) or anything of it is damaged.
-bool ReadWholePlace(sqlite3* db, const std::string& store, int64_t id, WholePlace* out,
+// Reads place `id` and its landmarks by point lookups from a map of schema `version` (read as it
+// is, not upgraded). Returns false with the reason in *why when the place row is missing (*why
+// empty then) or anything of it is damaged.
+bool ReadWholePlace(sqlite3* db, int version, const std::string& store, int64_t id, WholePlace* out,
                     std::string* why) {
   why->clear();
   const std::string name = "place " + std::to_string(id);
@@ -608,7 +615,8 @@ bool ReadWholePlace(sqlite3* db, const std::string& store, int64_t id, WholePlac
   out->landmarks.clear();
   for (int64_t landmark_id : ids) {
     SqliteStatement row;
-    rc = SqliteStatement::Prepare(db, kSelectLandmarkById, false, &row);
+    rc = SqliteStatement::Prepare(db, version >= 2 ? kSelectLandmarkById : kSelectV1LandmarkById,
+                                  false, &row);
     if (rc == SQLITE_OK) {
       row.BindInt(1, landmark_id);
       rc = row.Step();
@@ -800,7 +808,7 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
     for (int64_t id = 1; id <= last; ++id) {
       WholePlace place;
       std::string why;
-      const bool whole = ReadWholePlace(db.get(), store, id, &place, &why);
+      const bool whole = ReadWholePlace(db.get(), *version, store, id, &place, &why);
       if (whole && named.count(id) > 0) {
         why = "place " + std::to_string(id) + " has a landmark in a damaged page";
       }

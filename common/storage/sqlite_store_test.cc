@@ -686,6 +686,41 @@ TEST(SqliteStoreTest, RandomBytesInAPageAreRefusedAtOpenAndRepairDropsTheDamaged
   EXPECT_EQ(RepairSqliteMap(copy.path() + ".missing", {}).status().code(), StatusCode::kNotFound);
 }
 
+// A map of schema v1 (written before object classes, sightings and thumbnails) that a server
+// is asked to repair: the repair reads it as it is, keeps every place and leaves the whole map
+// alone (it read the v1 map with v3 columns, found every place unreadable and rewrote it empty).
+TEST(SqliteStoreTest, RepairReadsAnOlderMapAndKeepsItsPlaces) {
+  TempMap map("repair_v1");
+  {
+    std::unique_ptr<LandmarkStore> store = Open(map.path());
+    ASSERT_NE(store, nullptr);
+    for (int p = 0; p < 3; ++p) {
+      Place place = MakePlace("r", p);
+      std::vector<Landmark> landmarks = MakeLandmarks(10 * p, 2, 6);
+      ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
+    }
+  }
+  // Back to schema v1: what the v2 and v3 steps added removed again.
+  ExecSql(map.path(),
+          "DROP TABLE thumbnails; DROP TABLE sightings; "
+          "ALTER TABLE landmarks DROP COLUMN object_class; "
+          "ALTER TABLE landmarks DROP COLUMN class_confidence; "
+          "UPDATE meta SET value = '1' WHERE key = 'schema_version'; VACUUM;");
+  ASSERT_EQ(QuerySql(map.path(), "SELECT value FROM meta WHERE key = 'schema_version'"), "1");
+  const std::string before = ReadFileBytes(map.path());
+
+  StatusOr<MapRepairReport> report = RepairSqliteMap(map.path(), {});
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_FALSE(report->rewritten) << report->problems;
+  EXPECT_EQ(report->places_dropped, 0) << report->problems;
+  EXPECT_EQ(report->places_kept, 3);
+  EXPECT_EQ(report->landmarks_kept, 6);
+  EXPECT_TRUE(ReadFileBytes(map.path()) == before) << "the whole map was changed";
+  std::unique_ptr<LandmarkStore> store = Open(map.path());  // opening upgrades it
+  ASSERT_NE(store, nullptr);
+  EXPECT_EQ(ReadAll(*store).places.size(), 3u);
+}
+
 // Issue 23 item 8: a read-only map was opened, and every insert failed later (status 7). Now
 // opening refuses it. Root may write any file, so as root the store is opened in a child process
 // that has given up root for user nobody (65534); the file is made read-only (0444) as well.
