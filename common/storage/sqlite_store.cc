@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <climits>
 #include <filesystem>
 #include <fstream>
@@ -555,10 +556,12 @@ std::set<int64_t> PlacesNamedByQuickCheck(sqlite3* db, const std::string& path,
   return places;
 }
 
-// A place read back whole with its landmarks, for RepairSqliteMap.
+// A place read back whole with its landmarks, for RepairSqliteMap. Ids are the damaged map's,
+// seen_landmarks too.
 struct WholePlace {
   Place place;
   std::vector<Landmark> landmarks;
+  bool sightings_unreadable = false;  // the place's sightings could not be read (left out)
 };
 
 // Reads place `id` and its landmarks by point lookups from a map of schema `version` (read as it
@@ -633,6 +636,25 @@ bool ReadWholePlace(sqlite3* db, int version, const std::string& store, int64_t 
       return false;
     }
     out->landmarks.push_back(DecodeLandmark(encoded));
+  }
+  // The stored landmarks this place saw again (schema v2). A list that does not read costs the
+  // sightings, not the place.
+  out->sightings_unreadable = false;
+  if (version >= 2) {
+    SqliteStatement seen;
+    rc = SqliteStatement::Prepare(
+        db, "SELECT landmark_id FROM sightings WHERE place_id = ? ORDER BY landmark_id", false,
+        &seen);
+    if (rc == SQLITE_OK) {
+      seen.BindInt(1, id);
+      while ((rc = seen.Step()) == SQLITE_ROW) {
+        out->place.seen_landmarks.push_back(LandmarkId(seen.ColumnInt(0)));
+      }
+    }
+    if (rc != SQLITE_DONE) {
+      out->place.seen_landmarks.clear();
+      out->sightings_unreadable = true;
+    }
   }
   return true;
 }
@@ -813,6 +835,10 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
         why = "place " + std::to_string(id) + " has a landmark in a damaged page";
       }
       if (whole && why.empty()) {
+        if (place.sightings_unreadable) {
+          report.problems += (report.problems.empty() ? "" : "; ") + std::string("place ") +
+                             std::to_string(id) + ": its sightings cannot be read";
+        }
         place.place.thumbnail = ReadThumbnailForRepair(db.get(), *version, id);
         kept.push_back(std::move(place));
       } else if (!why.empty()) {
@@ -837,9 +863,21 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
     write.must_exist = false;
     StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(fresh, write);
     if (!store.ok()) return store.status();
+    // Sightings follow their landmarks' new ids; one of a dropped place's landmarks goes.
+    std::unordered_map<int64_t, LandmarkId> new_ids;
     for (WholePlace& place : kept) {
       place.place.id = PlaceId();
+      std::vector<LandmarkId> seen;
+      for (const LandmarkId old : place.place.seen_landmarks) {
+        const auto found = new_ids.find(old.value());
+        if (found != new_ids.end()) seen.push_back(found->second);
+      }
+      std::sort(seen.begin(), seen.end());
+      place.place.seen_landmarks = std::move(seen);
+      std::vector<int64_t> old_ids;
+      for (const Landmark& landmark : place.landmarks) old_ids.push_back(landmark.id.value());
       PLACEREC_RETURN_IF_ERROR((*store)->AddPlace(&place.place, &place.landmarks));
+      for (size_t i = 0; i < old_ids.size(); ++i) new_ids[old_ids[i]] = place.landmarks[i].id;
     }
   }  // closed: the new map is one file again
   report.damaged_copy = path + ".damaged";

@@ -721,6 +721,47 @@ TEST(SqliteStoreTest, RepairReadsAnOlderMapAndKeepsItsPlaces) {
   EXPECT_EQ(ReadAll(*store).places.size(), 3u);
 }
 
+// A repair that rewrites the map keeps the sightings (the places that saw a stored landmark
+// again, seed §5.7 step 5) of the places it keeps, under the landmarks' new ids; a sighting of a
+// dropped place's landmark goes with it. (It wrote every place without its sightings.)
+TEST(SqliteStoreTest, RepairKeepsTheSightingsOfTheKeptPlaces) {
+  TempMap map("repair_sightings");
+  {
+    std::unique_ptr<LandmarkStore> store = Open(map.path());
+    ASSERT_NE(store, nullptr);
+    std::vector<std::vector<Landmark>> stored;
+    for (int p = 0; p < 4; ++p) {
+      Place place = MakePlace("r", p);
+      if (p == 2) place.seen_landmarks = {stored[0][1].id, stored[1][0].id};
+      if (p == 3) place.seen_landmarks = {stored[0][0].id, stored[2][1].id};
+      std::vector<Landmark> landmarks = MakeLandmarks(10 * p, 2, 6);
+      ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
+      stored.push_back(landmarks);
+    }
+  }
+  // Place 2 (the second) gets a landmark whose keypoints no longer fit its descriptors.
+  ExecSql(map.path(), "UPDATE landmarks SET keypoints = x'00' WHERE place_id = 2");
+  StatusOr<MapRepairReport> report = RepairSqliteMap(map.path(), {});
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  ASSERT_TRUE(report->rewritten);
+  EXPECT_EQ(report->places_dropped, 1);
+  EXPECT_EQ(report->places_kept, 3);
+  for (const char* suffix : {"", "-wal", "-shm"}) {
+    std::remove((report->damaged_copy + suffix).c_str());
+  }
+  std::unique_ptr<LandmarkStore> store = Open(map.path());
+  ASSERT_NE(store, nullptr);
+  const Contents contents = ReadAll(*store);
+  ASSERT_EQ(contents.places.size(), 3u);
+  ASSERT_EQ(contents.landmarks.size(), 6u);
+  // Kept: the places of sequence 0, 2 and 3, now ids 1, 2, 3 with landmarks 1-2, 3-4, 5-6.
+  EXPECT_EQ(contents.places[1].sequence, 2);
+  EXPECT_EQ(contents.places[1].seen_landmarks, std::vector<LandmarkId>{LandmarkId(2)});
+  EXPECT_EQ(contents.places[2].sequence, 3);
+  EXPECT_EQ(contents.places[2].seen_landmarks,
+            (std::vector<LandmarkId>{LandmarkId(1), LandmarkId(4)}));
+}
+
 // Issue 23 item 8: a read-only map was opened, and every insert failed later (status 7). Now
 // opening refuses it. Root may write any file, so as root the store is opened in a child process
 // that has given up root for user nobody (65534); the file is made read-only (0444) as well.
