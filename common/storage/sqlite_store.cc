@@ -637,6 +637,12 @@ bool ReadWholePlace(sqlite3* db, int version, const std::string& store, int64_t 
     }
     out->landmarks.push_back(DecodeLandmark(encoded));
   }
+  // What AddPlace would refuse (a robot id out of the rules, ...) is damage too.
+  const Status valid = ValidatePlaceAndLandmarks(out->place, out->landmarks);
+  if (!valid.ok()) {
+    *why = name + " is corrupt: " + valid.message();
+    return false;
+  }
   // The stored landmarks this place saw again (schema v2). A list that does not read costs the
   // sightings, not the place.
   out->sightings_unreadable = false;
@@ -648,6 +654,8 @@ bool ReadWholePlace(sqlite3* db, int version, const std::string& store, int64_t 
     if (rc == SQLITE_OK) {
       seen.BindInt(1, id);
       while ((rc = seen.Step()) == SQLITE_ROW) {
+        // A value that is no integer names no landmark (the key would take '2abc' beside 2).
+        if (seen.ColumnType(0) != SQLITE_INTEGER) continue;
         out->place.seen_landmarks.push_back(LandmarkId(seen.ColumnInt(0)));
       }
     }
@@ -827,6 +835,7 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
                              " is not believable; it cannot be repaired: restore it from a backup");
     }
     const std::string store = "sqlite:" + path;
+    int64_t unreadable_sightings = 0;  // kept places whose sightings do not read
     for (int64_t id = 1; id <= last; ++id) {
       WholePlace place;
       std::string why;
@@ -835,7 +844,7 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
         why = "place " + std::to_string(id) + " has a landmark in a damaged page";
       }
       if (whole && why.empty()) {
-        if (place.sightings_unreadable) {
+        if (place.sightings_unreadable && ++unreadable_sightings <= 3) {
           report.problems += (report.problems.empty() ? "" : "; ") + std::string("place ") +
                              std::to_string(id) + ": its sightings cannot be read";
         }
@@ -847,6 +856,10 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
           report.problems += (report.problems.empty() ? "" : "; ") + why;
         }
       }
+    }
+    if (unreadable_sightings > 3) {
+      report.problems += "; in all " + std::to_string(unreadable_sightings) +
+                         " places whose sightings cannot be read";
     }
   }
   for (const WholePlace& place : kept) {
@@ -873,6 +886,7 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
         if (found != new_ids.end()) seen.push_back(found->second);
       }
       std::sort(seen.begin(), seen.end());
+      seen.erase(std::unique(seen.begin(), seen.end()), seen.end());
       place.place.seen_landmarks = std::move(seen);
       std::vector<int64_t> old_ids;
       for (const Landmark& landmark : place.landmarks) old_ids.push_back(landmark.id.value());

@@ -688,7 +688,7 @@ TEST(SqliteStoreTest, RandomBytesInAPageAreRefusedAtOpenAndRepairDropsTheDamaged
 
 // A map of schema v1 (written before object classes, sightings and thumbnails) that a server
 // is asked to repair: the repair reads it as it is, keeps every place and leaves the whole map
-// alone (it read the v1 map with v3 columns, found every place unreadable and rewrote it empty).
+// alone (it read the v1 map with v2's columns, found every place unreadable and rewrote it empty).
 TEST(SqliteStoreTest, RepairReadsAnOlderMapAndKeepsItsPlaces) {
   TempMap map("repair_v1");
   {
@@ -716,9 +716,29 @@ TEST(SqliteStoreTest, RepairReadsAnOlderMapAndKeepsItsPlaces) {
   EXPECT_EQ(report->places_kept, 3);
   EXPECT_EQ(report->landmarks_kept, 6);
   EXPECT_TRUE(ReadFileBytes(map.path()) == before) << "the whole map was changed";
-  std::unique_ptr<LandmarkStore> store = Open(map.path());  // opening upgrades it
+  // A damaged v1 map: the readable places are written to a map of the current schema.
+  ExecSql(map.path(), "UPDATE landmarks SET keypoints = x'00' WHERE place_id = 2");
+  report = RepairSqliteMap(map.path(), {});
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_TRUE(report->rewritten);
+  EXPECT_EQ(report->places_dropped, 1);
+  EXPECT_EQ(report->places_kept, 2);
+  for (const char* suffix : {"", "-wal", "-shm"}) {
+    std::remove((report->damaged_copy + suffix).c_str());
+  }
+  EXPECT_EQ(QuerySql(map.path(), "SELECT value FROM meta WHERE key = 'schema_version'"),
+            std::to_string(kSqliteSchemaVersion));
+  std::unique_ptr<LandmarkStore> store = Open(map.path());
   ASSERT_NE(store, nullptr);
-  EXPECT_EQ(ReadAll(*store).places.size(), 3u);
+  const Contents contents = ReadAll(*store);
+  ASSERT_EQ(contents.places.size(), 2u);
+  ASSERT_EQ(contents.landmarks.size(), 4u);
+  std::vector<Landmark> expected = MakeLandmarks(20, 2, 6);  // the third place's
+  for (int k = 0; k < 2; ++k) {
+    expected[k].id = contents.landmarks[2 + k].id;
+    expected[k].place = contents.places[1].id;
+    ExpectSameLandmark(expected[k], contents.landmarks[2 + k]);
+  }
 }
 
 // A repair that rewrites the map keeps the sightings (the places that saw a stored landmark
@@ -739,8 +759,11 @@ TEST(SqliteStoreTest, RepairKeepsTheSightingsOfTheKeptPlaces) {
       stored.push_back(landmarks);
     }
   }
-  // Place 2 (the second) gets a landmark whose keypoints no longer fit its descriptors.
-  ExecSql(map.path(), "UPDATE landmarks SET keypoints = x'00' WHERE place_id = 2");
+  // Place 2 (the second) gets a landmark whose keypoints no longer fit its descriptors, and
+  // place 4 a sighting that names no landmark: text the key takes beside the integer 1.
+  ExecSql(map.path(),
+          "UPDATE landmarks SET keypoints = x'00' WHERE place_id = 2; "
+          "INSERT INTO sightings(place_id, landmark_id) VALUES(4, '1abc')");
   StatusOr<MapRepairReport> report = RepairSqliteMap(map.path(), {});
   ASSERT_TRUE(report.ok()) << report.status().ToString();
   ASSERT_TRUE(report->rewritten);
