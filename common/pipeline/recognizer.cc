@@ -291,6 +291,31 @@ ChangeReport Recognizer::DetectSceneChanges(const FrameObservation& observation,
   return report;
 }
 
+namespace {
+
+// Puts a robot's recent past back as it was unless Keep() is called: a frame that was not stored
+// (a storage error, an exception) must not become the robot's last distinct frame, or the next
+// frames of the same view would count as copies of it and never be stored either. RecentPast
+// replaces its matrices rather than writing into them, so a shallow copy restores it.
+class RecentPastGuard {
+ public:
+  explicit RecentPastGuard(RecentPast* past) : past_(past), saved_(*past) {}
+  ~RecentPastGuard() {
+    if (!kept_) *past_ = std::move(saved_);
+  }
+  RecentPastGuard(const RecentPastGuard&) = delete;
+  RecentPastGuard& operator=(const RecentPastGuard&) = delete;
+
+  void Keep() { kept_ = true; }
+
+ private:
+  RecentPast* past_;
+  RecentPast saved_;
+  bool kept_ = false;
+};
+
+}  // namespace
+
 RecognitionResult Recognizer::Recognize(const FrameRequest& request,
                                         const FrameObservation& observation) {
   RecognitionResult result;
@@ -321,7 +346,9 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   timer.Restart();
   stage.emplace("recent_past");
   RecentPastUpdate recent;
+  std::optional<RecentPastGuard> recent_guard;
   if (request.insert) {
+    recent_guard.emplace(&state->recent_past);
     recent =
         state->recent_past.Observe(request.sequence, request.utime, observation.features.keypoints,
                                    observation.features.descriptors);
@@ -339,6 +366,7 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
         !result.matches.empty() && result.matches.front().score >= options_.loop.min_score;
     state->last_sequence = request.sequence;
     result.map = map_->Counts();
+    if (recent_guard) recent_guard->Keep();  // seen, deliberately not stored
     return result;
   }
 
@@ -545,6 +573,7 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   state->last_sequence = request.sequence;
   result.timings.emplace_back("insert", timer.ElapsedMs());
   result.map = map_->Counts();
+  if (recent_guard) recent_guard->Keep();
   return result;
 }
 

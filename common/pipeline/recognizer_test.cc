@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <random>
@@ -511,6 +512,70 @@ TEST(RecognizerTest, QueryOnlyFramesChangeNeitherTheMapNorTheRobot) {
   for (const auto& [stage, ms] : second.timings) stages.push_back(stage);
   EXPECT_EQ(stages, (std::vector<std::string>{"landmarks", "recent_past", "index", "decision",
                                               "classes", "insert"}));
+}
+
+// A store whose next AddPlace fails, as a full disk makes it.
+class FailingStore : public LandmarkStore {
+ public:
+  explicit FailingStore(std::unique_ptr<LandmarkStore> inner) : inner_(std::move(inner)) {}
+
+  Status AddPlace(Place* place, std::vector<Landmark>* landmarks) override {
+    if (fail_next_) {
+      fail_next_ = false;
+      return Status::IoError("database or disk is full");
+    }
+    return inner_->AddPlace(place, landmarks);
+  }
+  Status LoadPlaces(const std::function<void(const Place&)>& visit) const override {
+    return inner_->LoadPlaces(visit);
+  }
+  Status LoadLandmarks(const std::function<void(Landmark&&)>& visit) const override {
+    return inner_->LoadLandmarks(visit);
+  }
+  StatusOr<StoreCounts> Counts() const override { return inner_->Counts(); }
+  StatusOr<uint64_t> Checksum() const override { return inner_->Checksum(); }
+  std::string Describe() const override { return inner_->Describe(); }
+
+  void FailNext() { fail_next_ = true; }
+
+ private:
+  std::unique_ptr<LandmarkStore> inner_;
+  bool fail_next_ = false;
+};
+
+// A robot that stands still while the disk is full: the frame that failed to be stored must not
+// become its last distinct frame, or every later frame of the view counted as a copy of it and
+// the view was never stored once the disk had room again.
+TEST(RecognizerTest, AFrameThatWasNotStoredLeavesTheRecentPastAsItWas) {
+  const TwoFrames frames(43);
+  RecognizerOptions options = TestOptions();
+  options.min_descriptors_per_place = 0;
+  StatusOr<std::unique_ptr<LandmarkStore>> inner = OpenSqliteStore(":memory:", {});
+  ASSERT_TRUE(inner.ok());
+  auto failing = std::make_unique<FailingStore>(std::move(*inner));
+  FailingStore* store = failing.get();
+  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(failing), options.index);
+  ASSERT_TRUE(map.ok()) << map.status().ToString();
+  Recognizer recognizer(options, map->get());
+  ASSERT_TRUE(recognizer.Recognize({"a", 0, 0, true}, frames.First()).status.ok());
+
+  store->FailNext();
+  const RecognitionResult failed = recognizer.Recognize({"a", 1, 1000000, true}, frames.Second());
+  EXPECT_EQ(failed.status.code(), StatusCode::kIoError);
+  EXPECT_FALSE(failed.place.IsValid());
+  EXPECT_EQ((*map)->Counts().places, 0);
+
+  // The next frame of the same view, the disk has room again: stored.
+  const RecognitionResult again = recognizer.Recognize({"a", 2, 1100000, true}, frames.Second());
+  ASSERT_TRUE(again.status.ok()) << again.status.ToString();
+  EXPECT_FALSE(again.duplicate);
+  EXPECT_TRUE(again.place.IsValid());
+  EXPECT_EQ((*map)->Counts().places, 1);
+  // Stored, it is the robot's last distinct frame: one more copy of the view is a duplicate.
+  const RecognitionResult copy = recognizer.Recognize({"a", 3, 1200000, true}, frames.Second());
+  ASSERT_TRUE(copy.status.ok()) << copy.status.ToString();
+  EXPECT_TRUE(copy.duplicate);
+  EXPECT_EQ((*map)->Counts().places, 1);
 }
 
 // Checks come before any work: ids of 1..64 printable bytes, and for inserts a sequence after
