@@ -20,6 +20,7 @@
 #include <sqlite3.h>
 
 #include "common/recognition/recognition_test_util.h"
+#include "common/storage/forwarding_store_testing.h"
 #include "common/storage/sqlite_store.h"
 
 namespace placerec {
@@ -27,24 +28,15 @@ namespace {
 
 // A store whose AddPlace waits until the test lets it go on: a slow commit (fsync on a busy disk,
 // a remote database) made visible.
-class HeldStore : public LandmarkStore {
+class HeldStore : public testing_storage::ForwardingStore {
  public:
-  explicit HeldStore(std::unique_ptr<LandmarkStore> inner) : inner_(std::move(inner)) {}
+  using ForwardingStore::ForwardingStore;
 
   Status AddPlace(Place* place, std::vector<Landmark>* landmarks) override {
     entered_.set_value();
     release_.get_future().wait();
-    return inner_->AddPlace(place, landmarks);
+    return ForwardingStore::AddPlace(place, landmarks);
   }
-  Status LoadPlaces(const std::function<void(const Place&)>& visit) const override {
-    return inner_->LoadPlaces(visit);
-  }
-  Status LoadLandmarks(const std::function<void(Landmark&&)>& visit) const override {
-    return inner_->LoadLandmarks(visit);
-  }
-  StatusOr<StoreCounts> Counts() const override { return inner_->Counts(); }
-  StatusOr<uint64_t> Checksum() const override { return inner_->Checksum(); }
-  std::string Describe() const override { return inner_->Describe(); }
 
   std::future<void> Entered() { return entered_.get_future(); }
   void Release() {
@@ -52,7 +44,6 @@ class HeldStore : public LandmarkStore {
   }
 
  private:
-  std::unique_ptr<LandmarkStore> inner_;
   std::promise<void> entered_;
   std::promise<void> release_;
   std::once_flag released_;

@@ -25,6 +25,7 @@
 #include "common/pipeline/place_map.h"
 #include "common/pipeline/recognizer.h"
 #include "common/recognition/recognition_test_util.h"
+#include "common/storage/forwarding_store_testing.h"
 #include "common/storage/sqlite_store.h"
 
 namespace placerec {
@@ -515,31 +516,21 @@ TEST(RecognizerTest, QueryOnlyFramesChangeNeitherTheMapNorTheRobot) {
 }
 
 // A store whose next AddPlace fails, as a full disk makes it.
-class FailingStore : public LandmarkStore {
+class FailingStore : public testing_storage::ForwardingStore {
  public:
-  explicit FailingStore(std::unique_ptr<LandmarkStore> inner) : inner_(std::move(inner)) {}
+  using ForwardingStore::ForwardingStore;
 
   Status AddPlace(Place* place, std::vector<Landmark>* landmarks) override {
     if (fail_next_) {
       fail_next_ = false;
       return Status::IoError("database or disk is full");
     }
-    return inner_->AddPlace(place, landmarks);
+    return ForwardingStore::AddPlace(place, landmarks);
   }
-  Status LoadPlaces(const std::function<void(const Place&)>& visit) const override {
-    return inner_->LoadPlaces(visit);
-  }
-  Status LoadLandmarks(const std::function<void(Landmark&&)>& visit) const override {
-    return inner_->LoadLandmarks(visit);
-  }
-  StatusOr<StoreCounts> Counts() const override { return inner_->Counts(); }
-  StatusOr<uint64_t> Checksum() const override { return inner_->Checksum(); }
-  std::string Describe() const override { return inner_->Describe(); }
 
   void FailNext() { fail_next_ = true; }
 
  private:
-  std::unique_ptr<LandmarkStore> inner_;
   bool fail_next_ = false;
 };
 
