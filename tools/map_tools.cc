@@ -9,6 +9,7 @@
 #include <ctime>
 #include <filesystem>
 #include <functional>
+#include <iterator>
 #include <memory>
 #include <set>
 #include <system_error>
@@ -102,12 +103,17 @@ std::string FormatBytes(int64_t bytes) {
   return text;
 }
 
-// Removes `path` and its SQLite companions.
-void RemoveMapFiles(const std::string& path) {
-  std::error_code ignored;
-  for (const char* suffix : {"", "-wal", "-shm", "-journal"}) {
-    std::filesystem::remove(path + suffix, ignored);
+// The companions SQLite keeps beside a map file, by their suffix (the file itself: "").
+constexpr const char* kMapFileSuffixes[] = {"", "-wal", "-shm", "-journal"};
+
+// Removes `path` and its SQLite companions. Returns whether any of them was there.
+bool RemoveMapFiles(const std::string& path) {
+  bool any = false;
+  for (const char* suffix : kMapFileSuffixes) {
+    std::error_code ignored;
+    if (std::filesystem::remove(path + suffix, ignored)) any = true;
   }
+  return any;
 }
 
 // This machine's name, for work files: a process id means something on this machine only.
@@ -117,9 +123,9 @@ std::string HostName() {
   return name;
 }
 
-// The work file of this process's merge into `out`.
-std::string MergeWorkFile(const std::string& out) {
-  return out + ".merging." + HostName() + "." + std::to_string(getpid());
+// The work file of the merge into `out` by process `pid` on machine `host`.
+std::string MergeWorkFile(const std::string& out, const std::string& host, const std::string& pid) {
+  return out + ".merging." + host + "." + pid;
 }
 
 // Removes `out`.merging.HOST.PID[-wal|-shm|-journal] of this machine for every PID that is no
@@ -130,7 +136,8 @@ std::vector<std::string> RemoveKilledMergesWork(const std::string& out, const st
   const std::filesystem::path out_path(out);
   const std::filesystem::path dir =
       out_path.has_parent_path() ? out_path.parent_path() : std::filesystem::path(".");
-  const std::string prefix = out_path.filename().string() + ".merging." + HostName() + ".";
+  const std::string host = HostName();
+  const std::string prefix = MergeWorkFile(out_path.filename().string(), host, "");
   std::set<std::string> stale;  // pids
   std::error_code error;
   for (std::filesystem::directory_iterator it(dir, error), end; !error && it != end;
@@ -143,26 +150,24 @@ std::vector<std::string> RemoveKilledMergesWork(const std::string& out, const st
     // As std::to_string(getpid()) writes it: 1 to 9 digits, no leading zero.
     if (pid_text.empty() || pid_text.size() > 9 || pid_text[0] == '0') continue;
     const std::string suffix = digits == std::string::npos ? "" : rest.substr(digits);
-    if (!suffix.empty() && suffix != "-wal" && suffix != "-shm" && suffix != "-journal") continue;
+    if (std::find(std::begin(kMapFileSuffixes), std::end(kMapFileSuffixes), suffix) ==
+        std::end(kMapFileSuffixes)) {
+      continue;
+    }
     const pid_t pid = static_cast<pid_t>(std::stol(pid_text));
     // ESRCH: no such process. EPERM means it runs under another user: left alone.
     if (kill(pid, 0) != 0 && errno == ESRCH) stale.insert(pid_text);
   }
   std::vector<std::string> removed;
   for (const std::string& pid : stale) {
-    const std::string path = out + ".merging." + HostName() + "." + pid;
+    const std::string path = MergeWorkFile(out, host, pid);
     bool is_input = false;
     for (const std::string& input : {a, b}) {
       std::error_code ignored;
       if (std::filesystem::equivalent(path, input, ignored)) is_input = true;
     }
     if (is_input) continue;
-    bool any = false;
-    for (const char* suffix : {"", "-wal", "-shm", "-journal"}) {
-      std::error_code ignored;
-      if (std::filesystem::remove(path + suffix, ignored)) any = true;
-    }
-    if (any) removed.push_back(path);
+    if (RemoveMapFiles(path)) removed.push_back(path);
   }
   return removed;
 }
@@ -790,7 +795,7 @@ StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, cons
   // This process's own work file: another running merge into the same `out` is not touched (what
   // a killed one left is removed); of two merges racing for `out`, the hard link below lets only
   // one in.
-  const std::string temporary = MergeWorkFile(out);
+  const std::string temporary = MergeWorkFile(out, HostName(), std::to_string(getpid()));
   report.removed_work_files = RemoveKilledMergesWork(out, a, b);
   RemoveMapFiles(temporary);
   {
