@@ -212,7 +212,7 @@ StatusOr<std::unique_ptr<Gateway>> Gateway::Create(const GatewayOptions& options
   if (!options.db.empty()) {
     // The server's map, read only for pictures; it must exist (the server made it).
     SqliteStoreOptions store;
-    store.must_exist = true;
+    store.read_only = true;     // nothing in the server's map changes through the gateway
     store.quick_check = false;  // the server checks the map; this reads a few rows
     StatusOr<std::unique_ptr<LandmarkStore>> map =
         IsPostgresUrl(options.db) ? OpenPostgresStore(options.db, PostgresStoreOptions())

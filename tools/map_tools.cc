@@ -39,33 +39,14 @@ int64_t FileBytes(const std::string& path) {
 }
 
 // Opens the map at `path` for reading only (a running server may hold it) and reads its schema
-// version: NotFound for a missing file or an empty database, IoError for a foreign or newer one.
+// version (OpenSqliteMapReadOnly), saying where map files come from when there is none.
 StatusOr<SqliteConnection> OpenReadOnly(const std::string& path, int* version) {
   std::error_code ignored;
   if (!std::filesystem::exists(path, ignored)) {
     return Status::NotFound("no placerec map at " + path +
                             ": give the map file a server or placerec-eval wrote (--db)");
   }
-  StatusOr<SqliteConnection> opened =
-      OpenSqliteDatabase(path, SQLITE_OPEN_READONLY, /*busy_timeout_ms=*/2000);
-  if (!opened.ok()) return opened.status();
-  SqliteConnection db = std::move(opened).value();
-  StatusOr<int> read = ReadSchemaVersion(db.get(), path);
-  if (!read.ok()) {
-    // A map in WAL mode is read through its MAP-shm file, which SQLite creates beside it.
-    const std::filesystem::path folder = std::filesystem::absolute(path).parent_path();
-    if (access(folder.c_str(), W_OK | X_OK) != 0) {
-      return Status::IoError(read.status().message() + "; SQLite reads a map through its -shm " +
-                             "file, kept beside it, and cannot write in " + folder.string() +
-                             ": copy the map (with its -wal file, if any) to a folder you can "
-                             "write");
-    }
-    return read.status();
-  }
-  if (*read > kSqliteSchemaVersion) return NewerSchemaVersionError(path, *read);
-  if (*read == 0) return Status::NotFound(path + " holds no placerec map (an empty database)");
-  *version = *read;
-  return StatusOr<SqliteConnection>(std::move(db));
+  return OpenSqliteMapReadOnly(path, /*busy_timeout_ms=*/2000, version);
 }
 
 // Runs `sql` and calls `row` for each result row; the error names `what` and `path`.
@@ -755,7 +736,7 @@ StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, cons
                                    "another --out");
   }
   SqliteStoreOptions read;
-  read.must_exist = true;
+  read.read_only = true;  // the inputs stay as they are (an older schema is not upgraded)
   StatusOr<std::unique_ptr<LandmarkStore>> store_a = OpenSqliteStore(a, read);
   if (!store_a.ok()) return store_a.status();
   StatusOr<std::unique_ptr<LandmarkStore>> store_b = OpenSqliteStore(b, read);
@@ -869,7 +850,7 @@ StatusOr<CheckReport> CheckMap(const std::string& path) {
   }
   // Every place and landmark read back through the store: fields in range, BLOBs decoded.
   SqliteStoreOptions options;
-  options.must_exist = true;
+  options.read_only = true;     // an older schema is read as it is, not upgraded
   options.quick_check = false;  // integrity_check above is the full version
   StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(path, options);
   if (!store.ok()) {

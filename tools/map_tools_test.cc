@@ -623,5 +623,42 @@ TEST(MapToolsTest, CheckFindsADamagedLandmark) {
   EXPECT_EQ(CheckMap(map.path() + ".missing").status().code(), StatusCode::kNotFound);
 }
 
+// check and merge only read: a map of an older schema stays as it is (they upgraded it in place,
+// as the server does, so that a backup looked at was changed).
+TEST(MapToolsTest, CheckAndMergeLeaveAnOlderMapAsItIs) {
+  TempMap old_map("check_v1");
+  TempMap other("check_v1_other");
+  TempMap merged("check_v1_merged");
+  BuildSite(old_map.path());
+  {
+    std::unique_ptr<LandmarkStore> store = Open(other.path());
+    ASSERT_NE(store, nullptr);
+    AddPlace(store.get(), "third", 0, kStart, 1, {"sign"});
+  }
+  testing_storage::DowngradeMapToSchemaV1(old_map.path());
+  auto version = [](const std::string& path) {
+    return QuerySql(path, "SELECT value FROM meta WHERE key = 'schema_version'");
+  };
+  ASSERT_EQ(version(old_map.path()), "1");
+
+  StatusOr<CheckReport> report = CheckMap(old_map.path());
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_TRUE(report->ok()) << (report->problems.empty() ? "" : report->problems[0]);
+  EXPECT_EQ(report->places, 5);
+  EXPECT_EQ(report->landmarks, 8);
+  EXPECT_EQ(version(old_map.path()), "1");
+
+  StatusOr<MergeReport> merge = MergeMaps(old_map.path(), other.path(), merged.path(), {});
+  ASSERT_TRUE(merge.ok()) << merge.status().ToString();
+  EXPECT_EQ(merge->places, 6);
+  EXPECT_EQ(version(old_map.path()), "1");
+  EXPECT_EQ(version(merged.path()), std::to_string(kSqliteSchemaVersion));
+  // The v1 map's landmarks are unclassified in the merged map; the other map's keep their class.
+  const std::vector<Landmark> landmarks = Landmarks(merged.path());
+  ASSERT_EQ(landmarks.size(), 9u);
+  for (size_t i = 0; i < 8; ++i) EXPECT_EQ(landmarks[i].object_class, "") << i;
+  EXPECT_EQ(landmarks[8].object_class, "sign");
+}
+
 }  // namespace
 }  // namespace placerec

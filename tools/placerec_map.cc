@@ -164,9 +164,8 @@ int MergeCommand(int argc, char** argv) {
       "A new id over the 47-byte robot id limit is refused before anything is written. C must\n"
       "not exist; it is written to C.merging.<host>.<pid> and linked to C when complete (what a\n"
       "killed merge on this machine left, its process no longer running, is removed). A and B are\n"
-      "opened as the server opens a map: their content is not changed, but a map of an older\n"
-      "schema version is upgraded in place, and a write-ahead log (MAP-wal) a killed server\n"
-      "left is folded into the file.");
+      "only read (a map of an older schema version is read as it is, not upgraded); C is written\n"
+      "in the current schema version.");
   parser.AddPositional("maps", &maps, "the two maps A and B");
   parser.AddRequired("out", &out, "the merged map to write (must not exist)");
   parser.Add("suffix", &options.suffix,
@@ -211,8 +210,8 @@ int CheckCommand(int argc, char** argv) {
       "place, every sighting's place and landmark), each place's landmark count, then every\n"
       "place and landmark read back and validated (reading stops at the first damaged\n"
       "landmark). Exit code 0 when the map is whole, 1 when it is damaged or cannot be read.\n"
-      "Changes no content; but as the server would, it upgrades a map of an older schema\n"
-      "version in place and folds a write-ahead log (MAP-wal) a killed server left into the file.");
+      "Only reads: a map of an older schema version is read as it is (not upgraded), and a\n"
+      "write-ahead log (MAP-wal) a killed server left is read, not folded into the file.");
   parser.AddRequired("db", &db, "map file");
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 2, "placerec-map check")) {
     return *exit;

@@ -1,6 +1,6 @@
 // PostgreSQL implementation of LandmarkStore (DESIGN.md "Architecture"): one site's map shared by
 // several servers. Same tables, BLOB encodings (blob_codec.h), checks and digest (checksum.h) as
-// the SQLite store, schema version 2 of schema.h in table `meta`. Each place is committed in one
+// the SQLite store, the schema version of schema.h in table `meta`. Each place is committed in one
 // transaction before AddPlace returns; that transaction also sends NOTIFY on
 // kPostgresPlacesChannel with the new place id, so that the other servers' change feeds
 // (PostgresChangeFeed) fetch it. Inserts take one advisory lock per map for their transaction, so
@@ -55,7 +55,8 @@ struct CommittedPlace {
 // Not thread-safe: one thread uses it. After any IoError the feed is spent: open a new one.
 class PostgresChangeFeed {
  public:
-  // Connects and LISTENs. IoError when the database cannot be reached or holds no placerec map.
+  // Connects and LISTENs. IoError when the database cannot be reached (it does not look at the
+  // map: a database without one gives no notifications, and FetchAfter fails).
   static StatusOr<std::unique_ptr<PostgresChangeFeed>> Open(const std::string& url,
                                                             const PostgresStoreOptions& options);
   virtual ~PostgresChangeFeed() = default;

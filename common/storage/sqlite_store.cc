@@ -53,6 +53,10 @@ enum LandmarkColumn {
 #define PLACEREC_LANDMARK_COLUMNS PLACEREC_LANDMARK_V1_COLUMNS ", object_class, class_confidence"
 constexpr char kSelectLandmarks[] =
     "SELECT " PLACEREC_LANDMARK_COLUMNS " FROM landmarks ORDER BY id";
+// The same from a map of schema v1 opened read-only (not upgraded): no class, as the v1 -> v2
+// step leaves its landmarks.
+constexpr char kSelectV1Landmarks[] =
+    "SELECT " PLACEREC_LANDMARK_V1_COLUMNS ", NULL, 0 FROM landmarks ORDER BY id";
 
 constexpr char kSelectPlaces[] =
     "SELECT id, robot, sequence, utime, num_landmarks, image_width FROM places ORDER BY id";
@@ -163,12 +167,18 @@ Status ReadLandmarkRow(const SqliteStatement& row, const std::string& store, Enc
 
 class SqliteStore final : public LandmarkStore {
  public:
+  // A store that writes: `version` is the current schema's.
   SqliteStore(std::string path, SqliteConnection db, SqliteStatement insert_place,
               SqliteStatement insert_landmark)
       : path_(std::move(path)),
         db_(std::move(db)),
+        version_(kSqliteSchemaVersion),
+        read_only_(false),
         insert_place_(std::move(insert_place)),
         insert_landmark_(std::move(insert_landmark)) {}
+  // A read-only store of a map of schema `version` (read as it is).
+  SqliteStore(std::string path, SqliteConnection db, int version)
+      : path_(std::move(path)), db_(std::move(db)), version_(version), read_only_(true) {}
 
   Status AddPlace(Place* place, std::vector<Landmark>* landmarks) override;
   Status LoadPlaces(const std::function<void(const Place&)>& visit) const override;
@@ -201,6 +211,9 @@ class SqliteStore final : public LandmarkStore {
   // server reads counts from its status thread while a worker writes.
   mutable std::mutex mutex_;
   SqliteConnection db_;  // declared before the statements so that it is closed after them
+  // The file's schema version: the current one, or an older one when opened read-only.
+  const int version_;
+  const bool read_only_;
   SqliteStatement insert_place_;
   SqliteStatement insert_landmark_;
   // Encoding buffers reused across AddPlace calls.
@@ -212,6 +225,9 @@ Status SqliteStore::AddPlace(Place* place, std::vector<Landmark>* landmarks) {
   static const std::vector<Landmark> kNoLandmarks;
   const std::vector<Landmark>& items = landmarks != nullptr ? *landmarks : kNoLandmarks;
   PLACEREC_RETURN_IF_ERROR(ValidatePlaceAndLandmarks(*place, items));
+  if (read_only_) {
+    return Status::InvalidArgument(Describe() + " is open for reading only; nothing was written");
+  }
 
   std::lock_guard<std::mutex> lock(mutex_);
   int64_t place_id = 0;
@@ -307,7 +323,7 @@ Status SqliteStore::InsertRows(const Place& place, const std::vector<Landmark>& 
 Status SqliteStore::ScanPlaces(const std::function<void(const Place&)>& visit) const {
   // Sightings first (few: only the seed's recognition mode writes them), then every place.
   std::unordered_map<int64_t, std::vector<LandmarkId>> seen;
-  {
+  if (version_ >= 2) {  // sightings came with schema v2
     SqliteStatement sightings;
     int rc = SqliteStatement::Prepare(db_.get(), kSelectSightings, false, &sightings);
     if (rc == SQLITE_OK) {
@@ -347,7 +363,8 @@ Status SqliteStore::ScanPlaces(const std::function<void(const Place&)>& visit) c
 
 Status SqliteStore::ScanLandmarks(const std::function<void(const EncodedLandmark&)>& visit) const {
   SqliteStatement select;
-  int rc = SqliteStatement::Prepare(db_.get(), kSelectLandmarks, false, &select);
+  int rc = SqliteStatement::Prepare(
+      db_.get(), version_ >= 2 ? kSelectLandmarks : kSelectV1Landmarks, false, &select);
   if (rc != SQLITE_OK) return Error("cannot read landmarks", rc);
   EncodedLandmark row;
   while ((rc = select.Step()) == SQLITE_ROW) {
@@ -369,6 +386,7 @@ Status SqliteStore::LoadLandmarks(const std::function<void(Landmark&&)>& visit) 
 }
 
 StatusOr<std::vector<uint8_t>> SqliteStore::LoadThumbnail(PlaceId place) const {
+  if (version_ < 3) return std::vector<uint8_t>();  // thumbnails came with schema v3
   std::lock_guard<std::mutex> lock(mutex_);
   SqliteStatement select;
   int rc = SqliteStatement::Prepare(db_.get(), kSelectThumbnail, false, &select);
@@ -700,7 +718,56 @@ Status MoveMapFiles(const std::string& from, const std::string& to) {
   return Status::Ok();
 }
 
+// OpenSqliteStore with options.read_only.
+StatusOr<std::unique_ptr<LandmarkStore>> OpenReadOnlySqliteStore(
+    const std::string& path, const SqliteStoreOptions& options) {
+  if (path == ":memory:") {
+    return Status::InvalidArgument("a map opened for reading only must be a file, not :memory:");
+  }
+  int version = 0;
+  StatusOr<SqliteConnection> db = OpenSqliteMapReadOnly(path, options.busy_timeout_ms, &version);
+  if (!db.ok()) return db.status();
+  if (options.quick_check) {
+    ReadAhead(path, kReadAheadShare);
+    const std::vector<std::string> problems = QuickCheck(db->get(), 5);
+    if (!problems.empty()) {
+      return Status::IoError("map " + path + " is damaged (SQLite quick_check: " +
+                             Join(problems, 3) + "); " + kDamagedMapAdvice);
+    }
+  }
+  return std::unique_ptr<LandmarkStore>(
+      std::make_unique<SqliteStore>(path, std::move(db).value(), version));
+}
+
 }  // namespace
+
+StatusOr<SqliteConnection> OpenSqliteMapReadOnly(const std::string& path, int busy_timeout_ms,
+                                                 int* version) {
+  std::error_code ignored;
+  if (!std::filesystem::exists(path, ignored)) {
+    return Status::NotFound("no placerec map at " + path);
+  }
+  StatusOr<SqliteConnection> opened =
+      OpenSqliteDatabase(path, SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, busy_timeout_ms);
+  if (!opened.ok()) return opened.status();
+  SqliteConnection db = std::move(opened).value();
+  StatusOr<int> read = ReadSchemaVersion(db.get(), path);
+  if (!read.ok()) {
+    // A map in WAL mode is read through its MAP-shm file, which SQLite creates beside it.
+    const std::filesystem::path folder = std::filesystem::absolute(path).parent_path();
+    if (access(folder.c_str(), W_OK | X_OK) != 0) {
+      return Status::IoError(read.status().message() + "; SQLite reads a map through its -shm " +
+                             "file, kept beside it, and cannot write in " + folder.string() +
+                             ": copy the map (with its -wal file, if any) to a folder you can "
+                             "write");
+    }
+    return read.status();
+  }
+  if (*read > kSqliteSchemaVersion) return NewerSchemaVersionError(path, *read);
+  if (*read == 0) return Status::NotFound(path + " holds no placerec map (an empty database)");
+  *version = *read;
+  return StatusOr<SqliteConnection>(std::move(db));
+}
 
 bool SqliteStoreOptions::Check(std::string* error) const {
   if (busy_timeout_ms < 0) {
@@ -715,6 +782,7 @@ StatusOr<std::unique_ptr<LandmarkStore>> OpenSqliteStore(const std::string& path
   std::string error;
   if (!options.Check(&error)) return Status::InvalidArgument(error);
   if (path.empty()) return Status::InvalidArgument("sqlite store path is empty");
+  if (options.read_only) return OpenReadOnlySqliteStore(path, options);
   if (options.must_exist && path != ":memory:") {
     std::error_code ignored;
     if (!std::filesystem::exists(path, ignored)) {

@@ -9,6 +9,7 @@
 
 #include "common/storage/landmark_store.h"
 #include "common/storage/schema.h"  // kSqliteSchemaVersion
+#include "common/storage/sqlite_db.h"
 
 namespace placerec {
 
@@ -26,16 +27,28 @@ struct SqliteStoreOptions {
   // in half the available memory): a damaged file is refused with a message saying how to restore
   // or repair it.
   bool quick_check = true;
+  // Open for reading only (SQLITE_OPEN_READONLY), for inspection tools: nothing in the file
+  // changes (a map of an older schema is read as it is, not upgraded; no journal mode is set),
+  // the map must exist, and AddPlace fails.
+  bool read_only = false;
 
   bool Check(std::string* error) const;
 };
 
 // Opens (creating when allowed) the map at `path`; ":memory:" gives a private in-memory map.
+// A map of an older schema is upgraded in place, unless options.read_only.
 // Fails with NotFound for a missing map when options.must_exist is set, and with IoError for a
 // file that is not a placerec map, has a newer schema version or (options.quick_check) is damaged;
 // such files are left untouched.
 StatusOr<std::unique_ptr<LandmarkStore>> OpenSqliteStore(const std::string& path,
                                                          const SqliteStoreOptions& options);
+
+// Opens the map at `path` for reading only (a running server may hold it; nothing in the file
+// changes) and reads its schema version into *version: NotFound for a missing file or an empty
+// database, IoError for a foreign or newer one (saying what to do when SQLite cannot create the
+// -shm file beside a map in WAL mode that it reads the map through).
+StatusOr<SqliteConnection> OpenSqliteMapReadOnly(const std::string& path, int busy_timeout_ms,
+                                                 int* version);
 
 // What RepairSqliteMap found and did.
 struct MapRepairReport {

@@ -8,6 +8,7 @@
 
 #include <atomic>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <random>
@@ -686,13 +687,10 @@ TEST(SqliteStoreTest, RandomBytesInAPageAreRefusedAtOpenAndRepairDropsTheDamaged
   EXPECT_EQ(RepairSqliteMap(copy.path() + ".missing", {}).status().code(), StatusCode::kNotFound);
 }
 
-// A map of schema v1 (written before object classes, sightings and thumbnails) that a server
-// is asked to repair: the repair reads it as it is, keeps every place and leaves the whole map
-// alone (it read the v1 map with v2's columns, found every place unreadable and rewrote it empty).
-TEST(SqliteStoreTest, RepairReadsAnOlderMapAndKeepsItsPlaces) {
-  TempMap map("repair_v1");
+// Writes a map of schema v1 at `path`: robot "r", places 0-2 with MakeLandmarks(10 * p, 2, 6).
+void WriteV1MapOfThreePlaces(const std::string& path) {
   {
-    std::unique_ptr<LandmarkStore> store = Open(map.path());
+    std::unique_ptr<LandmarkStore> store = Open(path);
     ASSERT_NE(store, nullptr);
     for (int p = 0; p < 3; ++p) {
       Place place = MakePlace("r", p);
@@ -700,12 +698,15 @@ TEST(SqliteStoreTest, RepairReadsAnOlderMapAndKeepsItsPlaces) {
       ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
     }
   }
-  // Back to schema v1: what the v2 and v3 steps added removed again.
-  ExecSql(map.path(),
-          "DROP TABLE thumbnails; DROP TABLE sightings; "
-          "ALTER TABLE landmarks DROP COLUMN object_class; "
-          "ALTER TABLE landmarks DROP COLUMN class_confidence; "
-          "UPDATE meta SET value = '1' WHERE key = 'schema_version'; VACUUM;");
+  testing_storage::DowngradeMapToSchemaV1(path);
+}
+
+// A map of schema v1 (written before object classes, sightings and thumbnails) that a server
+// is asked to repair: the repair reads it as it is, keeps every place and leaves the whole map
+// alone (it read the v1 map with v2's columns, found every place unreadable and rewrote it empty).
+TEST(SqliteStoreTest, RepairReadsAnOlderMapAndKeepsItsPlaces) {
+  TempMap map("repair_v1");
+  WriteV1MapOfThreePlaces(map.path());
   ASSERT_EQ(QuerySql(map.path(), "SELECT value FROM meta WHERE key = 'schema_version'"), "1");
   const std::string before = ReadFileBytes(map.path());
 
@@ -739,6 +740,51 @@ TEST(SqliteStoreTest, RepairReadsAnOlderMapAndKeepsItsPlaces) {
     expected[k].place = contents.places[1].id;
     ExpectSameLandmark(expected[k], contents.landmarks[2 + k]);
   }
+}
+
+// A store opened read-only reads a map of an older schema as it is (the inspection tools' way):
+// places and landmarks come back, nothing can be added, and the file is not changed (not
+// upgraded, no journal mode set).
+TEST(SqliteStoreTest, ReadOnlyStoreReadsAnOlderMapAndChangesNothing) {
+  TempMap map("read_only_v1");
+  WriteV1MapOfThreePlaces(map.path());
+  const std::string before = ReadFileBytes(map.path());
+  {
+    SqliteStoreOptions options;
+    options.read_only = true;
+    StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(map.path(), options);
+    ASSERT_TRUE(store.ok()) << store.status().ToString();
+    const Contents contents = ReadAll(**store);
+    ASSERT_EQ(contents.places.size(), 3u);
+    ASSERT_EQ(contents.landmarks.size(), 6u);
+    std::vector<Landmark> expected = MakeLandmarks(20, 2, 6);  // the third place's
+    for (int k = 0; k < 2; ++k) {
+      expected[k].id = contents.landmarks[4 + k].id;
+      expected[k].place = contents.places[2].id;
+      ExpectSameLandmark(expected[k], contents.landmarks[4 + k]);
+    }
+    StatusOr<std::vector<uint8_t>> thumbnail = (*store)->LoadThumbnail(contents.places[0].id);
+    ASSERT_TRUE(thumbnail.ok()) << thumbnail.status().ToString();
+    EXPECT_TRUE(thumbnail->empty());
+    StatusOr<StoreCounts> counts = (*store)->Counts();
+    ASSERT_TRUE(counts.ok());
+    EXPECT_EQ(counts->places, 3);
+    EXPECT_TRUE((*store)->Checksum().ok());
+    Place place = MakePlace("r", 9);
+    std::vector<Landmark> landmarks = MakeLandmarks(90, 1, 6);
+    const Status added = (*store)->AddPlace(&place, &landmarks);
+    EXPECT_FALSE(added.ok());
+    EXPECT_NE(added.message().find("reading only"), std::string::npos) << added.ToString();
+  }
+  EXPECT_TRUE(ReadFileBytes(map.path()) == before) << "the map was changed";
+  EXPECT_EQ(QuerySql(map.path(), "SELECT value FROM meta WHERE key = 'schema_version'"), "1");
+  // What is not there is not created.
+  SqliteStoreOptions options;
+  options.read_only = true;
+  EXPECT_EQ(OpenSqliteStore(map.path() + ".missing", options).status().code(),
+            StatusCode::kNotFound);
+  std::error_code ignored;
+  EXPECT_FALSE(std::filesystem::exists(map.path() + ".missing", ignored));
 }
 
 // A repair that rewrites the map keeps the sightings (the places that saw a stored landmark

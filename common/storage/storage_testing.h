@@ -48,6 +48,16 @@ inline void ExecSql(const std::string& path, const char* sql) {
   sqlite3_close(db);
 }
 
+// Turns a map of the current schema back into one of schema v1, as an old placerec wrote it:
+// what the v2 and v3 steps added is removed again (classes, sightings, thumbnails).
+inline void DowngradeMapToSchemaV1(const std::string& path) {
+  ExecSql(path,
+          "DROP TABLE thumbnails; DROP TABLE sightings; "
+          "ALTER TABLE landmarks DROP COLUMN object_class; "
+          "ALTER TABLE landmarks DROP COLUMN class_confidence; "
+          "UPDATE meta SET value = '1' WHERE key = 'schema_version'; VACUUM;");
+}
+
 // The first column of the first row of a constant query, as text.
 inline std::string QuerySql(const std::string& path, const char* sql) {
   sqlite3* db = nullptr;
