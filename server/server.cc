@@ -178,7 +178,9 @@ StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
                    << " damaged places, kept " << repaired->places_kept << " places ("
                    << repaired->landmarks_kept
                    << " landmarks); damage found: " << repaired->problems
-                   << "; the damaged file is kept as " << repaired->damaged_copy;
+                   << "; the damaged file is kept as " << repaired->damaged_copy
+                   << (repaired->notes.empty() ? "" : "; kept otherwise than stored: ")
+                   << repaired->notes;
     } else {
       LOG(INFO) << "map " << options.db_path << " is whole (" << repaired->places_kept
                 << " places); nothing to repair";

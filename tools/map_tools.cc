@@ -857,8 +857,19 @@ StatusOr<CheckReport> CheckMap(const std::string& path) {
     report.problems.push_back("the store cannot open it: " + store.status().message());
     return report;
   }
-  const Status places = (*store)->LoadPlaces([&](const Place& place) {
+  int64_t times_outside = 0;  // places whose capture time lies outside the range
+  const Status places = (*store)->LoadPlaces([&](const Place& stored) {
     ++report.places;
+    Place place = stored;
+    if (!CheckCaptureTime(place.utime).ok()) {
+      place.utime = ClampCaptureTime(place.utime);
+      if (++times_outside <= 10) {
+        report.notes.push_back("place " + std::to_string(place.id.value()) + ": capture time " +
+                               std::to_string(stored.utime) + " us lies outside 0 .. " +
+                               std::to_string(kMaxUtime) + "; the server uses " +
+                               std::to_string(place.utime));
+      }
+    }
     const Status valid = place.Validate();
     if (!valid.ok()) {
       report.problems.push_back("place " + std::to_string(place.id.value()) + ": " +
@@ -866,6 +877,10 @@ StatusOr<CheckReport> CheckMap(const std::string& path) {
     }
   });
   if (!places.ok()) report.problems.push_back(places.message());
+  if (times_outside > 10) {
+    report.notes.push_back("in all " + std::to_string(times_outside) +
+                           " places whose capture time lies outside the range");
+  }
   const Status landmarks = (*store)->LoadLandmarks([&](Landmark&& landmark) {
     ++report.landmarks;
     const Status valid = landmark.Validate();

@@ -186,8 +186,11 @@ std::string MergedRobotId(const std::string& robot, const std::vector<std::strin
 
 struct CheckReport {
   std::vector<std::string> problems;  // empty: the map is whole
-  int64_t places = 0;                 // places read back
-  int64_t landmarks = 0;              // landmarks read back whole
+  // What is no damage but not as this build writes it (a capture time outside the range, which
+  // the server serves as the nearest end of the range).
+  std::vector<std::string> notes;
+  int64_t places = 0;     // places read back
+  int64_t landmarks = 0;  // landmarks read back whole
   bool ok() const { return problems.empty(); }
 };
 

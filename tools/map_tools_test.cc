@@ -623,6 +623,22 @@ TEST(MapToolsTest, CheckFindsADamagedLandmark) {
   EXPECT_EQ(CheckMap(map.path() + ".missing").status().code(), StatusCode::kNotFound);
 }
 
+// A capture time outside 0 .. kMaxUtime (an old build wrote such times) is no damage: the server
+// serves the place with the nearest end of the range. check names it without calling the map
+// damaged (it sent the user to --repair, which dropped the place).
+TEST(MapToolsTest, CheckNamesATimeOutOfRangeWithoutCallingTheMapDamaged) {
+  TempMap map("check_time");
+  BuildSite(map.path());
+  testing_storage::ExecSql(map.path(), "UPDATE places SET utime = -5 WHERE id = 2");
+  StatusOr<CheckReport> report = CheckMap(map.path());
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_TRUE(report->ok()) << report->problems[0];
+  EXPECT_EQ(report->places, 5);
+  ASSERT_EQ(report->notes.size(), 1u);
+  EXPECT_NE(report->notes[0].find("place 2"), std::string::npos) << report->notes[0];
+  EXPECT_NE(report->notes[0].find("-5"), std::string::npos) << report->notes[0];
+}
+
 // check and merge only read: a map of an older schema stays as it is (they upgraded it in place,
 // as the server does, so that a backup looked at was changed).
 TEST(MapToolsTest, CheckAndMergeLeaveAnOlderMapAsItIs) {

@@ -218,6 +218,7 @@ int CheckCommand(int argc, char** argv) {
   }
   StatusOr<CheckReport> report = CheckMap(db);
   if (!report.ok()) return Fail("placerec-map check", report.status());
+  for (const std::string& note : report->notes) std::printf("note: %s\n", note.c_str());
   if (report->ok()) {
     std::printf("%s is whole: %lld places and %lld landmarks read back\n", db.c_str(),
                 static_cast<long long>(report->places), static_cast<long long>(report->landmarks));

@@ -23,11 +23,11 @@ Place WithCaptureTimeInRange(const Place& place) {
   if (CheckCaptureTime(place.utime).ok()) return place;
   LOG(WARNING) << "place " << place.id.value() << " of robot '" << place.robot
                << "' has capture time " << place.utime << " us, outside 0 .. " << kMaxUtime
-               << " us: used as " << (place.utime < 0 ? 0 : kMaxUtime)
+               << " us: used as " << ClampCaptureTime(place.utime)
                << " (the map file keeps it; placerec-map prune --robot, or --before for a time "
                   "before 0, drops it from a SQLite map)";
   Place bounded = place;
-  bounded.utime = place.utime < 0 ? 0 : kMaxUtime;
+  bounded.utime = ClampCaptureTime(place.utime);
   return bounded;
 }
 

@@ -32,6 +32,11 @@ constexpr double kMaxWindowSeconds = 86400.0;
 
 // InvalidArgument naming the range when `utime` lies outside 0 .. kMaxUtime.
 Status CheckCaptureTime(int64_t utime);
+// `utime` moved into 0 .. kMaxUtime (the nearest end when outside): the time a map serves a place
+// by whose stored time an old build wrote outside the range.
+inline int64_t ClampCaptureTime(int64_t utime) {
+  return utime < 0 ? 0 : (utime > kMaxUtime ? kMaxUtime : utime);
+}
 
 // One inserted frame of one robot.
 struct Place {

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <optional>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -580,6 +581,9 @@ struct WholePlace {
   Place place;
   std::vector<Landmark> landmarks;
   bool sightings_unreadable = false;  // the place's sightings could not be read (left out)
+  // The capture time stored, when it lay outside 0 .. kMaxUtime: place.utime holds the time the
+  // server serves the place with (ClampCaptureTime), which a rewrite keeps.
+  std::optional<int64_t> stored_utime;
 };
 
 // Reads place `id` and its landmarks by point lookups from a map of schema `version` (read as it
@@ -654,6 +658,13 @@ bool ReadWholePlace(sqlite3* db, int version, const std::string& store, int64_t 
       return false;
     }
     out->landmarks.push_back(DecodeLandmark(encoded));
+  }
+  // A time outside the range (an old build wrote such times) is no damage: the server serves the
+  // place at the nearest end of the range (PlaceMap).
+  out->stored_utime.reset();
+  if (!CheckCaptureTime(out->place.utime).ok()) {
+    out->stored_utime = out->place.utime;
+    out->place.utime = ClampCaptureTime(out->place.utime);
   }
   // What AddPlace would refuse (a robot id out of the rules, ...) is damage too.
   const Status valid = ValidatePlaceAndLandmarks(out->place, out->landmarks);
@@ -904,6 +915,7 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
     }
     const std::string store = "sqlite:" + path;
     int64_t unreadable_sightings = 0;  // kept places whose sightings do not read
+    int64_t times_moved = 0;           // kept places whose time lay outside the range
     for (int64_t id = 1; id <= last; ++id) {
       WholePlace place;
       std::string why;
@@ -916,6 +928,13 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
           report.problems += (report.problems.empty() ? "" : "; ") + std::string("place ") +
                              std::to_string(id) + ": its sightings cannot be read";
         }
+        if (place.stored_utime && ++times_moved <= 3) {
+          report.notes += (report.notes.empty() ? "" : "; ") + std::string("place ") +
+                          std::to_string(id) + ": capture time " +
+                          std::to_string(*place.stored_utime) + " us, outside 0 .. " +
+                          std::to_string(kMaxUtime) + ", is kept as " +
+                          std::to_string(place.place.utime) + " (as the server uses it)";
+        }
         place.place.thumbnail = ReadThumbnailForRepair(db.get(), *version, id);
         kept.push_back(std::move(place));
       } else if (!why.empty()) {
@@ -924,6 +943,10 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
           report.problems += (report.problems.empty() ? "" : "; ") + why;
         }
       }
+    }
+    if (times_moved > 3) {
+      report.notes += "; in all " + std::to_string(times_moved) +
+                      " places whose capture time lay outside the range";
     }
     if (unreadable_sightings > 3) {
       report.problems += "; in all " + std::to_string(unreadable_sightings) +

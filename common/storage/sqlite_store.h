@@ -60,6 +60,9 @@ struct MapRepairReport {
   int64_t places_kept = 0;     // places whose row and every landmark read back whole
   int64_t landmarks_kept = 0;  // their landmarks
   int64_t places_dropped = 0;  // place rows that were damaged, or had a damaged or missing landmark
+  // What a rewrite keeps otherwise than stored (no damage: a capture time outside the range, kept
+  // as the server uses it); empty when nothing.
+  std::string notes;
 };
 
 // Repairs the map at `path`: reads it (read-only) place by place with point lookups, so that a

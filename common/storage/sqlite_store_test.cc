@@ -687,17 +687,20 @@ TEST(SqliteStoreTest, RandomBytesInAPageAreRefusedAtOpenAndRepairDropsTheDamaged
   EXPECT_EQ(RepairSqliteMap(copy.path() + ".missing", {}).status().code(), StatusCode::kNotFound);
 }
 
-// Writes a map of schema v1 at `path`: robot "r", places 0-2 with MakeLandmarks(10 * p, 2, 6).
-void WriteV1MapOfThreePlaces(const std::string& path) {
-  {
-    std::unique_ptr<LandmarkStore> store = Open(path);
-    ASSERT_NE(store, nullptr);
-    for (int p = 0; p < 3; ++p) {
-      Place place = MakePlace("r", p);
-      std::vector<Landmark> landmarks = MakeLandmarks(10 * p, 2, 6);
-      ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
-    }
+// Writes a map at `path`: robot "r", places 0-2 with MakeLandmarks(10 * p, 2, 6).
+void WriteMapOfThreePlaces(const std::string& path) {
+  std::unique_ptr<LandmarkStore> store = Open(path);
+  ASSERT_NE(store, nullptr);
+  for (int p = 0; p < 3; ++p) {
+    Place place = MakePlace("r", p);
+    std::vector<Landmark> landmarks = MakeLandmarks(10 * p, 2, 6);
+    ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
   }
+}
+
+// The same as a map of schema v1.
+void WriteV1MapOfThreePlaces(const std::string& path) {
+  WriteMapOfThreePlaces(path);
   testing_storage::DowngradeMapToSchemaV1(path);
 }
 
@@ -785,6 +788,42 @@ TEST(SqliteStoreTest, ReadOnlyStoreReadsAnOlderMapAndChangesNothing) {
             StatusCode::kNotFound);
   std::error_code ignored;
   EXPECT_FALSE(std::filesystem::exists(map.path() + ".missing", ignored));
+}
+
+// A place whose capture time lies outside 0 .. kMaxUtime (an old build wrote such times) is
+// served by the server (its time used as the nearest end of the range), so a repair keeps it: a
+// whole map stays untouched, and a map rewritten for other damage keeps the place with the time
+// the server uses. (The repair counted it as damaged: it rewrote a whole map and dropped it.)
+TEST(SqliteStoreTest, RepairKeepsAPlaceWhoseTimeIsOutOfRange) {
+  TempMap map("repair_time");
+  WriteMapOfThreePlaces(map.path());
+  ExecSql(map.path(), "UPDATE places SET utime = -5 WHERE id = 1");
+  const std::string before = ReadFileBytes(map.path());
+  StatusOr<MapRepairReport> report = RepairSqliteMap(map.path(), {});
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_FALSE(report->rewritten) << report->problems;
+  EXPECT_EQ(report->places_dropped, 0) << report->problems;
+  EXPECT_EQ(report->places_kept, 3);
+  EXPECT_TRUE(ReadFileBytes(map.path()) == before) << "the whole map was changed";
+
+  // Damage elsewhere: the rewrite keeps the place, at the time the server used for it.
+  ExecSql(map.path(), "UPDATE landmarks SET keypoints = x'00' WHERE place_id = 3");
+  report = RepairSqliteMap(map.path(), {});
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_TRUE(report->rewritten);
+  EXPECT_EQ(report->places_dropped, 1);
+  EXPECT_EQ(report->places_kept, 2);
+  EXPECT_NE(report->notes.find("place 1: capture time -5 us"), std::string::npos) << report->notes;
+  for (const char* suffix : {"", "-wal", "-shm"}) {
+    std::remove((report->damaged_copy + suffix).c_str());
+  }
+  std::unique_ptr<LandmarkStore> store = Open(map.path());
+  ASSERT_NE(store, nullptr);
+  const Contents contents = ReadAll(*store);
+  ASSERT_EQ(contents.places.size(), 2u);
+  EXPECT_EQ(contents.places[0].sequence, 0);
+  EXPECT_EQ(contents.places[0].utime, 0);
+  EXPECT_EQ(contents.places[1].sequence, 1);
 }
 
 // A repair that rewrites the map keeps the sightings (the places that saw a stored landmark
