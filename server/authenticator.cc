@@ -123,6 +123,7 @@ Authenticator::Verdict Authenticator::Check(const frame_t& frame, int64_t now_ut
   ReplayState& state = replay_[key->id];
   Forget(&state, now_utime);
   if (frame.auth_counter <= state.floor || state.counters.count(frame.auth_counter) > 0) {
+    verdict.replayed = true;
     verdict.message = "replayed frame: key '" + key->id + "' already used counter " +
                       std::to_string(frame.auth_counter) +
                       "; every frame needs a new, increasing counter (send it again signed "

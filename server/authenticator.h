@@ -39,9 +39,14 @@ class Authenticator {
   struct Verdict {
     bool ok = false;
     std::string message;  // why not, and what to do; empty when ok
-    // The sender's key when the frame is signed with it (even when refused for a replay or a
+    // The sender's key when the frame is signed with it (even when refused for its time or a
     // permission), so that the answer can be signed; nullopt otherwise (answer unsigned).
     std::optional<SigningKey> key;
+    // A copy of a frame already accepted (its key's counter was used): not to be answered. The
+    // sender has its answer (or gets it), and a signed refusal that echoes the sender's request
+    // id would be taken by its client for the answer: anyone who can copy frames on the network
+    // could veto every frame.
+    bool replayed = false;
   };
 
   // Reads the keys file. `start_utime` is when the server starts serving (microseconds since

@@ -113,7 +113,7 @@ TEST_F(AuthenticatorTest, RefusesReplaysAndFramesOutsideTheWindow) {
   EXPECT_TRUE(auth_->Check(first, now).ok);
   Authenticator::Verdict v = auth_->Check(first, now + kSecond);
   EXPECT_FALSE(v.ok);
-  EXPECT_TRUE(v.key.has_value());  // the sender is known: its answer is signed
+  EXPECT_TRUE(v.replayed);  // not answered: the original has its answer
   EXPECT_NE(v.message.find("replayed"), std::string::npos) << v.message;
   // Out of order within the window is fine once; again it is a replay.
   EXPECT_TRUE(auth_->Check(Signed(robot_, 12, now), now).ok);
@@ -124,6 +124,8 @@ TEST_F(AuthenticatorTest, RefusesReplaysAndFramesOutsideTheWindow) {
 
   v = auth_->Check(Signed(robot_, 20, now - 31 * kSecond), now);
   EXPECT_FALSE(v.ok);
+  EXPECT_FALSE(v.replayed);
+  EXPECT_TRUE(v.key.has_value());  // the sender is known: its refusal is signed
   EXPECT_NE(v.message.find("window"), std::string::npos) << v.message;
   EXPECT_FALSE(auth_->Check(Signed(robot_, 21, now + 31 * kSecond), now).ok);
   v = auth_->Check(Signed(robot_, 22, kStart - kSecond), kStart + kSecond);

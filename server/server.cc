@@ -394,6 +394,15 @@ void Server::OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer,
       auth_.Check(job.frame, NowUtime(), buffer->data, buffer->data_size);
   if (!verdict.ok) {
     // Never queued: the map and the robot's state stay as they are.
+    if (verdict.replayed) {
+      // Not answered (Authenticator::Verdict::replayed): the original frame has its answer.
+      if (replays_logged_ < 10 || replays_logged_ % 100 == 0) {
+        LOG(WARNING) << "ignored a copy of frame " << job.frame.sequence << " of robot '"
+                     << job.frame.robot << "' (" << verdict.message << "); not answered";
+      }
+      ++replays_logged_;
+      return;
+    }
     if (unauthorised_logged_ < 10 || unauthorised_logged_ % 100 == 0) {
       LOG(WARNING) << "refused frame " << job.frame.sequence << " of robot '" << job.frame.robot
                    << "' (" << (job.frame.insert ? "insert" : "query") << "): " << verdict.message;

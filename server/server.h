@@ -176,6 +176,7 @@ class Server {
   int64_t dropped_logged_ = 0;
   int64_t not_ours_ = 0;  // frames of robots other servers answer (ServerOptions::robots)
   int64_t unauthorised_logged_ = 0;
+  int64_t replays_logged_ = 0;  // copies of accepted frames ignored
   // Last: its workers use everything above, so it is destroyed (joined) first.
   std::unique_ptr<LaneWorkQueue<Job>> queue_;
 };
