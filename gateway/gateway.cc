@@ -138,6 +138,11 @@ bool GatewayOptions::Check(std::string* error) const {
     *error = "--requests-per-minute must be > 0 and --burst >= 1";
     return false;
   }
+  if (max_waiting_queries < 1 || max_waiting_queries >= kHttpThreads) {
+    *error = "--max-waiting-queries must be 1 to " + std::to_string(kHttpThreads - 1) +
+             " (of the gateway's " + std::to_string(kHttpThreads) + " HTTPS threads)";
+    return false;
+  }
   if (!(query_timeout_s > 0)) {
     *error = "--query-timeout must be > 0 seconds";
     return false;
@@ -145,10 +150,14 @@ bool GatewayOptions::Check(std::string* error) const {
   return client.Check(error);
 }
 
+std::string JsonText(const nlohmann::json& json) {
+  return json.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
 HttpReply ErrorReply(int status, const std::string& message) {
   HttpReply reply;
   reply.status = status;
-  reply.body = nlohmann::json{{"error", message}}.dump();
+  reply.body = JsonText(nlohmann::json{{"error", message}});
   return reply;
 }
 
@@ -237,11 +246,13 @@ StatusOr<std::unique_ptr<Gateway>> Gateway::Create(const GatewayOptions& options
 Gateway::Gateway(const GatewayOptions& options, TokenTable tokens)
     : options_(options),
       tokens_(std::move(tokens)),
-      limiter_(options.requests_per_minute, options.burst) {}
+      query_limiter_(options.requests_per_minute, options.burst),
+      read_limiter_(options.requests_per_minute * kReadsPerQuery, options.burst * kReadsPerQuery) {}
 
 Gateway::~Gateway() { Stop(); }
 
-bool Gateway::Admit(const std::string& authorization, DeviceToken* device, HttpReply* refusal) {
+bool Gateway::Admit(const std::string& authorization, bool query, DeviceToken* device,
+                    HttpReply* refusal) {
   const std::string token = BearerToken(authorization);
   if (token.empty()) {
     *refusal = ErrorReply(401, "send the device's token as 'Authorization: Bearer TOKEN'");
@@ -253,10 +264,12 @@ bool Gateway::Admit(const std::string& authorization, DeviceToken* device, HttpR
     return false;
   }
   double retry_after_s = 0;
-  if (!limiter_.Allow(token, RateLimiter::Clock::now(), &retry_after_s)) {
-    *refusal = ErrorReply(429, "more than " +
-                                   std::to_string(static_cast<int>(options_.requests_per_minute)) +
-                                   " requests a minute from this device; try again in " +
+  RateLimiter& limiter = query ? query_limiter_ : read_limiter_;
+  if (!limiter.Allow(token, RateLimiter::Clock::now(), &retry_after_s)) {
+    const double per_minute = options_.requests_per_minute * (query ? 1 : kReadsPerQuery);
+    *refusal = ErrorReply(429, "more than " + std::to_string(static_cast<int>(per_minute)) +
+                                   (query ? " queries" : " reads") +
+                                   " a minute from this device; try again in " +
                                    std::to_string(static_cast<int>(retry_after_s + 0.999)) + " s");
     refusal->retry_after_s = retry_after_s;
     return false;
@@ -268,7 +281,7 @@ bool Gateway::Admit(const std::string& authorization, DeviceToken* device, HttpR
 HttpReply Gateway::Query(const std::string& authorization, const std::string& image) {
   DeviceToken device;
   HttpReply refusal;
-  if (!Admit(authorization, &device, &refusal)) return refusal;
+  if (!Admit(authorization, /*query=*/true, &device, &refusal)) return refusal;
   if (static_cast<int64_t>(image.size()) > options_.max_upload_bytes) {
     return ErrorReply(413, "the photo has " + std::to_string(image.size()) +
                                " bytes; the limit is " + std::to_string(options_.max_upload_bytes) +
@@ -279,6 +292,18 @@ HttpReply Gateway::Query(const std::string& authorization, const std::string& im
     return ErrorReply(415,
                       "send a JPEG or PNG photo (as the request body, or the form field "
                       "'image')");
+  }
+  // A bounded number wait on the server (each holds an HTTPS thread up to --query-timeout).
+  struct Waiting {
+    std::atomic<int>* count;
+    ~Waiting() { --*count; }
+  } waiting{&waiting_queries_};
+  if (++waiting_queries_ > options_.max_waiting_queries) {
+    HttpReply busy = ErrorReply(
+        503, std::to_string(options_.max_waiting_queries) +
+                 " queries are waiting on the placerec server; try again in a few seconds");
+    busy.retry_after_s = 5;
+    return busy;
   }
   frame.image.bytes.assign(image.begin(), image.end());
   frame.robot = device.device;
@@ -317,14 +342,14 @@ HttpReply Gateway::Query(const std::string& authorization, const std::string& im
   nlohmann::json body = AnswerJson(result);
   body["device"] = device.device;
   HttpReply reply;
-  reply.body = body.dump();
+  reply.body = JsonText(body);
   return reply;
 }
 
 HttpReply Gateway::ServerStatus(const std::string& authorization) {
   DeviceToken device;
   HttpReply refusal;
-  if (!Admit(authorization, &device, &refusal)) return refusal;
+  if (!Admit(authorization, /*query=*/false, &device, &refusal)) return refusal;
   const nlohmann::json status = watcher_->LastStatus();
   if (status.is_null()) {
     return ErrorReply(503,
@@ -332,23 +357,23 @@ HttpReply Gateway::ServerStatus(const std::string& authorization) {
                       "gateway's LCM network?");
   }
   HttpReply reply;
-  reply.body = status.dump();
+  reply.body = JsonText(status);
   return reply;
 }
 
 HttpReply Gateway::Site(const std::string& authorization) {
   DeviceToken device;
   HttpReply refusal;
-  if (!Admit(authorization, &device, &refusal)) return refusal;
+  if (!Admit(authorization, /*query=*/false, &device, &refusal)) return refusal;
   HttpReply reply;
-  reply.body = watcher_->Overview().dump();
+  reply.body = JsonText(watcher_->Overview());
   return reply;
 }
 
 HttpReply Gateway::Thumbnail(const std::string& authorization, const std::string& place_id) {
   DeviceToken device;
   HttpReply refusal;
-  if (!Admit(authorization, &device, &refusal)) return refusal;
+  if (!Admit(authorization, /*query=*/false, &device, &refusal)) return refusal;
   if (map_ == nullptr) {
     return ErrorReply(404, "no place pictures here: the gateway was started without --db MAP");
   }
@@ -370,7 +395,7 @@ HttpReply Gateway::AlarmPicture(const std::string& authorization, const std::str
                                 const std::string& which) {
   DeviceToken device;
   HttpReply refusal;
-  if (!Admit(authorization, &device, &refusal)) return refusal;
+  if (!Admit(authorization, /*query=*/false, &device, &refusal)) return refusal;
   int64_t id = 0;
   std::vector<uint8_t> jpeg;
   if (!ParseInt64(alarm_id, &id) || !watcher_->AlarmPicture(id, which == "place", &jpeg)) {
@@ -385,6 +410,7 @@ HttpReply Gateway::AlarmPicture(const std::string& authorization, const std::str
 
 Status Gateway::Serve() {
   httplib::SSLServer& http = *http_;
+  http.new_task_queue = [] { return new httplib::ThreadPool(kHttpThreads); };
   http.set_payload_max_length(static_cast<size_t>(options_.max_upload_bytes));
   auto send = [](const HttpReply& reply, httplib::Response& res) {
     res.status = reply.status;
@@ -418,14 +444,35 @@ Status Gateway::Serve() {
   if (!http.set_mount_point("/", web_dir)) {
     return Status::NotFound("the web page's folder " + web_dir + " does not exist (--web-dir)");
   }
-  // Every error, including the library's own (404, 405, 413 ...), is a JSON body.
+  // A body must say its length, so that --max-upload-bytes holds before anything is read: the
+  // library reads a chunked body whole, whatever its size, before any handler runs.
+  http.set_pre_routing_handler([](const httplib::Request& req, httplib::Response& res) {
+    const bool chunked =
+        req.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos;
+    if (!chunked && (req.method != "POST" || req.has_header("Content-Length"))) {
+      return httplib::Server::HandlerResponse::Unhandled;
+    }
+    res.status = 411;
+    res.set_header("Connection", "close");
+    res.set_content(JsonText({{"error",
+                               "send the photo with a Content-Length header (a chunked body, or "
+                               "one without a length, is not read)"}}),
+                    "application/json");
+    return httplib::Server::HandlerResponse::Handled;
+  });
+  // Every error, including the library's own (404, 405, 413 ...), is a JSON body. The library
+  // calls this outside its exception guard: nothing here may throw.
   http.set_error_handler([](const httplib::Request& req, httplib::Response& res) {
     if (!res.body.empty()) return;
-    std::string message = "HTTP " + std::to_string(res.status);
-    if (res.status == 404) message = "no such page or endpoint: " + req.path;
-    if (res.status == 413) message = "the request is larger than the gateway accepts";
-    if (res.status == 405) message = "method not allowed on " + req.path;
-    res.set_content(nlohmann::json{{"error", message}}.dump(), "application/json");
+    try {
+      std::string message = "HTTP " + std::to_string(res.status);
+      if (res.status == 404) message = "no such page or endpoint: " + req.path;
+      if (res.status == 413) message = "the request is larger than the gateway accepts";
+      if (res.status == 405) message = "method not allowed on " + req.path;
+      res.set_content(JsonText({{"error", message}}), "application/json");
+    } catch (const std::exception&) {
+      res.set_content(R"({"error":"the request cannot be answered"})", "application/json");
+    }
   });
   http.set_default_headers({{"X-Content-Type-Options", "nosniff"}});
   const int port =

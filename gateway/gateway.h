@@ -31,8 +31,10 @@ struct GatewayOptions {
   std::string tokens_file;             // device tokens (gateway/access.h TokenTable)
   std::string web_dir;                 // the page's files; empty: the shipped gateway/web
   int64_t max_upload_bytes = 8 << 20;  // larger photos are refused (413)
-  double requests_per_minute = 30;     // per token, on average ...
-  double burst = 10;                   // ... with bursts of this many
+  double requests_per_minute = 30;     // queries per token, on average ...
+  double burst = 10;                   // ... with bursts of this many; reads (status, site,
+                                       // pictures) have kReadsPerQuery times both
+  int max_waiting_queries = 8;         // queries waiting on the server at once; more get 503
   double query_timeout_s = 30;         // waiting for the server's answer
   size_t recent_loop_closures = 20;    // kept for the site overview
   ClientOptions client;                // LCM URL, retries
@@ -78,12 +80,15 @@ class Gateway {
 
  private:
   Gateway(const GatewayOptions& options, TokenTable tokens);
-  // The device of a valid token within its rate; otherwise *refusal is the answer to send.
-  bool Admit(const std::string& authorization, DeviceToken* device, HttpReply* refusal);
+  // The device of a valid token within its rate (of queries, or of reads); otherwise *refusal
+  // is the answer to send.
+  bool Admit(const std::string& authorization, bool query, DeviceToken* device, HttpReply* refusal);
 
   GatewayOptions options_;
   TokenTable tokens_;
-  RateLimiter limiter_;
+  RateLimiter query_limiter_;
+  RateLimiter read_limiter_;
+  std::atomic<int> waiting_queries_{0};
   // One LCM client per key the devices' queries are signed with (DeviceToken::key_id; "" is the
   // gateway's own key, ClientOptions::key_id).
   std::map<std::string, std::unique_ptr<PlacerecClient>> clients_;
@@ -94,7 +99,18 @@ class Gateway {
   std::atomic<int> bound_port_{0};
 };
 
+// Reads (status, site overview, pictures) a device may make per query of its rate: they cost the
+// server nothing, and the page fetches two pictures per alarm besides polling the overview.
+constexpr double kReadsPerQuery = 10;
+// Threads serving HTTPS requests; at most GatewayOptions::max_waiting_queries of them wait on
+// the server, so the page and the overview stay served.
+constexpr int kHttpThreads = 16;
+
 // {"error": message} with `status`.
 HttpReply ErrorReply(int status, const std::string& message);
+
+// `json` as text; bytes that are no UTF-8 (a decoded URL path, a robot id heard on the network)
+// become U+FFFD instead of an exception.
+std::string JsonText(const nlohmann::json& json);
 
 }  // namespace placerec

@@ -48,8 +48,12 @@ int Main(int argc, char** argv) {
              "folder of the web page (empty: the page shipped in gateway/web)");
   parser.Add("max-upload-bytes", &options.max_upload_bytes, "larger requests are refused with 413");
   parser.Add("requests-per-minute", &options.requests_per_minute,
-             "requests a minute per token on average; more get 429 with Retry-After");
-  parser.Add("burst", &options.burst, "requests a token may send at once before the rate applies");
+             "queries a minute per token on average; more get 429 with Retry-After (reads: status, "
+             "site, pictures, have ten times this rate and burst)");
+  parser.Add("burst", &options.burst, "queries a token may send at once before the rate applies");
+  parser.Add("max-waiting-queries", &options.max_waiting_queries,
+             "queries waiting on the server at once, from all devices; more get 503 with "
+             "Retry-After (the page and the overview stay served)");
   parser.Add("query-timeout", &options.query_timeout_s,
              "seconds to wait for the server's answer (then 504)");
   parser.Add("lcm-url", &options.client.lcm_url,

@@ -1,5 +1,7 @@
 #include "gateway/site_watcher.h"
 
+#include <chrono>
+
 #include <lcm/lcm-cpp.hpp>
 
 #include "placerec/change_t.hpp"
@@ -33,7 +35,11 @@ StatusOr<std::unique_ptr<SiteWatcher>> SiteWatcher::Start(const std::string& lcm
 }
 
 SiteWatcher::SiteWatcher(std::unique_ptr<lcm::LCM> lcm, size_t keep)
-    : lcm_(std::move(lcm)), keep_(keep) {}
+    : lcm_(std::move(lcm)),
+      keep_(keep),
+      next_alarm_id_(std::chrono::duration_cast<std::chrono::milliseconds>(
+                         std::chrono::system_clock::now().time_since_epoch())
+                         .count()) {}
 
 SiteWatcher::~SiteWatcher() {
   stop_ = true;
@@ -42,13 +48,33 @@ SiteWatcher::~SiteWatcher() {
 
 void SiteWatcher::OnResult(const lcm::ReceiveBuffer* buffer, const std::string&) {
   result_t answer;
-  if (!DecodeLcmMessage(buffer->data, buffer->data_size, &answer)) return;
+  if (DecodeLcmMessage(buffer->data, buffer->data_size, &answer)) Hear(answer);
+}
+
+void SiteWatcher::OnStatus(const lcm::ReceiveBuffer* buffer, const std::string&) {
+  status_t status;
+  if (DecodeLcmMessage(buffer->data, buffer->data_size, &status)) Hear(status);
+}
+
+void SiteWatcher::OnChange(const lcm::ReceiveBuffer* buffer, const std::string&) {
+  change_t change;
+  if (DecodeLcmMessage(buffer->data, buffer->data_size, &change)) Hear(change);
+}
+
+void SiteWatcher::Hear(const result_t& answer) {
+  std::string why;
+  if (!IsValidWireRobotId(answer.robot, &why)) return;
   std::lock_guard lock(mutex_);
-  robots_[answer.robot] = robots_.value(answer.robot, 0) + 1;
+  if (robots_.contains(answer.robot)) {
+    robots_[answer.robot] = robots_[answer.robot].get<int64_t>() + 1;
+  } else if (robots_.size() < kMaxRobots) {
+    robots_[answer.robot] = 1;
+  }
   if (answer.status != result_t::STATUS_OK || !answer.loop_closure || answer.matches.empty()) {
     return;
   }
   const match_t& best = answer.matches.front();
+  if (!IsValidWireRobotId(best.robot, &why)) return;
   loop_closures_.push_front({{"robot", answer.robot},
                              {"sequence", answer.sequence},
                              {"utime", answer.frame_utime},
@@ -62,9 +88,7 @@ void SiteWatcher::OnResult(const lcm::ReceiveBuffer* buffer, const std::string&)
   while (loop_closures_.size() > keep_) loop_closures_.pop_back();
 }
 
-void SiteWatcher::OnStatus(const lcm::ReceiveBuffer* buffer, const std::string&) {
-  status_t s;
-  if (!DecodeLcmMessage(buffer->data, buffer->data_size, &s)) return;
+void SiteWatcher::Hear(const status_t& s) {
   std::lock_guard lock(mutex_);
   status_ = {{"version", s.version},
              {"uptime_s", s.uptime_s},
@@ -79,9 +103,9 @@ void SiteWatcher::OnStatus(const lcm::ReceiveBuffer* buffer, const std::string&)
              {"frames_per_second", s.frames_per_second}};
 }
 
-void SiteWatcher::OnChange(const lcm::ReceiveBuffer* buffer, const std::string&) {
-  change_t c;
-  if (!DecodeLcmMessage(buffer->data, buffer->data_size, &c)) return;
+void SiteWatcher::Hear(const change_t& c) {
+  std::string why;
+  if (!IsValidWireRobotId(c.robot, &why) || !IsValidWireRobotId(c.place_robot, &why)) return;
   std::lock_guard lock(mutex_);
   Alarm alarm;
   alarm.id = next_alarm_id_++;
@@ -102,8 +126,8 @@ void SiteWatcher::OnChange(const lcm::ReceiveBuffer* buffer, const std::string&)
         {"utime", c.place_utime}}},
       {"frame_picture", c.frame_jpeg.empty() ? "" : pictures + "/frame.jpg"},
       {"place_picture", c.place_jpeg.empty() ? "" : pictures + "/place.jpg"}};
-  alarm.frame_jpeg = std::move(c.frame_jpeg);
-  alarm.place_jpeg = std::move(c.place_jpeg);
+  alarm.frame_jpeg = c.frame_jpeg;
+  alarm.place_jpeg = c.place_jpeg;
   alarms_.push_front(std::move(alarm));
   while (alarms_.size() > keep_) alarms_.pop_back();
 }

@@ -24,6 +24,10 @@ class ReceiveBuffer;
 
 namespace placerec {
 
+class change_t;
+class result_t;
+class status_t;
+
 class SiteWatcher {
  public:
   // Listens on `lcm_url` (empty: LCM's default); keeps the last `keep` loop closures and the
@@ -41,6 +45,15 @@ class SiteWatcher {
   bool AlarmPicture(int64_t id, bool place, std::vector<uint8_t>* jpeg) const;
   // The last heartbeat as JSON; null when none was heard yet.
   nlohmann::json LastStatus() const;
+
+  // What the watcher does with each message heard (public for tests). Anybody on the LCM network
+  // can publish, so messages naming a robot id the server would refuse are ignored, and at most
+  // kMaxRobots robots are counted.
+  void Hear(const result_t& answer);
+  void Hear(const status_t& status);
+  void Hear(const change_t& change);
+
+  static constexpr size_t kMaxRobots = 1000;
 
  private:
   SiteWatcher(std::unique_ptr<lcm::LCM> lcm, size_t keep);
@@ -62,7 +75,9 @@ class SiteWatcher {
   std::deque<nlohmann::json> loop_closures_;          // newest first
   nlohmann::json robots_ = nlohmann::json::object();  // robot -> frames heard
   std::deque<Alarm> alarms_;                          // newest first
-  int64_t next_alarm_id_ = 1;
+  // Alarm ids begin at the start's wall-clock time in milliseconds, so that an open page's
+  // pictures of an earlier run's alarm never stand for a new alarm after a restart.
+  int64_t next_alarm_id_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

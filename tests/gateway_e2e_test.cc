@@ -28,6 +28,7 @@
 #include "client/client.h"
 #include "common/eval/run.h"
 #include "common/util/paths.h"
+#include "gateway/gateway.h"
 #include "placerec/change_t.hpp"
 #include "proto/channels.h"
 #include "tests/service_harness.h"
@@ -100,39 +101,45 @@ class GatewayTest : public ::testing::Test {
       ASSERT_TRUE(r.ok()) << DescribeResult(r) << Tail(server_->log_path());
     }
 
-    StatusOr<std::unique_ptr<ChildProcess>> gateway =
-        ChildProcess::Start({BinaryPath("placerec-gateway"),
-                             "--cert",
-                             dir_ + "/cert.pem",
-                             "--key",
-                             dir_ + "/key.pem",
-                             "--tokens",
-                             dir_ + "/tokens",
-                             "--key-file",
-                             gateway_keys,
-                             "--key-id",
-                             "gateway",
-                             "--db",
-                             dir_ + "/map.db",
-                             "--port",
-                             std::to_string(kPort),
-                             "--lcm-url",
-                             TestLcmUrl(),
-                             "--max-upload-bytes",
-                             "2000000",
-                             "--burst",
-                             std::to_string(kBurst)},
-                            dir_ + "/gateway.log");
-    ASSERT_TRUE(gateway.ok()) << gateway.status().ToString();
-    gateway_ = std::move(*gateway);
+    gateway_ =
+        StartGateway(kPort, {"--max-upload-bytes", "2000000", "--burst", std::to_string(kBurst)});
+    ASSERT_NE(gateway_, nullptr);
+  }
+
+  // Starts placerec-gateway on `port` with the fixture's certificate, tokens, keys and map plus
+  // `extra` flags, and waits until it answers; null (with the test failed) when it does not.
+  std::unique_ptr<ChildProcess> StartGateway(int port, const std::vector<std::string>& extra) {
+    std::vector<std::string> argv = {BinaryPath("placerec-gateway"),
+                                     "--cert",
+                                     dir_ + "/cert.pem",
+                                     "--key",
+                                     dir_ + "/key.pem",
+                                     "--tokens",
+                                     dir_ + "/tokens",
+                                     "--key-file",
+                                     dir_ + "/gateway-keys",
+                                     "--key-id",
+                                     "gateway",
+                                     "--db",
+                                     dir_ + "/map.db",
+                                     "--port",
+                                     std::to_string(port),
+                                     "--lcm-url",
+                                     TestLcmUrl()};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    const std::string log = dir_ + "/gateway-" + std::to_string(port) + ".log";
+    StatusOr<std::unique_ptr<ChildProcess>> gateway = ChildProcess::Start(argv, log);
+    EXPECT_TRUE(gateway.ok()) << gateway.status().ToString();
+    if (!gateway.ok()) return nullptr;
     // Listening once a request gets any HTTP answer.
     for (int i = 0; i < 100; ++i) {
-      httplib::Result r = Https()->Get("/");
-      if (r) return;
-      ASSERT_TRUE(gateway_->running()) << Tail(gateway_->log_path());
+      httplib::Result r = Https(port)->Get("/");
+      if (r) return std::move(*gateway);
+      if (!(*gateway)->running()) break;
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
-    FAIL() << "the gateway did not answer within 10 s\n" << Tail(gateway_->log_path());
+    ADD_FAILURE() << "the gateway did not answer within 10 s\n" << Tail(log);
+    return nullptr;
   }
 
   void TearDown() override {
@@ -157,8 +164,8 @@ class GatewayTest : public ::testing::Test {
   }
 
   // An HTTPS client that checks the gateway's certificate against the test's own.
-  std::unique_ptr<httplib::SSLClient> Https() const {
-    auto client = std::make_unique<httplib::SSLClient>("127.0.0.1", kPort);
+  std::unique_ptr<httplib::SSLClient> Https(int port = kPort) const {
+    auto client = std::make_unique<httplib::SSLClient>("127.0.0.1", port);
     client->set_ca_cert_path((dir_ + "/cert.pem").c_str());
     client->enable_server_certificate_verification(true);
     client->set_read_timeout(120, 0);
@@ -373,25 +380,115 @@ TEST_F(GatewayTest, RefusalsAreJsonErrorsAndChangeNothing) {
   const auto [insert_status, insert_body] =
       Json(Https()->Post("/v1/insert", Bearer(kToken), photo, "image/jpeg"));
   EXPECT_EQ(insert_status, 404) << insert_body.dump();
-  // Over the rate: the burst passes, the next request gets 429 with Retry-After; other tokens
+  // Over the rate: the burst of queries passes (these are refused as no image, after the rate),
+  // the next query gets 429 with Retry-After; the device's reads have a bucket of their own
+  // (kReadsPerQuery times the rate: the page fetches two pictures per alarm), and other tokens
   // are not affected.
+  std::unique_ptr<httplib::SSLClient> https = Https();
   int refused = 0;
   for (int i = 0; i < kBurst + 1; ++i) {
-    httplib::Result r = Https()->Get("/v1/status", Bearer(kOtherToken));
+    httplib::Result r = https->Post("/v1/query", Bearer(kOtherToken), "hello", "image/jpeg");
     ASSERT_TRUE(r);
     if (r->status == 429) {
       ++refused;
       EXPECT_FALSE(r->get_header_value("Retry-After").empty());
       EXPECT_NE(r->body.find("try again in"), std::string::npos) << r->body;
     } else {
-      EXPECT_EQ(r->status, 200) << r->body;
+      EXPECT_EQ(r->status, 415) << r->body;
     }
   }
   EXPECT_EQ(refused, 1);
+  // The bucket refills while the requests go (kReadsPerQuery / 2 a second), so the first
+  // refusal comes at the burst or a little later.
+  const int reads = static_cast<int>(kBurst * kReadsPerQuery);
+  int answered = 0;
+  for (int i = 0; i < 2 * reads; ++i) {
+    httplib::Result r = https->Get("/v1/site", Bearer(kOtherToken));
+    ASSERT_TRUE(r);
+    if (r->status == 429) {
+      EXPECT_NE(r->body.find("reads a minute"), std::string::npos) << r->body;
+      break;
+    }
+    EXPECT_EQ(r->status, 200) << r->body;
+    ++answered;
+  }
+  EXPECT_GE(answered, reads);
+  EXPECT_LT(answered, 2 * reads) << "no read was refused";
   const auto [status_code, status] = Json(Https()->Get("/v1/status", Bearer(kToken)));
   EXPECT_EQ(status_code, 200);
   EXPECT_EQ(status["map_places"].get<int64_t>(), places);
   EXPECT_EQ(MapPlaces(), places);
+}
+
+// Requests no device would send, from anybody (no token): a path that is no UTF-8 once decoded
+// (it made the error page's JSON throw outside the library's guard: the gateway died), and a
+// large body without a Content-Length (chunked: the library read it whole into memory, past
+// --max-upload-bytes, before any handler ran). Each gets a JSON error, and the gateway serves on.
+TEST_F(GatewayTest, HostileRequestsNeitherStopTheGatewayNorFillItsMemory) {
+  const auto [bad_path_status, bad_path_body] = Json(Https()->Get("/%FF%FE"));
+  EXPECT_EQ(bad_path_status, 404) << bad_path_body.dump();
+  ASSERT_TRUE(gateway_->running()) << Tail(gateway_->log_path());
+
+  // 200 MB offered in 1 MB chunks; the gateway must refuse it before reading it (and close the
+  // connection: writing on is then a broken pipe, not a reason for this test to die).
+  std::signal(SIGPIPE, SIG_IGN);
+  constexpr size_t kChunk = 1 << 20;
+  constexpr size_t kOffered = 200 * kChunk;
+  const std::string chunk(kChunk, '\xff');
+  size_t sent = 0;
+  httplib::Result chunked = Https()->Post(
+      "/v1/query", Bearer(kToken),
+      [&](size_t, httplib::DataSink& sink) {
+        if (sent >= kOffered) {
+          sink.done();
+          return true;
+        }
+        if (!sink.write(chunk.data(), chunk.size())) return false;
+        sent += chunk.size();
+        return true;
+      },
+      "image/jpeg");
+  ASSERT_TRUE(gateway_->running()) << Tail(gateway_->log_path());
+  if (chunked) {  // the refusal may also arrive as a closed connection mid-upload
+    EXPECT_EQ(chunked->status, 411) << chunked->body;
+    EXPECT_NE(chunked->body.find("Content-Length"), std::string::npos) << chunked->body;
+  }
+  EXPECT_LT(sent, kOffered / 4) << "the gateway read " << sent << " bytes of a chunked body";
+  const auto [site_code, site] = Json(Https()->Get("/v1/site", Bearer(kToken)));
+  EXPECT_EQ(site_code, 200) << site.dump();
+}
+
+// Queries waiting on a server that does not answer hold an HTTPS thread each until
+// --query-timeout: beyond --max-waiting-queries the next query is refused at once (503 with
+// Retry-After), and the overview is served meanwhile (eight such queries stalled the page).
+TEST_F(GatewayTest, QueriesWaitingOnTheServerAreBoundedAndReadsAreServedMeanwhile) {
+  server_.reset();  // stopped: no query is answered
+  constexpr int kOtherPort = kPort + 1;
+  std::unique_ptr<ChildProcess> gateway =
+      StartGateway(kOtherPort, {"--max-waiting-queries", "1", "--query-timeout", "4"});
+  ASSERT_NE(gateway, nullptr);
+  const std::string photo = ReadBytes(run_.frames[kMapped].image);
+  int first_status = 0;
+  std::thread first([&] {
+    httplib::Result r = Https(kOtherPort)->Post("/v1/query", Bearer(kToken), photo, "image/jpeg");
+    first_status = r ? r->status : -1;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));  // the first one is waiting
+  const auto started = std::chrono::steady_clock::now();
+  httplib::Result second =
+      Https(kOtherPort)->Post("/v1/query", Bearer(kOtherToken), photo, "image/jpeg");
+  httplib::Result site = Https(kOtherPort)->Get("/v1/site", Bearer(kOtherToken));
+  const double waited_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  first.join();
+  ASSERT_TRUE(second);
+  EXPECT_EQ(second->status, 503) << second->body;
+  EXPECT_NE(second->body.find("waiting on the placerec server"), std::string::npos) << second->body;
+  EXPECT_FALSE(second->get_header_value("Retry-After").empty());
+  ASSERT_TRUE(site);
+  EXPECT_EQ(site->status, 200) << site->body;
+  EXPECT_LT(waited_s, 2.5) << "the refusal and the overview waited for the first query";
+  EXPECT_EQ(first_status, 504);
 }
 
 // A device whose token names its own key (key=phone-4) is signed with it, so the server's keys

@@ -173,20 +173,36 @@ async function refreshSite() {
   showAlarms(site.alarms || []);
 }
 
-// Alarm pictures need the token, so they are fetched once each and kept as object URLs.
+// Alarm pictures need the token, so they are fetched once each and kept as object URLs while
+// their alarm is listed (alarm ids never repeat, even across the gateway's restarts). A fetch
+// that failed (e.g. over the rate) is tried again at the next refresh.
 const alarmPictures = new Map();
 async function alarmPicture(path) {
   if (!path) return null;
   if (!alarmPictures.has(path)) {
-    alarmPictures.set(path, fetch(path, { headers: authHeaders() })
+    const url = fetch(path, { headers: authHeaders() })
         .then((r) => (r.ok ? r.blob() : null))
         .then((blob) => (blob ? URL.createObjectURL(blob) : null))
-        .catch(() => null));
+        .catch(() => null);
+    alarmPictures.set(path, url);
+    url.then((u) => { if (!u && alarmPictures.get(path) === url) alarmPictures.delete(path); });
   }
   return alarmPictures.get(path);
 }
 
+// Lets go of the pictures of alarms no longer listed.
+function forgetAlarmPictures(alarms) {
+  const listed = new Set();
+  for (const a of alarms) listed.add(a.frame_picture).add(a.place_picture);
+  for (const [path, url] of alarmPictures) {
+    if (listed.has(path)) continue;
+    alarmPictures.delete(path);
+    url.then((u) => { if (u) URL.revokeObjectURL(u); });
+  }
+}
+
 function showAlarms(alarms) {
+  forgetAlarmPictures(alarms);
   const rows = alarms.map((a) => {
     const row = document.createElement('tr');
     const pictures = document.createElement('td');
