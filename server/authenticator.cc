@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <utility>
 
@@ -106,12 +107,17 @@ Authenticator::Verdict Authenticator::Check(const frame_t& frame, int64_t now_ut
   }
   verdict.key = *key;  // from here on the sender is known: its answer is signed
   const int64_t window_us = static_cast<int64_t>(options_.window_s * 1e6);
-  if (std::llabs(frame.auth_utime - now_utime) > window_us) {
-    verdict.message =
-        "the frame was signed " + std::to_string((now_utime - frame.auth_utime) / 1000000) +
-        " s from the server's clock, outside its window of " + std::to_string(window_us / 1000000) +
-        " s: a replay, or the clocks differ; synchronise the clocks (NTP) and send "
-        "it again";
+  // Compared without a difference that could overflow: auth_utime may be any 64-bit value.
+  if (frame.auth_utime < now_utime - window_us || frame.auth_utime > now_utime + window_us) {
+    const double off_s =
+        (static_cast<double>(now_utime) - static_cast<double>(frame.auth_utime)) / 1e6;
+    char off[32];
+    std::snprintf(off, sizeof(off), "%.0f", off_s);
+    verdict.message = "the frame was signed " + std::string(off) +
+                      " s from the server's clock, outside its window of " +
+                      std::to_string(window_us / 1000000) +
+                      " s: a replay, or the clocks differ; synchronise the clocks (NTP) and send "
+                      "it again";
     return verdict;
   }
   if (frame.auth_utime < start_utime_) {

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <fstream>
+#include <limits>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -128,6 +129,13 @@ TEST_F(AuthenticatorTest, RefusesReplaysAndFramesOutsideTheWindow) {
   EXPECT_TRUE(v.key.has_value());  // the sender is known: its refusal is signed
   EXPECT_NE(v.message.find("window"), std::string::npos) << v.message;
   EXPECT_FALSE(auth_->Check(Signed(robot_, 21, now + 31 * kSecond), now).ok);
+  // Times at the ends of the 64-bit range (a signed frame may carry any): refused, no overflow.
+  for (const int64_t extreme :
+       {std::numeric_limits<int64_t>::min(), std::numeric_limits<int64_t>::max()}) {
+    v = auth_->Check(Signed(robot_, 23, extreme), now);
+    EXPECT_FALSE(v.ok);
+    EXPECT_NE(v.message.find("window"), std::string::npos) << v.message;
+  }
   v = auth_->Check(Signed(robot_, 22, kStart - kSecond), kStart + kSecond);
   EXPECT_FALSE(v.ok);
   EXPECT_NE(v.message.find("before the server started"), std::string::npos) << v.message;
