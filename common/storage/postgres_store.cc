@@ -314,8 +314,15 @@ class Connection {
       conn_ = nullptr;
     }
     const std::string timeout = std::to_string(options_.connect_timeout_s);
-    const char* keys[] = {"dbname", "connect_timeout", "application_name", nullptr};
-    const char* values[] = {url_.c_str(), timeout.c_str(), "placerec", nullptr};
+    // Over TCP, a database host that vanished without closing the connection (power loss, a cut
+    // link) is noticed within about 30 s by TCP keepalives and the user timeout, instead of the
+    // system's two hours: until then a follower would hear nothing and wait on a dead socket.
+    // Before "dbname", so that the URL may set them otherwise; ignored on unix sockets.
+    const char* keys[] = {"keepalives",       "keepalives_idle",  "keepalives_interval",
+                          "keepalives_count", "tcp_user_timeout", "dbname",
+                          "connect_timeout",  "application_name", nullptr};
+    const char* values[] = {"1",        "10",   "5", "3", "30000", url_.c_str(), timeout.c_str(),
+                            "placerec", nullptr};
     conn_ = PQconnectdbParams(keys, values, /*expand_dbname=*/1);
     if (conn_ == nullptr) return Status::IoError("postgres: out of memory connecting");
     if (PQstatus(conn_) != CONNECTION_OK) {
