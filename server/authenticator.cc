@@ -56,12 +56,17 @@ Status Authenticator::Reload() {
                                    options_.keys_file + ")");
   }
   std::map<std::string, ReplayState> replay;
-  for (const SigningKey& key : *keys) {
-    const SigningKey* old = FindKey(keys_, key.id);
-    auto it = replay_.find(key.id);
-    if (old != nullptr && old->secret == key.secret && it != replay_.end()) {
-      replay.emplace(key.id, std::move(it->second));
+  for (auto& [id, state] : replay_) {
+    const SigningKey* key = FindKey(*keys, id);
+    // A new secret starts afresh: frames signed with the old one no longer verify.
+    if (key != nullptr && key->secret != state.secret) continue;
+    if (key == nullptr) {
+      // Removed: kept while it holds counters of the window (older frames are refused for
+      // their time anyway), in case the key comes back.
+      Forget(&state, last_check_utime_);
+      if (state.counters.empty()) continue;
     }
+    replay.emplace(id, std::move(state));
   }
   keys_ = std::move(*keys);
   replay_ = std::move(replay);
@@ -126,7 +131,10 @@ Authenticator::Verdict Authenticator::Check(const frame_t& frame, int64_t now_ut
         "remembered, so it may be a replay); send it again, signed now";
     return verdict;
   }
-  ReplayState& state = replay_[key->id];
+  last_check_utime_ = std::max(last_check_utime_, now_utime);
+  auto [found, created] = replay_.try_emplace(key->id);
+  ReplayState& state = found->second;
+  if (created) state.secret = key->secret;
   Forget(&state, now_utime);
   if (frame.auth_counter <= state.floor || state.counters.count(frame.auth_counter) > 0) {
     verdict.replayed = true;

@@ -55,7 +55,8 @@ class Authenticator {
   static StatusOr<Authenticator> Create(const AuthOptions& options, int64_t start_utime);
 
   // Reads the keys file again (SIGHUP). Keys whose id and secret did not change keep their replay
-  // state. On error the old keys stay and the error says why.
+  // state, also when removed and added back within the window. On error the old keys stay and the
+  // error says why.
   Status Reload();
 
   // Checks `frame`, decoded from the `size` bytes at `received` (null: its encoding is
@@ -72,6 +73,7 @@ class Authenticator {
  private:
   // The counters one key has used within the window, and the largest one forgotten since.
   struct ReplayState {
+    std::string secret;                   // of the key the counters were used with
     std::map<int64_t, int64_t> counters;  // counter -> signing time (microseconds)
     int64_t floor = INT64_MIN;            // counters at or below it are refused
   };
@@ -84,7 +86,10 @@ class Authenticator {
   AuthOptions options_;
   int64_t start_utime_ = 0;
   std::vector<SigningKey> keys_;
-  std::map<std::string, ReplayState> replay_;  // by key id
+  // By key id; a removed key's state stays while it holds counters of the window, so that the
+  // key added back within it does not accept its frames again.
+  std::map<std::string, ReplayState> replay_;
+  int64_t last_check_utime_ = 0;  // the latest now_utime given to Check
   std::string warning_;
 };
 

@@ -179,6 +179,14 @@ TEST_F(AuthenticatorTest, ReloadAddsAndRemovesKeysAndKeepsReplayState) {
   const Authenticator::Verdict v = auth_->Check(Signed(robot_, 2, now), now);
   EXPECT_FALSE(v.ok);
   EXPECT_NE(v.message.find("unknown key id 'robot'"), std::string::npos) << v.message;
+  // Added back within the window: its frames already accepted stay replays (the state was
+  // dropped with the key, so a removal and an undo reopened them).
+  WriteKeys(std::string("robot both ") + kRobotHex + "\nlate both " + kLateHex + "\n");
+  ASSERT_TRUE(auth_->Reload().ok());
+  EXPECT_TRUE(auth_->Check(sent, now).replayed) << "removing and adding back reopened replays";
+  EXPECT_TRUE(auth_->Check(Signed(robot_, 3, now), now).ok);
+  WriteKeys(std::string("late both ") + kLateHex + "\n");
+  ASSERT_TRUE(auth_->Reload().ok());
 
   WriteKeys("late both nothex\n");
   EXPECT_FALSE(auth_->Reload().ok());
