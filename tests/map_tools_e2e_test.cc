@@ -104,7 +104,7 @@ TEST(MapToolsEndToEndTest, CorridorLoopMapInfoCheckExportMergePrune) {
   StatusOr<std::vector<PlaceSummary>> summaries = ReadPlaceSummaries(merged);
   ASSERT_TRUE(summaries.ok());
   int64_t early = 0;
-  for (const PlaceSummary& place : *summaries) early += place.utime < prune.before_utime ? 1 : 0;
+  for (const PlaceSummary& place : *summaries) early += place.utime < *prune.before_utime ? 1 : 0;
   EXPECT_GT(early, 0);
   pruned = PruneMap(merged, prune);
   ASSERT_TRUE(pruned.ok());

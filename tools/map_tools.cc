@@ -370,11 +370,11 @@ std::string FormatClassCounts(const std::map<std::string, int64_t>& classes) {
 // ---- prune ----------------------------------------------------------------------------------
 
 bool PruneOptions::Check(std::string* error) const {
-  if (before_utime < 0) {
+  if (before_utime && *before_utime < 0) {
     *error = "--before must be a time after 1970";
     return false;
   }
-  if (before_utime == 0 && robot.empty()) {
+  if (!before_utime && robot.empty()) {
     *error = "say what to drop: --before UTIME_OR_ISO_DATE, --robot ID, or both";
     return false;
   }
@@ -517,8 +517,8 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
   const std::string doomed_landmarks =
       "SELECT id FROM landmarks WHERE place_id IN (" + doomed + ")";
   const auto bind = [&options](SqliteStatement& statement) {
-    if (options.before_utime > 0) {
-      statement.BindInt(1, options.before_utime);
+    if (options.before_utime) {
+      statement.BindInt(1, *options.before_utime);
     } else {
       statement.BindNull(1);
     }
@@ -643,6 +643,10 @@ Status CopyMap(const LandmarkStore& from, const std::string& from_path,
                              "; run placerec-map check on it");
     }
     place.id = PlaceId();
+    if (!CheckCaptureTime(place.utime).ok()) {
+      place.utime = ClampCaptureTime(place.utime);
+      ++input->times_moved;
+    }
     const auto renamed = rename.find(place.robot);
     if (renamed != rename.end()) place.robot = renamed->second;
     std::vector<LandmarkId> seen;

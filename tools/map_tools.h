@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -102,8 +103,9 @@ StatusOr<ExportReport> ExportMap(const std::string& path, const std::string& out
 // ---- prune ----------------------------------------------------------------------------------
 
 struct PruneOptions {
-  // Drop places captured before this time (microseconds since the epoch); 0: no time limit.
-  int64_t before_utime = 0;
+  // Drop places captured before this time (microseconds since the epoch); none: no time limit
+  // (a time of 0 is a limit: it drops nothing).
+  std::optional<int64_t> before_utime;
   // Drop the places of this robot; empty: every robot. With before_utime too, only that robot's
   // places before the time.
   std::string robot;
@@ -156,6 +158,9 @@ struct MergeInput {
   int64_t landmarks = 0;
   int64_t descriptors = 0;
   int64_t sightings = 0;
+  // Places whose capture time lay outside 0 .. kMaxUtime, written with the time the server
+  // serves them with (ClampCaptureTime), as the repair keeps them.
+  int64_t times_moved = 0;
 };
 
 struct MergeReport {

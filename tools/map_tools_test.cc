@@ -639,6 +639,49 @@ TEST(MapToolsTest, CheckNamesATimeOutOfRangeWithoutCallingTheMapDamaged) {
   EXPECT_NE(report->notes[0].find("-5"), std::string::npos) << report->notes[0];
 }
 
+// A time of 0 is a limit like any other: with --robot it drops nothing of that robot (it meant
+// "no time limit", so the robot's whole history went).
+TEST(MapToolsTest, PruneBeforeTimeZeroDropsNothing) {
+  TempMap map("prune_zero");
+  BuildSite(map.path());
+  PruneOptions options;
+  options.robot = "left";
+  options.before_utime = 0;
+  std::string error;
+  ASSERT_TRUE(options.Check(&error)) << error;
+  StatusOr<PruneReport> report = PruneMap(map.path(), options);
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_EQ(report->places, 0);
+  EXPECT_EQ(Places(map.path()).size(), 5u);
+  PruneOptions any_robot;
+  any_robot.before_utime = 0;
+  EXPECT_TRUE(any_robot.Check(&error)) << error;
+  EXPECT_FALSE(PruneOptions().Check(&error));
+}
+
+// merge writes a place whose capture time lies outside the range (an old build wrote such
+// times; check calls the map whole, the server serves it) with the time the server uses; the
+// merge was refused.
+TEST(MapToolsTest, MergeWritesATimeOutOfRangeAsTheServerUsesIt) {
+  TempMap a("merge_time_a");
+  TempMap b("merge_time_b");
+  TempMap c("merge_time_c");
+  BuildSite(a.path());
+  {
+    std::unique_ptr<LandmarkStore> store = Open(b.path());
+    AddPlace(store.get(), "night", 0, kStart, 1, {"sign"});
+  }
+  testing_storage::ExecSql(b.path(), "UPDATE places SET utime = -5 WHERE id = 1");
+  StatusOr<MergeReport> report = MergeMaps(a.path(), b.path(), c.path(), MergeOptions());
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_EQ(report->b.times_moved, 1);
+  EXPECT_EQ(report->a.times_moved, 0);
+  const std::vector<Place> places = Places(c.path());
+  ASSERT_EQ(places.size(), 6u);
+  EXPECT_EQ(places.back().robot, "night");
+  EXPECT_EQ(places.back().utime, 0);
+}
+
 // check and merge only read: a map of an older schema stays as it is (they upgraded it in place,
 // as the server does, so that a backup looked at was changed).
 TEST(MapToolsTest, CheckAndMergeLeaveAnOlderMapAsItIs) {

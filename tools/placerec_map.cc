@@ -192,6 +192,12 @@ int MergeCommand(int argc, char** argv) {
         "%s: %lld places, %lld landmarks (%lld descriptors), %lld sightings\n", input->path.c_str(),
         static_cast<long long>(input->places), static_cast<long long>(input->landmarks),
         static_cast<long long>(input->descriptors), static_cast<long long>(input->sightings));
+    if (input->times_moved > 0) {
+      std::printf(
+          "  note: %lld places of %s had a capture time outside 0 .. year 9999; written with the "
+          "time the server uses for them (the nearest end of the range)\n",
+          static_cast<long long>(input->times_moved), input->path.c_str());
+    }
   }
   for (const auto& [from, to] : report->renamed) {
     std::printf("  robot %s of %s is %s in the merged map\n", from.c_str(), maps[1].c_str(),
