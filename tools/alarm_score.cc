@@ -41,7 +41,7 @@ nlohmann::json ScoreAlarms(const std::vector<ChangeCase>& cases,
       best = std::max(best, BoxIoU(box, c.truth));
     }
     ChangeTally& tally = c.kind == ChangeCase::Kind::kPasted ? pasted : removed;
-    tally.Add(static_cast<double>(c.truth.area()) / c.frame_size.area(), best >= min_iou, best);
+    tally.Add(c.AreaShare(), best >= min_iou, best);
   }
   int elsewhere = 0;
   for (const auto& [key, raised] : by_frame) elsewhere += revisits.count(key) == 0 ? 1 : 0;

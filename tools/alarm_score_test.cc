@@ -70,6 +70,18 @@ TEST(AlarmScoreTest, HitsMissesFalseAlarmsAndAlarmsElsewhere) {
   EXPECT_FALSE(j["appeared"].contains("compared"));
 }
 
+// The size bands count the object's share of the frame, not its box's: an object covering 1.5 %
+// whose box covers 4 % is no object of at least 2 % (the box was counted, so thin or round objects
+// under 2 % entered the ">= 2 %" recall).
+TEST(AlarmScoreTest, SizeBandsCountTheObjectNotItsBox) {
+  ChangeCase thin = Case(20, ChangeCase::Kind::kPasted, cv::Rect(0, 0, 20, 20));  // box 4 %
+  thin.area_share = 0.015;
+  const nlohmann::json j = ScoreAlarms({thin}, {Alarm("right", 20, cv::Rect(0, 0, 20, 20))}, 0.3);
+  EXPECT_EQ(j["appeared"]["found"], 1);
+  EXPECT_EQ(j["appeared"]["by_size"]["1-2%"]["cases"], 1);
+  EXPECT_EQ(j["appeared"]["by_size"]["2-5%"]["cases"], 0);
+}
+
 TEST(AlarmScoreTest, ChangesFileReadsAndRefusesWhatIsWrong) {
   const std::string path = ::testing::TempDir() + "/placerec_alarm_score_test_changes.csv";
   const std::string header =

@@ -175,7 +175,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   std::ofstream cases(eval.out_dir + "/revisits.csv");
   cases << "frame,case,truth_x,truth_y,truth_w,truth_h,loop_closure,best_inliers,compared,why_not,"
            "changes,best_iou,boxes,truth_in_view,truth_difference,threshold,dropped_by,dropped,"
-           "pasted_class,found_class,found_class_confidence\n";
+           "pasted_class,found_class,found_class_confidence,area_share\n";
   for (int i = 0; i < frames; ++i) {
     const RunFrame& frame = run.frames[i];
     StatusOr<cv::Mat> image = ReadImageFile(frame.image);
@@ -191,13 +191,14 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
       cv::Rect truth;
       std::string what;
       std::string pasted_class;  // the pasted object's class ("" for the other cases)
+      double area_share = 0;     // of the frame, the change covers
       if (changed && !removal) {
         query = image->clone();
         const CutObject& object = objects[static_cast<size_t>(unit(rng) * objects.size())];
         const double share =
             eval.min_area_share * std::pow(eval.max_area_share / eval.min_area_share, unit(rng));
         const double x = unit(rng), y = unit(rng);
-        truth = PasteObject(object, share, x, y, eval.colour_shift, &query);
+        truth = PasteObject(object, share, x, y, eval.colour_shift, &query, &area_share);
         what = object.class_name + " from " + object.source;
         pasted_class = object.class_name;
       } else if (removal) {
@@ -231,6 +232,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
           const cv::Rect box(cv::Point(chosen->box.tl() * to_frame),
                              cv::Point(chosen->box.br() * to_frame));
           truth = PaintOver(box, &query);
+          area_share = static_cast<double>(truth.area()) / query.total();
           what = "painted over";
         }
       }
@@ -244,6 +246,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
       written_case.truth = truth;
       written_case.frame_size = query.size();
       written_case.object_class = pasted_class;
+      written_case.area_share = area_share;
       if (changes_csv.is_open()) {
         if (!truth.empty()) {
           const std::string written =
@@ -267,7 +270,6 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
       loop_closures += answer.loop_closure ? 1 : 0;
       const ChangeReport& report = answer.change;
       const cv::Size processed = asked.processed_size;
-      const double frame_area = static_cast<double>(query.cols) * query.rows;
       std::string kind;
       if (truth.empty()) {
         ++unchanged;
@@ -286,7 +288,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
                              cv::Point(change.box.br() * to_frame));
           best = std::max(best, BoxIoU(box, truth));
         }
-        tally.Add(truth.area() / frame_area, best >= eval.min_iou, best);
+        tally.Add(written_case.AreaShare(), best >= eval.min_iou, best);
         if (best >= eval.min_iou) {
           kind = pictures_hit++ < eval.pictures ? "hit" : "";
         } else {
@@ -339,7 +341,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
           cases << (rule == dropped_rules.begin()->first ? "" : " ") << rule << ':' << count;
         }
         cases << "\"," << pasted_class << ',' << (found ? found->object_class : "") << ','
-              << (found ? found->class_confidence : 0.f) << '\n';
+              << (found ? found->class_confidence : 0.f) << ',' << written_case.area_share << '\n';
         if (found != nullptr && !removal) {
           classes.Add(pasted_class, found->object_class, found->class_confidence);
         }

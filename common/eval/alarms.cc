@@ -1,5 +1,7 @@
 #include "common/eval/alarms.h"
 
+#include <cstdio>
+#include <cstdlib>
 #include <iterator>
 #include <utility>
 
@@ -159,15 +161,23 @@ enum ChangeColumn {
   kCaseFrameWidth,
   kCaseFrameHeight,
   kCaseObjectClass,
+  kCaseAreaShare,  // optional: files of older placerec lack it
   kCaseColumns
 };
 constexpr const char* kCaseColumnNames[kCaseColumns] = {
-    "frame", "robot",  "utime_us",    "case",         "x",           "y",
-    "width", "height", "frame_width", "frame_height", "object_class"};
+    "frame",  "robot",       "utime_us",     "case",         "x",         "y", "width",
+    "height", "frame_width", "frame_height", "object_class", "area_share"};
 constexpr ChangeCase::Kind kCaseKinds[] = {ChangeCase::Kind::kUnchanged, ChangeCase::Kind::kPasted,
                                            ChangeCase::Kind::kRemoved};
 
 }  // namespace
+
+// A share of the frame in a changes file: six significant digits.
+static std::string ShareText(double share) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.6g", share);
+  return text;
+}
 
 const char* ChangeCaseKindName(ChangeCase::Kind kind) {
   switch (kind) {
@@ -194,7 +204,8 @@ std::string ChangeCaseLine(const ChangeCase& c) {
          ChangeCaseKindName(c.kind) + ',' + std::to_string(c.truth.x) + ',' +
          std::to_string(c.truth.y) + ',' + std::to_string(c.truth.width) + ',' +
          std::to_string(c.truth.height) + ',' + std::to_string(c.frame_size.width) + ',' +
-         std::to_string(c.frame_size.height) + ',' + Encode(c.object_class);
+         std::to_string(c.frame_size.height) + ',' + Encode(c.object_class) + ',' +
+         ShareText(c.area_share);
 }
 
 StatusOr<std::vector<ChangeCase>> LoadChangeCases(const std::string& path) {
@@ -208,7 +219,7 @@ StatusOr<std::vector<ChangeCase>> LoadChangeCases(const std::string& path) {
   int col[kCaseColumns];
   for (int k = 0; k < kCaseColumns; ++k) {
     col[k] = table->Column(kCaseColumnNames[k]);
-    if (col[k] < 0) {
+    if (col[k] < 0 && k != kCaseAreaShare) {
       return Status::InvalidArgument(path + ": no column '" + kCaseColumnNames[k] +
                                      "'; the header is " + ChangeCaseHeader());
     }
@@ -246,6 +257,15 @@ StatusOr<std::vector<ChangeCase>> LoadChangeCases(const std::string& path) {
     c.frame_size =
         cv::Size(static_cast<int>(n[kCaseFrameWidth]), static_cast<int>(n[kCaseFrameHeight]));
     c.object_class = Decode(field(kCaseObjectClass));
+    if (col[kCaseAreaShare] >= 0 && !field(kCaseAreaShare).empty()) {
+      char* end = nullptr;
+      const std::string& text = field(kCaseAreaShare);
+      c.area_share = std::strtod(text.c_str(), &end);
+      if (end != text.c_str() + text.size() || !(c.area_share >= 0 && c.area_share <= 1)) {
+        return Status::InvalidArgument(table->Where(row.line) + ": area_share '" + text +
+                                       "' is not a share of the frame in [0, 1]");
+      }
+    }
     if (c.kind != ChangeCase::Kind::kUnchanged && (c.truth.empty() || c.frame_size.area() <= 0)) {
       return Status::InvalidArgument(table->Where(row.line) +
                                      ": a changed revisit needs its box and frame size");

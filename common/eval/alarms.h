@@ -48,6 +48,14 @@ struct ChangeCase {
   cv::Rect truth;            // frame pixels; empty for an unchanged revisit
   cv::Size frame_size;       // pixels
   std::string object_class;  // of a pasted object
+  // Share of the frame the change covers: a pasted object's mask (its box covers more), a
+  // painted box; what the size bands of recall count. 0: not recorded (a file of an older
+  // placerec: the box's share is taken).
+  double area_share = 0;
+  double AreaShare() const {
+    if (area_share > 0) return area_share;
+    return frame_size.area() > 0 ? static_cast<double>(truth.area()) / frame_size.area() : 0;
+  }
 };
 
 // "unchanged", "pasted", "removed": the case column of a changes file.

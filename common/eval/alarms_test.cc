@@ -82,6 +82,7 @@ TEST_F(AlarmsFileTest, ChangeCasesReadBackAsWritten) {
   pasted.truth = cv::Rect(208, 6, 50, 65);
   pasted.frame_size = cv::Size(512, 384);
   pasted.object_class = "car";
+  pasted.area_share = 0.0123457;
   ChangeCase unchanged;
   unchanged.frame = 42;
   unchanged.robot = "robot";
@@ -98,8 +99,24 @@ TEST_F(AlarmsFileTest, ChangeCasesReadBackAsWritten) {
   EXPECT_EQ(r.truth, pasted.truth);
   EXPECT_EQ(r.frame_size, pasted.frame_size);
   EXPECT_EQ(r.object_class, "car");
+  EXPECT_DOUBLE_EQ(r.area_share, 0.0123457);
+  EXPECT_DOUBLE_EQ(r.AreaShare(), 0.0123457);  // the object's, not its box's
   EXPECT_EQ((*read)[1].kind, ChangeCase::Kind::kUnchanged);
   EXPECT_TRUE((*read)[1].truth.empty());
+}
+
+// A changes file of an older placerec has no area_share: the box's share stands in.
+TEST_F(AlarmsFileTest, ChangeCasesWithoutAreaShareUseTheBox) {
+  Write(
+      "frame,robot,utime_us,case,x,y,width,height,frame_width,frame_height,object_class\n"
+      "7,right,1007,pasted,0,0,20,10,100,100,car\n");
+  StatusOr<std::vector<ChangeCase>> read = LoadChangeCases(path_);
+  ASSERT_TRUE(read.ok()) << read.status().ToString();
+  ASSERT_EQ(read->size(), 1u);
+  EXPECT_EQ((*read)[0].area_share, 0);
+  EXPECT_DOUBLE_EQ((*read)[0].AreaShare(), 0.02);
+  Write(ChangeCaseHeader() + "\n7,right,1007,pasted,0,0,20,10,100,100,car,1.5\n");
+  EXPECT_EQ(LoadChangeCases(path_).status().code(), StatusCode::kInvalidArgument);
 }
 
 }  // namespace

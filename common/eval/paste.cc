@@ -73,7 +73,7 @@ StatusOr<std::vector<CutObject>> CutTestObjects(const std::string& dataset_dir,
 }
 
 cv::Rect PasteObject(const CutObject& object, double area_share, double x, double y,
-                     double colour_shift, cv::Mat* frame) {
+                     double colour_shift, cv::Mat* frame, double* covered_share) {
   const double mask_pixels = cv::countNonZero(object.mask);
   if (mask_pixels <= 0 || frame->empty()) return cv::Rect();
   const double scale = std::sqrt(area_share * frame->total() / mask_pixels);
@@ -109,7 +109,11 @@ cv::Rect PasteObject(const CutObject& object, double area_share, double x, doubl
   cv::merge(std::vector<cv::Mat>{alpha, alpha, alpha}, alpha3);
   cv::Mat blended = object_lab.mul(alpha3) + base.mul(cv::Scalar::all(1.0) - alpha3);
   blended.convertTo(region, CV_8UC3, 255.0);
-  const cv::Rect on = cv::boundingRect(mask > 127);
+  const cv::Mat covered = mask > 127;
+  if (covered_share != nullptr) {
+    *covered_share = static_cast<double>(cv::countNonZero(covered)) / frame->total();
+  }
+  const cv::Rect on = cv::boundingRect(covered);
   return on + at;
 }
 

@@ -42,9 +42,10 @@ StatusOr<std::vector<CutObject>> CutTestObjects(const std::string& dataset_dir,
 // (x, y) in [0, 1] of the free range; edges feathered over a few pixels and the object's mean
 // colour (CIE Lab) moved `colour_shift` of the way to that of the region it covers (0: the
 // object's own colours, 1: the region's mean). Returns the mask's box in the frame (empty when the
-// object cannot be scaled to fit).
+// object cannot be scaled to fit); *covered_share, when given, is the share of the frame the
+// pasted mask covers (about `area_share`; its box covers more).
 cv::Rect PasteObject(const CutObject& object, double area_share, double x, double y,
-                     double colour_shift, cv::Mat* frame);
+                     double colour_shift, cv::Mat* frame, double* covered_share = nullptr);
 
 // Paints `box` of `frame` over with the surroundings (inpainting from its border): a landmark
 // removed. Returns the painted box (clipped to the frame).

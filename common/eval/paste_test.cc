@@ -16,10 +16,13 @@ CutObject Disc() {
 
 TEST(PasteTest, PastedObjectCoversTheAskedShareWhereTheBoxSays) {
   cv::Mat frame(200, 300, CV_8UC3, cv::Scalar(100, 100, 100));
-  const cv::Rect box = PasteObject(Disc(), 0.05, 0.5, 0.25, 0.5, &frame);
+  double covered = 0;
+  const cv::Rect box = PasteObject(Disc(), 0.05, 0.5, 0.25, 0.5, &frame, &covered);
   ASSERT_FALSE(box.empty());
-  // The disc's area is 5 % of the frame: about pi r^2 = 3000 pixels.
+  // The disc's area is 5 % of the frame: about pi r^2 = 3000 pixels; its box covers 4 / pi of it.
   EXPECT_NEAR(box.area() * 3.14159 / 4 / (200.0 * 300.0), 0.05, 0.01);
+  EXPECT_NEAR(covered, 0.05, 0.005);
+  EXPECT_GT(static_cast<double>(box.area()) / (200.0 * 300.0), 0.06);
   EXPECT_NEAR(box.x + box.width / 2.0, 150, 3);
   cv::Mat changed;
   cv::absdiff(frame, cv::Scalar(100, 100, 100), changed);
