@@ -88,8 +88,9 @@ class AnswerRecord {
       return Key{frame.request_id, frame.sequence, frame.utime, frame.insert != 0};
     }
     bool Matches(const frame_t& frame) const {
+      // LCM keeps a boolean's byte as sent: any byte but 0 is an insert (as the server reads it).
       return request_id == frame.request_id && sequence == frame.sequence && utime == frame.utime &&
-             insert == frame.insert;
+             insert == (frame.insert != 0);
     }
   };
   struct Entry {

@@ -49,6 +49,23 @@ TEST(AnswerRecordTest, InFlightThenAnsweredAndOnlyTheSameFrameMatches) {
   EXPECT_EQ(record.Begin(other, &answer), AnswerRecord::Seen::kNew);
 }
 
+// LCM decodes a boolean as the byte sent: an insert flag of 2 is an insert like 1, and its copy
+// is recognised (it never was: each copy was processed again, and its entry stayed in flight for
+// ever, the robot's list growing without bound).
+TEST(AnswerRecordTest, AnInsertFlagOtherThanOneIsTheSameFrame) {
+  AnswerRecord record;
+  result_t answer;
+  frame_t frame = Frame("a", 7, 3);
+  frame.insert = 2;
+  EXPECT_EQ(record.Begin(frame, &answer), AnswerRecord::Seen::kNew);
+  EXPECT_EQ(record.Begin(frame, &answer), AnswerRecord::Seen::kInFlight);
+  record.Finish(frame, Answer(42));
+  ASSERT_EQ(record.Begin(frame, &answer), AnswerRecord::Seen::kAnswered);
+  EXPECT_EQ(answer.place_id, 42);
+  frame.insert = 1;
+  EXPECT_EQ(record.Begin(frame, &answer), AnswerRecord::Seen::kAnswered);
+}
+
 TEST(AnswerRecordTest, AFrameNotProcessedIsForgotten) {
   AnswerRecord record;
   result_t answer;
