@@ -324,6 +324,20 @@ Status Server::Run() {
   return result;
 }
 
+bool Server::LeftToOtherServers(const std::string& robot) {
+  std::string why;
+  if (options_.robots.empty() || !IsValidWireRobotId(robot, &why) ||
+      std::find(options_.robots.begin(), options_.robots.end(), robot) != options_.robots.end()) {
+    return false;
+  }
+  if (not_ours_ == 0) {
+    LOG(INFO) << "frames of robot '" << robot
+              << "' are left to the other servers (not in --robots)";
+  }
+  ++not_ours_;
+  return true;
+}
+
 bool Server::HandleMessages(int timeout_ms) {
   std::vector<pollfd> fds;
   for (const std::unique_ptr<Network>& network : networks_) {
@@ -361,6 +375,7 @@ void Server::OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer,
     // anything else is dropped.
     const StatusOr<frame_t> head = DecodeFrameHead(buffer->data, buffer->data_size);
     if (head.ok()) {
+      if (LeftToOtherServers(head->robot)) return;
       RejectFrame(*head, "malformed frame: " + frame.status().message(), network);
       return;
     }
@@ -374,22 +389,14 @@ void Server::OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer,
     return;
   }
   job.frame = std::move(*frame);
-  if (!options_.robots.empty() && std::find(options_.robots.begin(), options_.robots.end(),
-                                            job.frame.robot) == options_.robots.end()) {
-    // Another server answers this robot (ServerOptions::robots).
-    if (not_ours_ == 0) {
-      LOG(INFO) << "frames of robot '" << job.frame.robot
-                << "' are left to the other servers (not in --robots)";
-    }
-    ++not_ours_;
-    return;
-  }
   std::string why;
   if (!IsValidWireRobotId(job.frame.robot, &why)) {
-    // No lane and no channel of its own: answer at once on the shared error channel.
+    // No lane and no channel of its own: answer at once on the shared error channel. No server's
+    // --robots names such an id, so every server answers it (the sender takes the first).
     RejectFrame(job.frame, why, network);
     return;
   }
+  if (LeftToOtherServers(job.frame.robot)) return;
   Authenticator::Verdict verdict =
       auth_.Check(job.frame, NowUtime(), buffer->data, buffer->data_size);
   if (!verdict.ok) {

@@ -155,6 +155,9 @@ class Server {
   // Waits up to `timeout_ms` for messages on every network and dispatches them; false when
   // every network's LCM failed.
   bool HandleMessages(int timeout_ms);
+  // Whether another server answers `robot` (a valid id that --robots does not name); counts and
+  // logs it. Receive loop only.
+  bool LeftToOtherServers(const std::string& robot);
 
   ServerOptions options_;
   std::unique_ptr<PlaceMap> map_;

@@ -1002,6 +1002,54 @@ TEST_F(ServiceTest, AFrameWithoutAnAnswerIsSentAgainAndNotProcessedTwice) {
   EXPECT_EQ(ReadMap(db_).places.size(), static_cast<size_t>(next.map_places));
 }
 
+// Two servers splitting the robots (--robots): a malformed frame of a robot is answered once, by
+// that robot's server (every server answered it), and a frame with an invalid robot id, which no
+// list names, is answered (no server answered it).
+TEST_F(ServiceTest, ServersSplittingTheRobotsAnswerMalformedAndInvalidFrames) {
+  StartTheServer({"--robots", "r1"});
+  StatusOr<std::unique_ptr<ChildProcess>> other = StartServer(
+      dir_ + "/other.db", {"--keys", keys_, "--robots", "r2"}, dir_ + "/other.log", client_.get());
+  ASSERT_TRUE(other.ok()) << other.status().ToString();
+  AnswerSpy spy(&robots_key_);
+  ASSERT_TRUE(spy.good());
+  auto frame_of = [&](const std::string& robot, int64_t request_id) {
+    frame_t f;
+    f.utime = 1700000000000000;
+    f.sequence = 1;
+    f.request_id = request_id;
+    f.insert = false;
+    f.encoding = frame_t::ENCODING_JPEG;
+    f.width = f.height = 0;
+    f.robot = robot;
+    f.data.assign(20000, 0x42);
+    f.size = static_cast<int32_t>(f.data.size());
+    spy.Sign(&f);
+    std::vector<uint8_t> bytes(f.getEncodedSize());
+    f.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    return bytes;
+  };
+  const std::vector<uint8_t> cut = frame_of("r1", 9001);
+  ASSERT_EQ(spy.Publish("PLACEREC_FRAME", cut.data(), cut.size() / 2), 0);
+  const std::vector<uint8_t> invalid = frame_of("bad id", 9002);
+  ASSERT_EQ(spy.Publish("PLACEREC_FRAME", invalid.data(), invalid.size()), 0);
+  ASSERT_TRUE(spy.Flush({"r1", "r2"}, 60)) << ServerLog();
+  int malformed = 0, refused = 0;
+  for (const auto& [channel, a] : spy.answers()) {
+    if (a.request_id == 9001) {
+      ++malformed;
+      EXPECT_NE(a.message.find("malformed frame"), std::string::npos) << a.message;
+    }
+    if (a.request_id == 9002) {
+      ++refused;
+      EXPECT_EQ(int{a.status}, int{result_t::STATUS_BAD_REQUEST}) << a.message;
+    }
+  }
+  EXPECT_EQ(malformed, 1) << "the malformed frame of r1 is answered by r1's server alone";
+  EXPECT_GE(refused, 1) << "a frame with an invalid robot id went unanswered";
+  StatusOr<int> code = StopServer(other->get());
+  ASSERT_TRUE(code.ok()) << code.status().ToString();
+}
+
 // Signed frames (issue 26 item 2): a frame without a valid signature, from an unknown key,
 // signed outside the time window, or inserting with a query-only key is answered
 // STATUS_UNAUTHORISED (the unsigned one with what to do) and never touches the map. Answers to
