@@ -410,14 +410,18 @@ FrameResult PlacerecClient::Wait(const PendingFrame& pending, double timeout_s) 
     // Woken by an answer (trusted or not), or at the time to send again or to stop.
     answered_.wait_until(lock, retries ? std::min(stop, next_send) : stop);
     if (answers_.count(pending.request_id) > 0) break;
-    // Not again when too little time is left for its answer to count.
-    if (retries && std::chrono::steady_clock::now() >= next_send &&
-        std::chrono::steady_clock::now() + retry / 2 < give_up()) {
-      // No answer yet: send the same frame (same request id) again.
-      lock.unlock();
-      if (PublishFrame(*pending.message) == 0) ++sends;
-      next_send = std::chrono::steady_clock::now() + retry;
-      lock.lock();
+    if (retries && std::chrono::steady_clock::now() >= next_send) {
+      if (std::chrono::steady_clock::now() + retry / 2 < give_up()) {
+        // No answer yet: send the same frame (same request id) again.
+        lock.unlock();
+        if (PublishFrame(*pending.message) == 0) ++sends;
+        next_send = std::chrono::steady_clock::now() + retry;
+        lock.lock();
+      } else {
+        // Too little time is left for its answer to count: no more sending (the time to give up
+        // only comes closer), and no waking at a passed sending time, which would spin.
+        next_send = std::chrono::steady_clock::time_point::max();
+      }
     }
   }
   auto it = answers_.find(pending.request_id);

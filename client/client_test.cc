@@ -1,6 +1,7 @@
 #include "client/client.h"
 
 #include <cstdio>
+#include <ctime>
 #include <fstream>
 #include <string>
 #include <vector>
@@ -140,6 +141,28 @@ TEST(ClientTest, NoServerMeansTimeout) {
   EXPECT_EQ(result.sequence, 3);
   EXPECT_NE(result.message.find("no answer within 0.2 s"), std::string::npos);
   EXPECT_FALSE((*client)->WaitForStatus(0.1).ok());
+}
+
+// The last part of a wait, too short for a frame sent again to be answered in time, is waited
+// idle: it was a busy loop (the passed time to send again woke the wait at once, over and over).
+TEST(ClientTest, TheEndOfAWaitWithoutResendingIsIdle) {
+  ClientOptions options;
+  options.lcm_url = "memq://";
+  options.retry_after_s = 1.0;
+  StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(options);
+  ASSERT_TRUE(client.ok()) << client.status().ToString();
+  OutgoingFrame frame;
+  frame.robot = "left";
+  frame.sequence = 3;
+  frame.image.bytes = {1, 2, 3};
+  StatusOr<PendingFrame> pending = (*client)->Publish(frame);
+  ASSERT_TRUE(pending.ok()) << pending.status().ToString();
+  // At 1 s, 0.4 s before the end, less than half the retry interval is left: not sent again.
+  const std::clock_t cpu_before = std::clock();
+  const FrameResult result = (*client)->Wait(*pending, 1.4);
+  const double cpu_s = static_cast<double>(std::clock() - cpu_before) / CLOCKS_PER_SEC;
+  EXPECT_EQ(result.code, AnswerCode::kTimeout);
+  EXPECT_LT(cpu_s, 0.05) << "the wait kept a core busy";
 }
 
 }  // namespace
