@@ -303,10 +303,9 @@ Status Server::Run() {
       break;
     }
   }
-  for (const std::unique_ptr<Network>& network : networks_) {
-    network->lcm.unsubscribe(network->subscription);
-    network->subscription = nullptr;
-  }
+  // Every frame received is answered: what waits in the queue "shutting down", then what LCM
+  // has received but not yet handed over (its subscription queue; unsubscribing would drop it
+  // unanswered), which the stopped queue refuses and OnFrameMessage answers the same way.
   std::vector<Job> pending = queue_->Shutdown();
   for (Job& job : pending) {
     result_t answer = AnswerTemplate(job.frame);
@@ -314,14 +313,43 @@ Status Server::Run() {
              "the server is shutting down; the frame was not processed", &answer);
     Publish(&answer, false, job.network, job.key ? &*job.key : nullptr);
   }
+  const int drained = DrainReceivedFrames();
+  for (const std::unique_ptr<Network>& network : networks_) {
+    network->lcm.unsubscribe(network->subscription);
+    network->subscription = nullptr;
+  }
   PublishStatus();
   // The next start loads the descriptor index from this snapshot instead of growing it again.
   const Status saved = map_->SaveIndexSnapshot();
   LOG_IF(WARNING, !saved.ok()) << "cannot write the descriptor index snapshot: " << saved.message()
                                << "; the next start indexes what the last snapshot does not cover";
   LOG(INFO) << "placerec-server stopped; " << pending.size()
-            << " queued frames answered 'shutting down'; map " << map_->Describe() << " closed";
+            << " queued frames answered 'shutting down', then " << drained
+            << " messages received before the stop handled (frames answered the same); map "
+            << map_->Describe() << " closed";
   return result;
+}
+
+int Server::DrainReceivedFrames() {
+  // Bounded, in case senders keep sending: what arrives later is theirs to send again.
+  constexpr double kDrainSeconds = 2.0;
+  const auto until = std::chrono::steady_clock::now() +
+                     std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                         std::chrono::duration<double>(kDrainSeconds));
+  int handled = 0;
+  bool any = true;
+  while (any && std::chrono::steady_clock::now() < until) {
+    any = false;
+    for (const std::unique_ptr<Network>& network : networks_) {
+      if (network->failed) continue;
+      // handleTimeout(0): one message if one is ready, none without waiting.
+      if (network->lcm.handleTimeout(0) > 0) {
+        any = true;
+        ++handled;
+      }
+    }
+  }
+  return handled;
 }
 
 bool Server::LeftToOtherServers(const std::string& robot) {

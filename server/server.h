@@ -155,6 +155,9 @@ class Server {
   // Waits up to `timeout_ms` for messages on every network and dispatches them; false when
   // every network's LCM failed.
   bool HandleMessages(int timeout_ms);
+  // At a stop, with the queue shut down: hands every message LCM has received to OnFrameMessage
+  // (which answers the frames "shutting down"), for at most two seconds. The number handled.
+  int DrainReceivedFrames();
   // Whether another server answers `robot` (a valid id that --robots does not name); counts and
   // logs it. Receive loop only.
   bool LeftToOtherServers(const std::string& robot);

@@ -26,6 +26,8 @@
 #include <gtest/gtest.h>
 #include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "client/client.h"
 #include "common/eval/answers.h"
@@ -870,6 +872,54 @@ TEST_F(ServiceTest, FullQueueAndShutdownStillAnswerEveryFrame) {
   StatusOr<int> code = server_->Wait(60);
   ASSERT_TRUE(code.ok());
   EXPECT_EQ(*code, 0) << ServerLog();
+  server_.reset();
+}
+
+// A stop answers every frame the server received, also those LCM still held for it (its
+// subscription queue; unsubscribing dropped them unanswered: 104 and 261 of 400 answered).
+TEST_F(ServiceTest, AStopAnswersEveryFrameItReceived) {
+  placerec::Run run;
+  std::string why;
+  if (!LoadData("rtabmap_indoor", "corridor_loop", &run, &why)) GTEST_SKIP() << why;
+  StartTheServer({"--workers", "1", "--queue", "1000"});
+  // A small frame (scaled up by the server like any small camera's), so that the burst fits the
+  // socket's receive buffer: what the kernel drops never reaches the server.
+  const cv::Mat image = cv::imread(run.frames[0].image, cv::IMREAD_COLOR);
+  ASSERT_FALSE(image.empty());
+  cv::Mat small;
+  cv::resize(image, small, cv::Size(80, 60), 0, 0, cv::INTER_AREA);
+  std::vector<uint8_t> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", small, jpeg));
+  AnswerSpy spy(&robots_key_);
+  ASSERT_TRUE(spy.good());
+  constexpr int kFrames = 300;
+  for (int i = 0; i < kFrames; ++i) {
+    frame_t f;
+    f.utime = run.frames[0].utime;
+    f.sequence = i;
+    f.request_id = 20000 + i;
+    f.insert = false;
+    f.encoding = frame_t::ENCODING_JPEG;
+    f.width = f.height = 0;
+    f.robot = "burst";
+    f.data = jpeg;
+    f.size = static_cast<int32_t>(f.data.size());
+    ASSERT_EQ(spy.Publish(f), 0);
+  }
+  server_->Signal(SIGTERM);
+  StatusOr<int> code = server_->Wait(60);
+  ASSERT_TRUE(code.ok());
+  EXPECT_EQ(*code, 0) << ServerLog();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the last answers on the way
+  std::set<int64_t> answered;
+  int shutting_down = 0;
+  for (const auto& [channel, a] : spy.answers()) {
+    if (a.request_id < 20000 || a.request_id >= 20000 + kFrames) continue;
+    answered.insert(a.request_id);
+    shutting_down += a.status == result_t::STATUS_SHUTTING_DOWN ? 1 : 0;
+  }
+  EXPECT_EQ(answered.size(), static_cast<size_t>(kFrames)) << ServerLog();
+  EXPECT_GT(shutting_down, 0);
   server_.reset();
 }
 
