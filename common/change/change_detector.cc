@@ -519,9 +519,14 @@ ChangeResult DetectChanges(const cv::Mat& frame_thumbnail, const cv::Size& frame
     }
   }
   if (result.references == 0) return result;
+  const int shared_pixels = cv::countNonZero(shared);
+  if (shared_pixels == 0) {
+    // The alignment left no pixel the two views share: nothing to compare (and no median).
+    result.why_not = "the views share too little";
+    return result;
+  }
   result.checked = true;
   result.why_not.clear();
-  const int shared_pixels = cv::countNonZero(shared);
   result.shared_view = static_cast<double>(shared_pixels) / (width * height);
   difference.setTo(0, shared == 0);
   result.difference = difference;
