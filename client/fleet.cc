@@ -60,7 +60,7 @@ StatusOr<FleetReport> RunFleet(PlacerecClient* client, const Run& run,
 
   std::mutex mutex;
   FleetReport report;
-  std::atomic<int> published{0}, answered{0};
+  std::atomic<int> published{0}, answered{0}, not_sent{0};
   std::vector<std::thread> threads;
   for (int r = 0; r < options.robots; ++r) {
     // One thread publishes on the robot's clock; another collects its answers in order.
@@ -88,7 +88,14 @@ StatusOr<FleetReport> RunFleet(PlacerecClient* client, const Run& run,
         frame.utime = run.frames[0].utime + static_cast<int64_t>(k * 1e6 / options.rate_hz);
         frame.image = images[f];
         StatusOr<PendingFrame> pending = client->Publish(frame);
-        if (!pending.ok()) continue;
+        if (!pending.ok()) {
+          // Offered but never on the network: counted, so that the figures say so.
+          if (not_sent++ == 0) {
+            std::fprintf(stderr, "fleet: a frame could not be sent: %s\n",
+                         pending.status().message().c_str());
+          }
+          continue;
+        }
         ++published;
         std::lock_guard lock(*queue_mutex);
         queue->push_back(*pending);
@@ -156,6 +163,7 @@ StatusOr<FleetReport> RunFleet(PlacerecClient* client, const Run& run,
       {"elapsed_s", elapsed_s},
       {"query_share", options.query_share},
       {"frames", report.frames},
+      {"not_sent", not_sent.load()},
       {"answers_by_status", by_code},
       {"ok", ok},
       {"overloaded", overloaded},
