@@ -411,6 +411,11 @@ HttpReply Gateway::AlarmPicture(const std::string& authorization, const std::str
 Status Gateway::Serve() {
   httplib::SSLServer& http = *http_;
   http.new_task_queue = [] { return new httplib::ThreadPool(kHttpThreads); };
+  // One request per connection: a request refused before its body is read (411 below) leaves
+  // that body on the connection, where the library would read it as further requests; the
+  // library decides to keep a connection from the request alone. A new TLS handshake per request
+  // is the price (milliseconds; the page polls every 5 s).
+  http.set_keep_alive_max_count(1);
   http.set_payload_max_length(static_cast<size_t>(options_.max_upload_bytes));
   auto send = [](const HttpReply& reply, httplib::Response& res) {
     res.status = reply.status;
@@ -445,15 +450,14 @@ Status Gateway::Serve() {
     return Status::NotFound("the web page's folder " + web_dir + " does not exist (--web-dir)");
   }
   // A body must say its length, so that --max-upload-bytes holds before anything is read: the
-  // library reads a chunked body whole, whatever its size, before any handler runs.
+  // library reads a chunked body whole, whatever its size, before any handler runs. So any
+  // Transfer-Encoding (whatever its case, also beside a Content-Length) is refused unread.
   http.set_pre_routing_handler([](const httplib::Request& req, httplib::Response& res) {
-    const bool chunked =
-        req.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos;
-    if (!chunked && (req.method != "POST" || req.has_header("Content-Length"))) {
+    const bool encoded = req.has_header("Transfer-Encoding");
+    if (!encoded && (req.method != "POST" || req.has_header("Content-Length"))) {
       return httplib::Server::HandlerResponse::Unhandled;
     }
     res.status = 411;
-    res.set_header("Connection", "close");
     res.set_content(JsonText({{"error",
                                "send the photo with a Content-Length header (a chunked body, or "
                                "one without a length, is not read)"}}),

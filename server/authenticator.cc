@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <utility>
 
 namespace placerec {
@@ -77,7 +78,7 @@ Status Authenticator::Reload() {
 void Authenticator::Forget(ReplayState* state, int64_t now_utime) const {
   const int64_t oldest = now_utime - static_cast<int64_t>(options_.window_s * 1e6);
   for (auto it = state->counters.begin(); it != state->counters.end();) {
-    if (it->second < oldest || state->counters.size() > kMaxRememberedCounters) {
+    if (it->second.utime < oldest || state->counters.size() > kMaxRememberedCounters) {
       state->floor = std::max(state->floor, it->first);
       it = state->counters.erase(it);
     } else {
@@ -136,8 +137,11 @@ Authenticator::Verdict Authenticator::Check(const frame_t& frame, int64_t now_ut
   ReplayState& state = found->second;
   if (created) state.secret = key->secret;
   Forget(&state, now_utime);
-  if (frame.auth_counter <= state.floor || state.counters.count(frame.auth_counter) > 0) {
-    verdict.replayed = true;
+  uint64_t signature = 0;
+  std::memcpy(&signature, frame.signature, sizeof(signature));
+  const auto used = state.counters.find(frame.auth_counter);
+  if (frame.auth_counter <= state.floor || used != state.counters.end()) {
+    verdict.replayed = used != state.counters.end() && used->second.signature == signature;
     verdict.message = "replayed frame: key '" + key->id + "' already used counter " +
                       std::to_string(frame.auth_counter) +
                       "; every frame needs a new, increasing counter (send it again signed "
@@ -155,7 +159,7 @@ Authenticator::Verdict Authenticator::Check(const frame_t& frame, int64_t now_ut
         "key '" + key->id + "' may only insert: ask the server's operator for a key that may query";
     return verdict;
   }
-  state.counters.emplace(frame.auth_counter, frame.auth_utime);
+  state.counters.emplace(frame.auth_counter, ReplayState::Used{frame.auth_utime, signature});
   verdict.ok = true;
   return verdict;
 }

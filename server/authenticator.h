@@ -42,10 +42,11 @@ class Authenticator {
     // The sender's key when the frame is signed with it (even when refused for its time or a
     // permission), so that the answer can be signed; nullopt otherwise (answer unsigned).
     std::optional<SigningKey> key;
-    // A copy of a frame already accepted (its key's counter was used): not to be answered. The
-    // sender has its answer (or gets it), and a signed refusal that echoes the sender's request
-    // id would be taken by its client for the answer: anyone who can copy frames on the network
-    // could veto every frame.
+    // A copy of a frame already accepted (its counter, with the same signature): not to be
+    // answered. The sender has its answer (or gets it), and a signed refusal that echoes the
+    // sender's request id would be taken by its client for the answer: anyone who can copy frames
+    // on the network could veto every frame. Another frame reusing a counter is refused (and
+    // answered) as before.
     bool replayed = false;
   };
 
@@ -73,9 +74,15 @@ class Authenticator {
  private:
   // The counters one key has used within the window, and the largest one forgotten since.
   struct ReplayState {
-    std::string secret;                   // of the key the counters were used with
-    std::map<int64_t, int64_t> counters;  // counter -> signing time (microseconds)
-    int64_t floor = INT64_MIN;            // counters at or below it are refused
+    // An accepted frame: when it was signed (microseconds) and the first bytes of its signature,
+    // which tell a copy of it from another frame that reuses its counter.
+    struct Used {
+      int64_t utime = 0;
+      uint64_t signature = 0;
+    };
+    std::string secret;                // of the key the counters were used with
+    std::map<int64_t, Used> counters;  // by counter
+    int64_t floor = INT64_MIN;         // counters at or below it are refused
   };
 
   Authenticator(AuthOptions options, int64_t start_utime)

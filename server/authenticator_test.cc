@@ -120,6 +120,13 @@ TEST_F(AuthenticatorTest, RefusesReplaysAndFramesOutsideTheWindow) {
   EXPECT_TRUE(auth_->Check(Signed(robot_, 12, now), now).ok);
   EXPECT_TRUE(auth_->Check(Signed(robot_, 11, now), now).ok);
   EXPECT_FALSE(auth_->Check(Signed(robot_, 11, now), now).ok);
+  // Another frame reusing a counter (e.g. two processes sharing a key, clocks apart) is no copy:
+  // refused with a signed answer saying why.
+  v = auth_->Check(Signed(robot_, 11, now, /*insert=*/false), now);
+  EXPECT_FALSE(v.ok);
+  EXPECT_FALSE(v.replayed);
+  EXPECT_TRUE(v.key.has_value());
+  EXPECT_NE(v.message.find("already used counter"), std::string::npos) << v.message;
   // Another key's counters are its own.
   EXPECT_TRUE(auth_->Check(Signed(phone_, 10, now, false), now).ok);
 

@@ -454,6 +454,20 @@ TEST_F(GatewayTest, HostileRequestsNeitherStopTheGatewayNorFillItsMemory) {
     EXPECT_NE(chunked->body.find("Content-Length"), std::string::npos) << chunked->body;
   }
   EXPECT_LT(sent, kOffered / 4) << "the gateway read " << sent << " bytes of a chunked body";
+  // A Transfer-Encoding in capitals beside a small Content-Length, and the requests a refused
+  // body holds: refused unread, and the connection closed, so that nothing in the body is read
+  // as a request of its own.
+  const std::string smuggled = "GET /v1/site HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " +
+                               std::string(kToken) + "\r\n\r\n";
+  char size_line[32];
+  std::snprintf(size_line, sizeof(size_line), "%zx\r\n", smuggled.size());
+  const std::string body = std::string(size_line) + smuggled + "\r\n0\r\n\r\n";
+  httplib::Headers headers = Bearer(kToken);
+  headers.emplace("Transfer-Encoding", "CHUNKED");
+  httplib::Result mixed = Https()->Post("/v1/query", headers, body, "image/jpeg");
+  ASSERT_TRUE(mixed);
+  EXPECT_EQ(mixed->status, 411) << mixed->body;
+  EXPECT_EQ(mixed->get_header_value("Connection"), "close");
   const auto [site_code, site] = Json(Https()->Get("/v1/site", Bearer(kToken)));
   EXPECT_EQ(site_code, 200) << site.dump();
 }
