@@ -74,7 +74,6 @@ void SiteWatcher::Hear(const result_t& answer) {
     return;
   }
   const match_t& best = answer.matches.front();
-  if (!IsValidWireRobotId(best.robot, &why)) return;
   loop_closures_.push_front({{"robot", answer.robot},
                              {"sequence", answer.sequence},
                              {"utime", answer.frame_utime},
@@ -105,7 +104,7 @@ void SiteWatcher::Hear(const status_t& s) {
 
 void SiteWatcher::Hear(const change_t& c) {
   std::string why;
-  if (!IsValidWireRobotId(c.robot, &why) || !IsValidWireRobotId(c.place_robot, &why)) return;
+  if (!IsValidWireRobotId(c.robot, &why)) return;
   std::lock_guard lock(mutex_);
   Alarm alarm;
   alarm.id = next_alarm_id_++;

@@ -47,8 +47,9 @@ class SiteWatcher {
   nlohmann::json LastStatus() const;
 
   // What the watcher does with each message heard (public for tests). Anybody on the LCM network
-  // can publish, so messages naming a robot id the server would refuse are ignored, and at most
-  // kMaxRobots robots are counted.
+  // can publish, so messages from a robot id the server would refuse are ignored, and at most
+  // kMaxRobots robots are counted. (A stored place's robot comes from the map, which may hold
+  // ids of older rules: shown as it is, bytes that are no UTF-8 replaced when printed.)
   void Hear(const result_t& answer);
   void Hear(const status_t& status);
   void Hear(const change_t& change);

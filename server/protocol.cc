@@ -231,7 +231,7 @@ result_t AnswerTemplate(const frame_t& frame) {
   answer.sequence = frame.sequence;
   answer.request_id = frame.request_id;
   answer.frame_utime = frame.utime;
-  answer.insert = frame.insert;
+  answer.insert = frame.insert != 0;  // LCM keeps a boolean's byte as sent
   answer.status = result_t::STATUS_OK;
   answer.loop_closure = false;
   answer.num_matches = 0;

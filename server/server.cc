@@ -336,17 +336,25 @@ int Server::DrainReceivedFrames() {
   const auto until = std::chrono::steady_clock::now() +
                      std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                          std::chrono::duration<double>(kDrainSeconds));
+  // Done once every network stayed quiet for kQuietMs: LCM's receive thread may still be moving
+  // datagrams from the socket into its queue when the queue first looks empty.
+  constexpr int kQuietMs = 50;
   int handled = 0;
-  bool any = true;
-  while (any && std::chrono::steady_clock::now() < until) {
-    any = false;
+  auto quiet_since = std::chrono::steady_clock::now();
+  while (std::chrono::steady_clock::now() < until) {
+    bool any = false;
     for (const std::unique_ptr<Network>& network : networks_) {
       if (network->failed) continue;
-      // handleTimeout(0): one message if one is ready, none without waiting.
-      if (network->lcm.handleTimeout(0) > 0) {
+      if (network->lcm.handleTimeout(5) > 0) {
         any = true;
         ++handled;
       }
+    }
+    const auto now = std::chrono::steady_clock::now();
+    if (any) {
+      quiet_since = now;
+    } else if (now - quiet_since >= std::chrono::milliseconds(kQuietMs)) {
+      break;
     }
   }
   return handled;

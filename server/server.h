@@ -156,7 +156,8 @@ class Server {
   // every network's LCM failed.
   bool HandleMessages(int timeout_ms);
   // At a stop, with the queue shut down: hands every message LCM has received to OnFrameMessage
-  // (which answers the frames "shutting down"), for at most two seconds. The number handled.
+  // (which answers the frames "shutting down") until the networks stay quiet for 50 ms, for at
+  // most two seconds. The number handled.
   int DrainReceivedFrames();
   // Whether another server answers `robot` (a valid id that --robots does not name); counts and
   // logs it. Receive loop only.

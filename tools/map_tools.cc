@@ -177,7 +177,7 @@ nlohmann::json MapInfo::ToJson() const {
                               {"last_sequence", robot.last_sequence},
                               {"first_utime", robot.first_utime},
                               {"last_utime", robot.last_utime},
-                              {"span_s", (robot.last_utime - robot.first_utime) / 1e6}});
+                              {"span_s", robot.SpanSeconds()}});
   }
   json["classes"] = nlohmann::json::array();
   for (const ClassInfo& item : classes) {
@@ -212,7 +212,7 @@ std::string MapInfo::ToText() const {
         static_cast<long long>(robot.landmarks), static_cast<long long>(robot.descriptors),
         static_cast<long long>(robot.first_sequence), static_cast<long long>(robot.last_sequence),
         FormatUtime(robot.first_utime).c_str(), FormatUtime(robot.last_utime).c_str(),
-        (robot.last_utime - robot.first_utime) / 1e6);
+        robot.SpanSeconds());
     text += line;
   }
   text += "by object class:\n";

@@ -29,6 +29,11 @@ struct RobotInfo {
   int64_t descriptors = 0;
   int64_t first_sequence = 0, last_sequence = 0;
   int64_t first_utime = 0, last_utime = 0;  // microseconds since the epoch
+  // From the first to the last capture time, in seconds (in floating point: a map may hold
+  // times outside the range whose difference overflows 64 bits).
+  double SpanSeconds() const {
+    return (static_cast<double>(last_utime) - static_cast<double>(first_utime)) / 1e6;
+  }
 };
 
 struct ClassInfo {

@@ -54,7 +54,10 @@ int InfoCommand(int argc, char** argv) {
   StatusOr<MapInfo> info = ReadMapInfo(db);
   if (!info.ok()) return Fail("placerec-map info", info.status());
   if (json) {
-    std::printf("%s\n", info->ToJson().dump(2).c_str());
+    // Robot ids and classes of older maps may hold bytes that are no UTF-8: replaced, not fatal.
+    std::printf(
+        "%s\n",
+        info->ToJson().dump(2, ' ', false, nlohmann::json::error_handler_t::replace).c_str());
   } else {
     std::printf("%s", info->ToText().c_str());
   }

@@ -195,6 +195,14 @@ class SqliteStore final : public LandmarkStore {
   }
 
  private:
+  // A read-only store of an older map reads the version again (the caller holds mutex_).
+  void RefreshVersion() const {
+    if (!read_only_ || version_ >= kSqliteSchemaVersion) return;
+    const StatusOr<int> version = ReadSchemaVersion(db_.get(), path_);
+    if (version.ok() && *version > version_ && *version <= kSqliteSchemaVersion) {
+      version_ = *version;
+    }
+  }
   Status Error(const std::string& what, int rc) const {
     return Status::IoError(Describe() + ": " + what + ": " + SqliteMessage(db_.get(), rc));
   }
@@ -212,8 +220,9 @@ class SqliteStore final : public LandmarkStore {
   // server reads counts from its status thread while a worker writes.
   mutable std::mutex mutex_;
   SqliteConnection db_;  // declared before the statements so that it is closed after them
-  // The file's schema version: the current one, or an older one when opened read-only.
-  const int version_;
+  // The file's schema version: the current one, or an older one when opened read-only (read
+  // again before each read while older: a server may upgrade the map meanwhile).
+  mutable int version_;
   const bool read_only_;
   SqliteStatement insert_place_;
   SqliteStatement insert_landmark_;
@@ -378,17 +387,20 @@ Status SqliteStore::ScanLandmarks(const std::function<void(const EncodedLandmark
 
 Status SqliteStore::LoadPlaces(const std::function<void(const Place&)>& visit) const {
   std::lock_guard<std::mutex> lock(mutex_);
+  RefreshVersion();
   return ScanPlaces(visit);
 }
 
 Status SqliteStore::LoadLandmarks(const std::function<void(Landmark&&)>& visit) const {
   std::lock_guard<std::mutex> lock(mutex_);
+  RefreshVersion();
   return ScanLandmarks([&visit](const EncodedLandmark& row) { visit(DecodeLandmark(row)); });
 }
 
 StatusOr<std::vector<uint8_t>> SqliteStore::LoadThumbnail(PlaceId place) const {
-  if (version_ < 3) return std::vector<uint8_t>();  // thumbnails came with schema v3
   std::lock_guard<std::mutex> lock(mutex_);
+  RefreshVersion();
+  if (version_ < 3) return std::vector<uint8_t>();  // thumbnails came with schema v3
   SqliteStatement select;
   int rc = SqliteStatement::Prepare(db_.get(), kSelectThumbnail, false, &select);
   if (rc == SQLITE_OK) {

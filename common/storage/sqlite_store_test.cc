@@ -781,6 +781,25 @@ TEST(SqliteStoreTest, ReadOnlyStoreReadsAnOlderMapAndChangesNothing) {
   }
   EXPECT_TRUE(ReadFileBytes(map.path()) == before) << "the map was changed";
   EXPECT_EQ(QuerySql(map.path(), "SELECT value FROM meta WHERE key = 'schema_version'"), "1");
+
+  // A server upgrading the map while the read-only store is open (the gateway beside it): the
+  // store reads the new version, and a place stored since has its thumbnail.
+  SqliteStoreOptions read_only;
+  read_only.read_only = true;
+  StatusOr<std::unique_ptr<LandmarkStore>> reader = OpenSqliteStore(map.path(), read_only);
+  ASSERT_TRUE(reader.ok()) << reader.status().ToString();
+  {
+    std::unique_ptr<LandmarkStore> server = Open(map.path());  // upgrades to the current schema
+    ASSERT_NE(server, nullptr);
+    Place place = MakePlace("r", 9);
+    place.thumbnail = {0xff, 0xd8, 0xff, 0xd9};
+    std::vector<Landmark> landmarks = MakeLandmarks(90, 1, 6);
+    ASSERT_TRUE(server->AddPlace(&place, &landmarks).ok());
+    StatusOr<std::vector<uint8_t>> seen = (*reader)->LoadThumbnail(place.id);
+    ASSERT_TRUE(seen.ok()) << seen.status().ToString();
+    EXPECT_EQ(*seen, place.thumbnail);
+  }
+  reader->reset();
   // What is not there is not created.
   SqliteStoreOptions options;
   options.read_only = true;
