@@ -163,7 +163,7 @@ TEST(ClientTest, TheEndOfAWaitWithoutResendingIsIdle) {
   const FrameResult result = (*client)->Wait(*pending, 1.4);
   const double cpu_s = static_cast<double>(std::clock() - cpu_before) / CLOCKS_PER_SEC;
   EXPECT_EQ(result.code, AnswerCode::kTimeout);
-  // The busy loop took 0.15-0.4 s of CPU here; an idle wait takes next to none.
+  // A busy loop spends much of the last 0.4 s on a core; an idle wait next to nothing.
   EXPECT_LT(cpu_s, 0.1) << "the wait kept a core busy";
 }
 

@@ -704,6 +704,51 @@ void WriteV1MapOfThreePlaces(const std::string& path) {
   testing_storage::DowngradeMapToSchemaV1(path);
 }
 
+// Expects the landmarks WriteMapOfThreePlaces gave its third place (MakeLandmarks(20, 2, 6)) as
+// those of contents.places[place] from contents.landmarks[first] on.
+void ExpectThirdPlacesLandmarks(const Contents& contents, size_t place, size_t first) {
+  ASSERT_LT(place, contents.places.size());
+  ASSERT_LE(first + 2, contents.landmarks.size());
+  std::vector<Landmark> expected = MakeLandmarks(20, 2, 6);
+  for (size_t k = 0; k < 2; ++k) {
+    expected[k].id = contents.landmarks[first + k].id;
+    expected[k].place = contents.places[place].id;
+    ExpectSameLandmark(expected[k], contents.landmarks[first + k]);
+  }
+}
+
+// Repairs the map at `path`, which is whole: nothing dropped, `places` and `landmarks` kept, the
+// file untouched.
+void ExpectRepairLeavesTheMapAlone(const std::string& path, int64_t places, int64_t landmarks) {
+  const std::string before = ReadFileBytes(path);
+  StatusOr<MapRepairReport> report = RepairSqliteMap(path, {});
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_FALSE(report->rewritten) << report->problems;
+  EXPECT_EQ(report->places_dropped, 0) << report->problems;
+  EXPECT_EQ(report->places_kept, places);
+  EXPECT_EQ(report->landmarks_kept, landmarks);
+  EXPECT_TRUE(ReadFileBytes(path) == before) << "the whole map was changed";
+}
+
+// Damages the landmarks of place `place_id` and repairs the map at `path`: rewritten without
+// that place, `kept` places kept. The report, its damaged copy removed; empty notes and problems
+// when the repair failed (the test has failed then).
+MapRepairReport RepairWithAPlaceDamaged(const std::string& path, int64_t place_id, int64_t kept) {
+  ExecSql(path,
+          ("UPDATE landmarks SET keypoints = x'00' WHERE place_id = " + std::to_string(place_id))
+              .c_str());
+  StatusOr<MapRepairReport> report = RepairSqliteMap(path, {});
+  EXPECT_TRUE(report.ok()) << report.status().ToString();
+  if (!report.ok()) return MapRepairReport();
+  EXPECT_TRUE(report->rewritten);
+  EXPECT_EQ(report->places_dropped, 1);
+  EXPECT_EQ(report->places_kept, kept);
+  for (const char* suffix : {"", "-wal", "-shm"}) {
+    std::remove((report->damaged_copy + suffix).c_str());
+  }
+  return *report;
+}
+
 // A map of schema v1 (written before object classes, sightings and thumbnails) that a server
 // is asked to repair: the repair reads it as it is, keeps every place and leaves the whole map
 // alone (it read the v1 map with v2's columns, found every place unreadable and rewrote it empty).
@@ -711,25 +756,9 @@ TEST(SqliteStoreTest, RepairReadsAnOlderMapAndKeepsItsPlaces) {
   TempMap map("repair_v1");
   WriteV1MapOfThreePlaces(map.path());
   ASSERT_EQ(QuerySql(map.path(), "SELECT value FROM meta WHERE key = 'schema_version'"), "1");
-  const std::string before = ReadFileBytes(map.path());
-
-  StatusOr<MapRepairReport> report = RepairSqliteMap(map.path(), {});
-  ASSERT_TRUE(report.ok()) << report.status().ToString();
-  EXPECT_FALSE(report->rewritten) << report->problems;
-  EXPECT_EQ(report->places_dropped, 0) << report->problems;
-  EXPECT_EQ(report->places_kept, 3);
-  EXPECT_EQ(report->landmarks_kept, 6);
-  EXPECT_TRUE(ReadFileBytes(map.path()) == before) << "the whole map was changed";
+  ExpectRepairLeavesTheMapAlone(map.path(), 3, 6);
   // A damaged v1 map: the readable places are written to a map of the current schema.
-  ExecSql(map.path(), "UPDATE landmarks SET keypoints = x'00' WHERE place_id = 2");
-  report = RepairSqliteMap(map.path(), {});
-  ASSERT_TRUE(report.ok()) << report.status().ToString();
-  EXPECT_TRUE(report->rewritten);
-  EXPECT_EQ(report->places_dropped, 1);
-  EXPECT_EQ(report->places_kept, 2);
-  for (const char* suffix : {"", "-wal", "-shm"}) {
-    std::remove((report->damaged_copy + suffix).c_str());
-  }
+  RepairWithAPlaceDamaged(map.path(), 2, 2);
   EXPECT_EQ(QuerySql(map.path(), "SELECT value FROM meta WHERE key = 'schema_version'"),
             std::to_string(kSqliteSchemaVersion));
   std::unique_ptr<LandmarkStore> store = Open(map.path());
@@ -737,12 +766,7 @@ TEST(SqliteStoreTest, RepairReadsAnOlderMapAndKeepsItsPlaces) {
   const Contents contents = ReadAll(*store);
   ASSERT_EQ(contents.places.size(), 2u);
   ASSERT_EQ(contents.landmarks.size(), 4u);
-  std::vector<Landmark> expected = MakeLandmarks(20, 2, 6);  // the third place's
-  for (int k = 0; k < 2; ++k) {
-    expected[k].id = contents.landmarks[2 + k].id;
-    expected[k].place = contents.places[1].id;
-    ExpectSameLandmark(expected[k], contents.landmarks[2 + k]);
-  }
+  ExpectThirdPlacesLandmarks(contents, 1, 2);
 }
 
 // A store opened read-only reads a map of an older schema as it is (the inspection tools' way):
@@ -760,12 +784,7 @@ TEST(SqliteStoreTest, ReadOnlyStoreReadsAnOlderMapAndChangesNothing) {
     const Contents contents = ReadAll(**store);
     ASSERT_EQ(contents.places.size(), 3u);
     ASSERT_EQ(contents.landmarks.size(), 6u);
-    std::vector<Landmark> expected = MakeLandmarks(20, 2, 6);  // the third place's
-    for (int k = 0; k < 2; ++k) {
-      expected[k].id = contents.landmarks[4 + k].id;
-      expected[k].place = contents.places[2].id;
-      ExpectSameLandmark(expected[k], contents.landmarks[4 + k]);
-    }
+    ExpectThirdPlacesLandmarks(contents, 2, 4);
     StatusOr<std::vector<uint8_t>> thumbnail = (*store)->LoadThumbnail(contents.places[0].id);
     ASSERT_TRUE(thumbnail.ok()) << thumbnail.status().ToString();
     EXPECT_TRUE(thumbnail->empty());
@@ -817,25 +836,11 @@ TEST(SqliteStoreTest, RepairKeepsAPlaceWhoseTimeIsOutOfRange) {
   TempMap map("repair_time");
   WriteMapOfThreePlaces(map.path());
   ExecSql(map.path(), "UPDATE places SET utime = -5 WHERE id = 1");
-  const std::string before = ReadFileBytes(map.path());
-  StatusOr<MapRepairReport> report = RepairSqliteMap(map.path(), {});
-  ASSERT_TRUE(report.ok()) << report.status().ToString();
-  EXPECT_FALSE(report->rewritten) << report->problems;
-  EXPECT_EQ(report->places_dropped, 0) << report->problems;
-  EXPECT_EQ(report->places_kept, 3);
-  EXPECT_TRUE(ReadFileBytes(map.path()) == before) << "the whole map was changed";
+  ExpectRepairLeavesTheMapAlone(map.path(), 3, 6);
 
   // Damage elsewhere: the rewrite keeps the place, at the time the server used for it.
-  ExecSql(map.path(), "UPDATE landmarks SET keypoints = x'00' WHERE place_id = 3");
-  report = RepairSqliteMap(map.path(), {});
-  ASSERT_TRUE(report.ok()) << report.status().ToString();
-  EXPECT_TRUE(report->rewritten);
-  EXPECT_EQ(report->places_dropped, 1);
-  EXPECT_EQ(report->places_kept, 2);
-  EXPECT_NE(report->notes.find("place 1: capture time -5 us"), std::string::npos) << report->notes;
-  for (const char* suffix : {"", "-wal", "-shm"}) {
-    std::remove((report->damaged_copy + suffix).c_str());
-  }
+  const MapRepairReport report = RepairWithAPlaceDamaged(map.path(), 3, 2);
+  EXPECT_NE(report.notes.find("place 1: capture time -5 us"), std::string::npos) << report.notes;
   std::unique_ptr<LandmarkStore> store = Open(map.path());
   ASSERT_NE(store, nullptr);
   const Contents contents = ReadAll(*store);
