@@ -1,6 +1,7 @@
 #include "server/frame_processor.h"
 
 #include <exception>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -41,7 +42,8 @@ FrameProcessor::FrameProcessor(const RecognizerOptions& options, const DecodeOpt
       decode_(decode),
       map_(map),
       analyzer_(options, map, std::move(segmenter), std::move(labeler)),
-      gate_(sequence_rule) {
+      gate_(sequence_rule),
+      max_runs_(sequence_rule.max_robot_runs) {
   map_->ForEachPlace([this](const Place& place) { gate_.AddStored(place.robot, place.sequence); });
 }
 
@@ -49,6 +51,39 @@ std::unique_ptr<Recognizer> FrameProcessor::NewRun() const {
   return std::make_unique<Recognizer>(options_, map_,
                                       std::make_unique<SharedSegmenter>(&analyzer_.segmenter()),
                                       analyzer_.labeler());
+}
+
+std::shared_ptr<Recognizer> FrameProcessor::FindRun(const std::string& robot) {
+  std::lock_guard lock(runs_mutex_);
+  const auto it = runs_.find(robot);
+  if (it == runs_.end()) return nullptr;
+  it->second.last_used = ++runs_clock_;
+  return it->second.recognizer;
+}
+
+void FrameProcessor::KeepRun(const std::string& robot, std::shared_ptr<Recognizer> run) {
+  std::lock_guard lock(runs_mutex_);
+  Run& kept = runs_[robot];
+  kept.recognizer = std::move(run);
+  kept.last_used = ++runs_clock_;
+  if (static_cast<int>(runs_.size()) <= max_runs_) return;
+  auto oldest = runs_.end();
+  for (auto it = runs_.begin(); it != runs_.end(); ++it) {
+    if (it->first == robot) continue;
+    if (oldest == runs_.end() || it->second.last_used < oldest->second.last_used) oldest = it;
+  }
+  LOG(WARNING) << "more than " << max_runs_ << " robots have a run (--max-robot-runs): robot '"
+               << oldest->first
+               << "', silent longest, loses its short-term memory; its next frame begins a new run";
+  runs_.erase(oldest);
+}
+
+std::vector<std::string> FrameProcessor::RobotsWithRuns() const {
+  std::lock_guard lock(runs_mutex_);
+  std::vector<std::string> robots;
+  robots.reserve(runs_.size());
+  for (const auto& [robot, run] : runs_) robots.push_back(robot);
+  return robots;
 }
 
 result_t FrameProcessor::Process(const frame_t& frame, std::vector<change_t>* alarms) {
@@ -108,17 +143,9 @@ result_t FrameProcessor::ProcessOrThrow(const frame_t& frame, std::vector<change
     }
     new_run = *admission == SequenceGate::Admission::kNewRun;
   }
-  Recognizer* recognizer = nullptr;
-  std::unique_ptr<Recognizer> fresh;
-  if (!new_run) {
-    std::lock_guard lock(runs_mutex_);
-    const auto it = runs_.find(request.robot);
-    if (it != runs_.end()) recognizer = it->second.get();
-  }
-  if (recognizer == nullptr) {
-    fresh = NewRun();
-    recognizer = fresh.get();
-  }
+  std::shared_ptr<Recognizer> recognizer;
+  if (!new_run) recognizer = FindRun(request.robot);
+  if (recognizer == nullptr) recognizer = NewRun();
   const Status valid = recognizer->Validate(request);
   if (!valid.ok()) return fail(WireStatus(valid.code()), valid.message());
   const StatusOr<ImageEncoding> encoding = ImageEncodingFromWire(frame.encoding);
@@ -147,14 +174,12 @@ result_t FrameProcessor::ProcessOrThrow(const frame_t& frame, std::vector<change
   if (request.insert && result.status.ok()) {
     gate_.Accepted(request.robot, request.sequence, result.place.IsValid(),
                    SequenceGate::Clock::now());
-    if (fresh) {
-      if (new_run) {
-        LOG(INFO) << "robot '" << request.robot << "' begins a new run at sequence "
-                  << request.sequence;
-      }
-      std::lock_guard lock(runs_mutex_);
-      runs_[request.robot] = std::move(fresh);
+    if (new_run) {
+      LOG(INFO) << "robot '" << request.robot << "' begins a new run at sequence "
+                << request.sequence;
     }
+    // Kept again even when it was found: another robot's frame may have forgotten it meanwhile.
+    KeepRun(request.robot, std::move(recognizer));
   }
   FillAnswer(result, &answer);
   if (alarms != nullptr) {

@@ -4,6 +4,7 @@
 // an error answer that says what was wrong; nothing throws.
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -40,10 +41,19 @@ class FrameProcessor {
   // places loaded at start. Thread-safe.
   void NoteStored(const Place& place) { gate_.AddStored(place.robot, place.sequence); }
 
+  // The robots whose run the processor keeps (at most SequenceRuleOptions::max_robot_runs),
+  // in no particular order. Thread-safe.
+  std::vector<std::string> RobotsWithRuns() const;
+
  private:
   result_t ProcessOrThrow(const frame_t& frame, std::vector<change_t>* alarms);
   // A recognizer for one run of a robot: its own short-term memory, the shared segmenter.
   std::unique_ptr<Recognizer> NewRun() const;
+  // The robot's current run (null when it has none), marked as the most recently used.
+  std::shared_ptr<Recognizer> FindRun(const std::string& robot);
+  // Makes `run` the robot's current run; forgets the least recently used other run when more
+  // than max_robot_runs robots have one.
+  void KeepRun(const std::string& robot, std::shared_ptr<Recognizer> run);
 
   RecognizerOptions options_;
   DecodeOptions decode_;
@@ -51,10 +61,18 @@ class FrameProcessor {
   // Analyzes every frame (stateless) and owns the segmenter the runs share.
   Recognizer analyzer_;
   SequenceGate gate_;
-  std::mutex runs_mutex_;
+  const int max_runs_;
+  struct Run {
+    // Shared with the frame that uses it, so that forgetting a run (another robot's frame may)
+    // never pulls it from under a frame in progress.
+    std::shared_ptr<Recognizer> recognizer;
+    uint64_t last_used = 0;  // runs_clock_ when the robot's last frame looked it up
+  };
+  mutable std::mutex runs_mutex_;
+  uint64_t runs_clock_ = 0;
   // Each robot's current run. A robot's entry is only replaced from its own frames, which come
-  // one at a time, so the recognizer a frame uses stays valid while it runs.
-  std::unordered_map<std::string, std::unique_ptr<Recognizer>> runs_;
+  // one at a time.
+  std::unordered_map<std::string, Run> runs_;
 };
 
 }  // namespace placerec

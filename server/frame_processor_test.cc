@@ -5,6 +5,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
@@ -112,6 +113,40 @@ TEST(FrameProcessorTest, AnInternalErrorNamesTheStageItHappenedIn) {
       << answer.message;
   EXPECT_NE(answer.message.find("arithm_op"), std::string::npos) << answer.message;
   EXPECT_EQ(map->Counts().places, 0);
+}
+
+std::vector<std::string> Sorted(std::vector<std::string> robots) {
+  std::sort(robots.begin(), robots.end());
+  return robots;
+}
+
+// Each robot id that ever inserted kept its run (about a megabyte of short-term memory) for good,
+// so a server that sees ever new ids grew without bound. Now at most max_robot_runs runs are
+// kept; the robot silent longest loses its run, and a robot that comes back begins a new one.
+TEST(FrameProcessorTest, RunsOfAtMostMaxRobotsAreKeptAndTheRobotSilentLongestIsForgotten) {
+  std::unique_ptr<PlaceMap> map = OpenMap(":memory:");
+  SequenceRuleOptions rule;
+  rule.max_robot_runs = 2;
+  FrameProcessor processor(TestOptions(), DecodeOptions(), map.get(), nullptr, rule);
+  auto insert = [&](const std::string& robot, int64_t sequence) {
+    const result_t answer = processor.Process(Frame(robot, sequence, static_cast<int>(sequence)));
+    EXPECT_EQ(int{answer.status}, int{result_t::STATUS_OK})
+        << robot << " " << sequence << ": " << answer.message;
+  };
+  insert("a", 0);
+  insert("b", 0);
+  insert("a", 1);  // b is now the robot silent longest
+  EXPECT_EQ(Sorted(processor.RobotsWithRuns()), (std::vector<std::string>{"a", "b"}));
+  insert("c", 0);
+  EXPECT_EQ(Sorted(processor.RobotsWithRuns()), (std::vector<std::string>{"a", "c"}));
+  // b comes back: answered as before, with a new run; a is now the one silent longest.
+  insert("b", 1);
+  EXPECT_EQ(Sorted(processor.RobotsWithRuns()), (std::vector<std::string>{"b", "c"}));
+  // Query-only frames of a robot without a run are answered and keep no run.
+  frame_t query = Frame("d", 0, 1);
+  query.insert = false;
+  EXPECT_EQ(int{processor.Process(query).status}, int{result_t::STATUS_OK});
+  EXPECT_EQ(Sorted(processor.RobotsWithRuns()), (std::vector<std::string>{"b", "c"}));
 }
 
 // The attack of issue 23 item 3: one insert with sequence 2^63-1 made every later insert of the

@@ -11,6 +11,10 @@ bool SequenceRuleOptions::Check(std::string* error) const {
     *error = "--robot-restart-gap must be between 0 and 86400 seconds";
     return false;
   }
+  if (max_robot_runs < 1) {
+    *error = "--max-robot-runs must be at least 1";
+    return false;
+  }
   return true;
 }
 

@@ -29,6 +29,12 @@ struct SequenceRuleOptions {
   // Seconds after a robot's last accepted insert from which a lower sequence begins a new run
   // of the robot instead of being refused as out of order.
   double restart_gap_s = 5.0;
+  // Robots whose run (short-term memory: the recent past that keeps a robot's own places from
+  // answering it, the frames its landmarks are tracked in) the server keeps at most; beyond it
+  // the run of the robot silent longest is forgotten, and that robot's next frame begins a new
+  // run. A run takes about a megabyte; a site's robots are far fewer, so only a server that
+  // sees ever new robot ids (ids made per boot, forged ids) reaches it.
+  int max_robot_runs = 1000;
 
   bool Check(std::string* error) const;
 };

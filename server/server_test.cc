@@ -114,6 +114,7 @@ TEST(ServerOptionsTest, DefaultsPassAndBadValuesNameTheirFlag) {
        [](ServerOptions* o) {
          o->sequence_rule.restart_gap_s = std::numeric_limits<double>::quiet_NaN();
        }},
+      {"--max-robot-runs", [](ServerOptions* o) { o->sequence_rule.max_robot_runs = 0; }},
       // The parts' own checks run too.
       {"--auth-window", [](ServerOptions* o) { o->auth.window_s = 0; }},
       {"max_image_width", [](ServerOptions* o) { o->recognizer.analyzer.max_image_width = 10; }},
