@@ -470,9 +470,10 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
     for (auto& pair : match.object_pairs) pair.first = searched_objects[pair.first];
   }
   // Sequence consistency: every frame reads the robot's earlier frames; inserted frames join
-  // them (a query changes nothing).
+  // them once stored (a query, or a frame that fails to be stored, changes nothing).
   state->sequence.Apply(request.utime, &found.places);
-  if (request.insert) state->sequence.Record(request.utime, found.places);
+  SequenceSupport::Frame sequence_frame;
+  if (request.insert) sequence_frame = state->sequence.Summarise(request.utime, found.places);
   if (static_cast<int>(found.places.size()) > options_.loop.max_matches) {
     found.places.resize(options_.loop.max_matches);
   }
@@ -571,6 +572,7 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   }
   state->last_map_places = map_->Counts().places;
   state->last_sequence = request.sequence;
+  state->sequence.Record(std::move(sequence_frame));
   result.timings.emplace_back("insert", timer.ElapsedMs());
   result.map = map_->Counts();
   if (recent_guard) recent_guard->Keep();

@@ -569,6 +569,50 @@ TEST(RecognizerTest, AFrameThatWasNotStoredLeavesTheRecentPastAsItWas) {
   EXPECT_EQ((*map)->Counts().places, 1);
 }
 
+// Robot "b" drives robot "a"'s street again an hour later, and its third frame fails to be
+// stored. That frame's matches must not support b's later frames (sequence_support.h): like a
+// query's, they are not remembered. They were, although nothing of the frame was kept.
+TEST(RecognizerTest, AFrameThatWasNotStoredSupportsNoLaterFrame) {
+  const cv::Mat world = World(5);
+  const RecognizerOptions options = TestOptions();
+  // The best match of b's fourth frame after b's third failed to be stored (kFail) or was a
+  // query (kQuery).
+  enum class Third { kFail, kQuery };
+  auto last_match = [&](Third third) {
+    StatusOr<std::unique_ptr<LandmarkStore>> inner = OpenSqliteStore(":memory:", {});
+    EXPECT_TRUE(inner.ok());
+    auto failing = std::make_unique<FailingStore>(std::move(*inner));
+    FailingStore* store = failing.get();
+    StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(failing), options.index);
+    EXPECT_TRUE(map.ok()) << map.status().ToString();
+    Recognizer recognizer(options, map->get());
+    for (int i = 0; i < 6; ++i) {
+      const RecognitionResult result =
+          recognizer.Process({"a", i, i * 1000000LL, true}, View(world, i * kStep));
+      EXPECT_TRUE(result.status.ok()) << result.status.ToString();
+    }
+    const int64_t later = 3600 * 1000000LL;
+    RecognitionResult result;
+    for (int i = 0; i < 4; ++i) {
+      const bool insert = !(i == 2 && third == Third::kQuery);
+      if (i == 2 && third == Third::kFail) store->FailNext();
+      result = recognizer.Process({"b", i, later + i * 1000000LL, insert}, View(world, i * kStep));
+      if (i == 2 && third == Third::kFail) {
+        EXPECT_EQ(result.status.code(), StatusCode::kIoError);
+      } else {
+        EXPECT_TRUE(result.status.ok()) << result.status.ToString();
+      }
+    }
+    EXPECT_FALSE(result.matches.empty());
+    return result.matches.empty() ? PlaceMatch() : result.matches.front();
+  };
+  const PlaceMatch failed = last_match(Third::kFail);
+  const PlaceMatch queried = last_match(Third::kQuery);
+  EXPECT_EQ(failed.place.sequence, queried.place.sequence);
+  EXPECT_EQ(failed.supporting_frames, queried.supporting_frames);
+  EXPECT_DOUBLE_EQ(failed.score, queried.score);
+}
+
 // Checks come before any work: ids of 1..64 printable bytes, and for inserts a sequence after
 // the robot's last one. Validate itself changes nothing.
 TEST(RecognizerTest, ValidateNamesWhatIsWrong) {

@@ -65,8 +65,8 @@ void SequenceSupport::Apply(int64_t utime, std::vector<PlaceMatch>* ranked) cons
                    [](const PlaceMatch& a, const PlaceMatch& b) { return a.score > b.score; });
 }
 
-void SequenceSupport::Record(int64_t utime, const std::vector<PlaceMatch>& ranked) {
-  if (options_.frames <= 0) return;
+SequenceSupport::Frame SequenceSupport::Summarise(int64_t utime,
+                                                  const std::vector<PlaceMatch>& ranked) const {
   Frame frame;
   frame.utime = utime;
   for (const PlaceMatch& match : ranked) {
@@ -74,6 +74,12 @@ void SequenceSupport::Record(int64_t utime, const std::vector<PlaceMatch>& ranke
     if (match.frame_score <= 0) continue;
     frame.places.push_back({match.place.robot, match.place.utime, match.frame_score});
   }
+  return frame;
+}
+
+void SequenceSupport::Record(Frame frame) {
+  if (options_.frames <= 0) return;
+  const int64_t utime = frame.utime;
   history_.push_back(std::move(frame));
   // Keep what Supporters can still reach: frames within max_age of the newest.
   const auto max_age_us = static_cast<int64_t>(std::llround(options_.max_age_seconds * 1e6));

@@ -48,21 +48,28 @@ class SequenceSupport {
   // score by the sequence score, and sorts best first (ties keep their order).
   void Apply(int64_t utime, std::vector<PlaceMatch>* ranked) const;
 
-  // Remembers the single-frame scores (frame_score) of a frame's places.
-  void Record(int64_t utime, const std::vector<PlaceMatch>& ranked);
-
-  const SequenceOptions& options() const { return options_; }
-
- private:
   struct Candidate {
     std::string robot;
     int64_t utime = 0;
     double score = 0;
   };
+  // What is remembered of one frame: the single-frame scores (frame_score) of its best places.
   struct Frame {
     int64_t utime = 0;
     std::vector<Candidate> places;
   };
+
+  // The frame at `utime` with places `ranked` as Record would remember it; changes nothing, so
+  // that a frame is remembered only once it is stored.
+  Frame Summarise(int64_t utime, const std::vector<PlaceMatch>& ranked) const;
+  void Record(Frame frame);
+  void Record(int64_t utime, const std::vector<PlaceMatch>& ranked) {
+    Record(Summarise(utime, ranked));
+  }
+
+  const SequenceOptions& options() const { return options_; }
+
+ private:
   // The earlier frames that may support a frame at `utime`, newest first.
   std::vector<const Frame*> Supporters(int64_t utime) const;
 
