@@ -56,6 +56,15 @@ bool MapFollower::CatchUp(PostgresChangeFeed* feed) {
     }
     for (CommittedPlace& committed : *batch) {
       if (last_ < committed.place.id) last_ = committed.place.id;
+      if (!committed.damage.ok()) {
+        // Waiting for it would stall every later place for good; it stays out of this server's
+        // index (a server starting on the map refuses it and says the same).
+        LOG(ERROR) << "map follower: place " << committed.place.id.value()
+                   << " of the shared map is damaged and is left out of this server's map; "
+                   << "later places are followed: " << committed.damage.message();
+        places_damaged_.fetch_add(1);
+        continue;
+      }
       const Place place = committed.place;
       if (map_->AddCommitted(place, std::move(committed.landmarks))) {
         places_added_.fetch_add(1);

@@ -3,7 +3,8 @@
 // LISTENs for the NOTIFY each insert sends, fetches the places above the last one it has seen and
 // indexes them (PlaceMap::AddCommitted); on (re)connecting it first catches up the same way, so a
 // notification lost while the connection was down costs nothing. A lost connection is retried
-// every `retry_s` until Stop().
+// every `retry_s` until Stop(). A place whose rows do not read back whole is left out (logged),
+// so that it does not hold back the places after it.
 #pragma once
 
 #include <atomic>
@@ -45,6 +46,8 @@ class MapFollower {
 
   // Places this follower added to the map so far.
   int64_t places_added() const { return places_added_.load(); }
+  // Places of the shared map that did not read back whole, left out (logged as errors).
+  int64_t places_damaged() const { return places_damaged_.load(); }
   // Whether the follower is connected and listening now.
   bool connected() const { return connected_.load(); }
 
@@ -60,6 +63,7 @@ class MapFollower {
   std::function<void(const Place&)> on_added_;
   PlaceId last_;  // used by the thread only
   std::atomic<int64_t> places_added_{0};
+  std::atomic<int64_t> places_damaged_{0};
   std::atomic<bool> connected_{false};
   std::mutex mutex_;
   std::condition_variable wake_;

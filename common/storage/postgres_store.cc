@@ -9,6 +9,8 @@
 #include <cstdint>
 #include <cstring>
 #include <deque>
+#include <functional>
+#include <map>
 #include <mutex>
 #include <string>
 #include <system_error>
@@ -496,20 +498,32 @@ Status PrepareSchema(Connection* db) {
   return Status::Ok();
 }
 
-// Streams the places with ids in (after, up_to] with their sightings, in id order.
+// A row that does not read back whole (checked as ReadPlaceRow and ReadLandmarkRow check it),
+// by the id of the place it belongs to.
+using DamagedRow = std::function<void(int64_t place, const Status& why)>;
+
+// Streams the places with ids in (after, up_to] with their sightings, in id order. A damaged row
+// ends the scan with its error, or, given `damaged`, is reported there (its place is not visited)
+// and the scan goes on.
 Status ScanPlaces(Connection* db, int64_t after, int64_t up_to,
-                  const std::function<void(Place&&)>& visit) {
+                  const std::function<void(Place&&)>& visit, const DamagedRow* damaged = nullptr) {
   Params range;
   range.Int(after);
   range.Int(up_to);
   std::unordered_map<int64_t, std::vector<LandmarkId>> seen;
+  std::unordered_map<int64_t, Status> bad_sightings;
   PLACEREC_RETURN_IF_ERROR(
-      db->Stream(kSelectSightings, range, "cannot read sightings", [&seen](const PGresult* row) {
+      db->Stream(kSelectSightings, range, "cannot read sightings", [&](const PGresult* row) {
         int64_t place = 0;
         int64_t landmark = 0;
-        if (!ReadInt(row, 0, 0, 1, INT64_MAX, &place) ||
-            !ReadInt(row, 0, 1, 1, INT64_MAX, &landmark)) {
-          return Status::IoError("a sighting is corrupt");
+        const bool place_read = ReadInt(row, 0, 0, 1, INT64_MAX, &place);
+        if (!place_read || !ReadInt(row, 0, 1, 1, INT64_MAX, &landmark)) {
+          const Status why =
+              Status::IoError(db->Describe() + ": a sighting of place " + std::to_string(place) +
+                              " is corrupt; " + kDamagedMapAdvice);
+          if (damaged == nullptr || !place_read) return why;
+          bad_sightings.emplace(place, why);
+          return Status::Ok();
         }
         seen[place].push_back(LandmarkId(landmark));
         return Status::Ok();
@@ -517,7 +531,17 @@ Status ScanPlaces(Connection* db, int64_t after, int64_t up_to,
   const std::string store = db->Describe();
   return db->Stream(kSelectPlaces, range, "cannot read places", [&](const PGresult* row) {
     Place place;
-    PLACEREC_RETURN_IF_ERROR(ReadPlaceRow(row, 0, store, &place));
+    const Status read = ReadPlaceRow(row, 0, store, &place);
+    if (!read.ok()) {
+      int64_t id = 0;
+      if (damaged == nullptr || !ReadInt(row, 0, 0, 1, INT64_MAX, &id)) return read;
+      (*damaged)(id, read);
+      return Status::Ok();
+    }
+    if (const auto bad = bad_sightings.find(place.id.value()); bad != bad_sightings.end()) {
+      (*damaged)(place.id.value(), bad->second);
+      return Status::Ok();
+    }
     const auto sightings = seen.find(place.id.value());
     if (sightings != seen.end()) place.seen_landmarks = std::move(sightings->second);
     visit(std::move(place));
@@ -525,16 +549,24 @@ Status ScanPlaces(Connection* db, int64_t after, int64_t up_to,
   });
 }
 
-// Streams the checked landmark rows of the places with ids in (after, up_to], in id order.
+// Streams the checked landmark rows of the places with ids in (after, up_to], in id order. A
+// damaged row ends the scan with its error, or, given `damaged`, is reported there and skipped.
 Status ScanLandmarks(Connection* db, int64_t after, int64_t up_to,
-                     const std::function<void(const EncodedLandmark&)>& visit) {
+                     const std::function<void(const EncodedLandmark&)>& visit,
+                     const DamagedRow* damaged = nullptr) {
   Params range;
   range.Int(after);
   range.Int(up_to);
   const std::string store = db->Describe();
   EncodedLandmark encoded;
   return db->Stream(kSelectLandmarks, range, "cannot read landmarks", [&](const PGresult* row) {
-    PLACEREC_RETURN_IF_ERROR(ReadLandmarkRow(row, 0, store, &encoded));
+    const Status read = ReadLandmarkRow(row, 0, store, &encoded);
+    if (!read.ok()) {
+      int64_t place = 0;
+      if (damaged == nullptr || !ReadInt(row, 0, 1, 1, INT64_MAX, &place)) return read;
+      (*damaged)(place, read);
+      return Status::Ok();
+    }
     visit(encoded);
     return Status::Ok();
   });
@@ -811,25 +843,65 @@ class ChangeFeed final : public PostgresChangeFeed {
     if (!ReadInt(last.get(), 0, 0, 1, INT64_MAX, &up_to)) {
       return db_->Error("cannot read new places", last);
     }
+    // A damaged place is handed on marked as such (without landmarks), so that a follower can
+    // go on past it; the first damage found names it.
+    std::map<int64_t, Status> damage;
+    const DamagedRow damaged = [&damage](int64_t place, const Status& why) {
+      damage.emplace(place, why);
+    };
     std::unordered_map<int64_t, size_t> slot;
-    PLACEREC_RETURN_IF_ERROR(ScanPlaces(db_.get(), after, up_to, [&](Place&& place) {
-      slot[place.id.value()] = places->size();
-      places->push_back({std::move(place), {}});
-    }));
+    PLACEREC_RETURN_IF_ERROR(ScanPlaces(
+        db_.get(), after, up_to,
+        [&](Place&& place) {
+          slot[place.id.value()] = places->size();
+          places->push_back({std::move(place), {}, Status::Ok()});
+        },
+        &damaged));
     Status status;
-    PLACEREC_RETURN_IF_ERROR(
-        ScanLandmarks(db_.get(), after, up_to, [&](const EncodedLandmark& row) {
+    PLACEREC_RETURN_IF_ERROR(ScanLandmarks(
+        db_.get(), after, up_to,
+        [&](const EncodedLandmark& row) {
           const auto it = slot.find(row.place);
           if (it == slot.end()) {
-            if (status.ok()) {
+            // Its place row is damaged (reported), or missing.
+            if (damage.count(row.place) == 0 && status.ok()) {
               status = Status::IoError(db_->Describe() + ": landmark " + std::to_string(row.id) +
                                        " refers to missing place " + std::to_string(row.place));
             }
             return;
           }
           (*places)[it->second].landmarks.push_back(DecodeLandmark(row));
-        }));
-    return status;
+        },
+        &damaged));
+    if (!status.ok()) return status;
+    if (damage.empty()) return Status::Ok();
+    // Merge the damaged places in, in id order, each without landmarks.
+    std::vector<CommittedPlace> merged;
+    merged.reserve(places->size() + damage.size());
+    auto next_damage = damage.begin();
+    for (CommittedPlace& committed : *places) {
+      const int64_t id = committed.place.id.value();
+      for (; next_damage != damage.end() && next_damage->first <= id; ++next_damage) {
+        if (next_damage->first == id) {
+          committed.landmarks.clear();
+          committed.damage = next_damage->second;
+        } else {
+          CommittedPlace lost;
+          lost.place.id = PlaceId(next_damage->first);
+          lost.damage = next_damage->second;
+          merged.push_back(std::move(lost));
+        }
+      }
+      merged.push_back(std::move(committed));
+    }
+    for (; next_damage != damage.end(); ++next_damage) {
+      CommittedPlace lost;
+      lost.place.id = PlaceId(next_damage->first);
+      lost.damage = next_damage->second;
+      merged.push_back(std::move(lost));
+    }
+    *places = std::move(merged);
+    return Status::Ok();
   }
 
   std::unique_ptr<Connection> db_;

@@ -49,6 +49,9 @@ StatusOr<std::unique_ptr<LandmarkStore>> OpenPostgresStore(const std::string& ur
 struct CommittedPlace {
   Place place;
   std::vector<Landmark> landmarks;
+  // Not ok: a row of the place (its own, a landmark's or a sighting's) does not read back whole;
+  // the place then holds only its id and no landmarks.
+  Status damage;
 };
 
 // Another server's view of new places: its own connection, LISTENing on kPostgresPlacesChannel.
@@ -67,7 +70,8 @@ class PostgresChangeFeed {
 
   // Reads (in one snapshot) the places with ids above `after`, in increasing id order, at most
   // `max_places` of them, each with its landmarks (checked as LoadLandmarks checks them) and
-  // sightings. Fewer than `max_places` means there are no more for now.
+  // sightings; a damaged place comes marked (CommittedPlace::damage) instead of failing the
+  // read. Fewer than `max_places` means there are no more for now.
   virtual StatusOr<std::vector<CommittedPlace>> FetchAfter(PlaceId after, int max_places) = 0;
 };
 
