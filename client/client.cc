@@ -474,8 +474,13 @@ FrameResult PlacerecClient::Send(const OutgoingFrame& frame) {
 }
 
 void PlacerecClient::SetAnswerCallback(std::function<void(const FrameResult&)> callback) {
-  std::lock_guard lock(mutex_);
+  std::unique_lock lock(mutex_);
   callback_ = std::move(callback);
+  // The callback replaced may still run on the receive thread (unless this is that thread):
+  // once this returns, it has ended, so its captures may go.
+  if (std::this_thread::get_id() != receiver_.get_id()) {
+    answered_.wait(lock, [this] { return callbacks_running_ == 0; });
+  }
 }
 
 void PlacerecClient::OnResult(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
@@ -518,15 +523,20 @@ void PlacerecClient::OnResult(const lcm::ReceiveBuffer* buffer, const std::strin
     result.latency_ms = std::chrono::duration<double, std::milli>(now - it->second.sent).count();
     awaited_.erase(it);
     callback = callback_;
+    // Waiting for the answer ends now, not after the callback: a Wait that timed out while the
+    // callback ran reported a timeout for a frame the callback had been given the answer to.
     if (!callback) {
       answers_[answer.request_id] = std::move(result);
       answered_.notify_all();
       return;
     }
+    answers_[answer.request_id] = result;
+    ++callbacks_running_;
+    answered_.notify_all();
   }
   callback(result);
   std::lock_guard lock(mutex_);
-  answers_[answer.request_id] = std::move(result);
+  --callbacks_running_;
   answered_.notify_all();
 }
 

@@ -224,7 +224,9 @@ class PlacerecClient {
   FrameResult Send(const OutgoingFrame& frame);
 
   // Called on the receive thread with every awaited answer as it arrives (e.g. to print loop
-  // closures at once). Set it before publishing.
+  // closures at once); Wait may return the answer while the callback still runs. Set it before
+  // publishing. Returns once the callback it replaces no longer runs (except when called from
+  // the callback itself).
   void SetAnswerCallback(std::function<void(const FrameResult&)> callback);
 
   // Subscribes to PLACEREC_CHANGE and calls `callback` on the receive thread with every
@@ -265,6 +267,7 @@ class PlacerecClient {
   bool wildcard_subscribed_ = false;
   int64_t next_request_id_ = 0;
   std::function<void(const FrameResult&)> callback_;
+  int callbacks_running_ = 0;  // answer callbacks running now on the receive thread (mutex_)
   std::function<void(const SceneAlarm&)> alarm_callback_;
   bool alarms_subscribed_ = false;
   ServerStatus last_status_;

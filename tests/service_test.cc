@@ -1306,6 +1306,59 @@ TEST_F(ServiceTest, TheClientRejectsForgedAnswers) {
       << alone.message;
 }
 
+// An answer callback that takes long (a printing client on a slow terminal) made Wait report a
+// timeout for a frame whose answer the callback was given: the answer was handed to Wait only
+// after the callback returned. Now Wait has it at once, and replacing the callback waits until
+// the one replaced has ended.
+TEST_F(ServiceTest, AnAnswerCallbackThatTakesLongDoesNotTurnTheAnswerIntoATimeout) {
+  ClientOptions options = Options();
+  options.retry_after_s = 0;
+  StatusOr<std::unique_ptr<PlacerecClient>> connected = PlacerecClient::Connect(options);
+  ASSERT_TRUE(connected.ok()) << connected.status().ToString();
+  PlacerecClient& client = **connected;
+  std::atomic<bool> callback_ended{false};
+  client.SetAnswerCallback([&](const FrameResult&) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+    callback_ended = true;
+  });
+  OutgoingFrame frame;
+  frame.robot = "slow-printer";
+  frame.sequence = 0;
+  frame.image.bytes = {1, 2, 3};
+  StatusOr<PendingFrame> pending = client.Publish(frame);
+  ASSERT_TRUE(pending.ok()) << pending.status().ToString();
+  // The server's answer, as the test's own server would sign it.
+  result_t a;
+  a.utime = 1;
+  a.robot = pending->robot;
+  a.sequence = pending->sequence;
+  a.request_id = pending->request_id;
+  a.frame_utime = 0;
+  a.insert = true;
+  a.status = result_t::STATUS_OK;
+  a.loop_closure = false;
+  a.num_matches = 0;
+  a.keypoints = a.objects = a.landmarks = a.stored_descriptors = 0;
+  a.place_id = 5;
+  a.map_places = a.map_landmarks = a.map_descriptors = 1;
+  a.queue_ms = a.server_ms = 0;
+  a.num_timings = 0;
+  a.change_checked = false;
+  a.change_place_id = -1;
+  a.num_changes = 0;
+  SignAnswer(robots_key_, &a);
+  AnswerSpy server;
+  ASSERT_TRUE(server.good());
+  const std::vector<uint8_t> bytes = EncodeAnswer(a);
+  ASSERT_EQ(server.Publish("PLACEREC_RESULT_" + pending->robot, bytes.data(), bytes.size()), 0);
+  // Shorter than the callback takes, long enough for the answer to cross loopback.
+  const FrameResult result = client.Wait(*pending, 1.0);
+  EXPECT_EQ(result.code, AnswerCode::kOk) << DescribeResult(result);
+  EXPECT_EQ(result.place_id, 5);
+  client.SetAnswerCallback(nullptr);
+  EXPECT_TRUE(callback_ended) << "SetAnswerCallback returned while the callback ran";
+}
+
 // A robot whose key file holds the wrong key for its id hears, within seconds and not at the
 // timeout, what the server said and what to check (the server's refusal is unsigned: the client
 // cannot trust it, so it waits a grace period for a signed answer first).
