@@ -77,13 +77,14 @@ Status Authenticator::Reload() {
 
 void Authenticator::Forget(ReplayState* state, int64_t now_utime) const {
   const int64_t oldest = now_utime - static_cast<int64_t>(options_.window_s * 1e6);
-  for (auto it = state->counters.begin(); it != state->counters.end();) {
-    if (it->second.utime < oldest || state->counters.size() > kMaxRememberedCounters) {
-      state->floor = std::max(state->floor, it->first);
-      it = state->counters.erase(it);
-    } else {
-      ++it;
-    }
+  // Counters follow their signers' clocks (placerec's client starts them from it), so the
+  // oldest come first: the walk stops at the first counter still in the window, and a frame
+  // costs the counters it forgets, not all those remembered. A later counter signed earlier
+  // (another signer's clock behind) is forgotten once the counters before it are.
+  for (auto it = state->counters.begin(); it != state->counters.end();
+       it = state->counters.erase(it)) {
+    if (it->second.utime >= oldest && state->counters.size() <= kMaxRememberedCounters) break;
+    state->floor = std::max(state->floor, it->first);
   }
 }
 
