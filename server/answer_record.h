@@ -2,11 +2,13 @@
 // sends the same frame again with the same request id; the server must not process it twice (an
 // insert would then be refused as out of order, or stored twice). A frame is known by its
 // robot, request id, sequence, capture time and insert flag. A frame still queued or running is
-// "in flight" (the duplicate is dropped: the answer is on its way); a processed one keeps its
-// answer, which a duplicate gets again. Each robot keeps its last `per_robot` frames; robots
+// "in flight" (the duplicate is dropped: the answer is on its way, and also to the network the
+// duplicate came on when that is another); a processed one keeps its answer, which a duplicate
+// gets again. Each robot keeps its last `per_robot` frames; robots
 // beyond `max_robots` are not recorded (their duplicates are processed again). Thread-safe.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <deque>
@@ -15,6 +17,7 @@
 #include <string>
 #include <unordered_map>
 #include <utility>
+#include <vector>
 
 #include "placerec/frame_t.hpp"
 #include "placerec/result_t.hpp"
@@ -32,8 +35,10 @@ class AnswerRecord {
     kAnswered,  // processed before: send *answer again
   };
 
-  // Looks `frame` up; a new frame is recorded as in flight.
-  Seen Begin(const frame_t& frame, result_t* answer) {
+  // Looks `frame`, received on `network` (an index of the server's networks), up; a new frame is
+  // recorded as in flight. A copy of a frame in flight that came on another network is noted:
+  // Finish and Forget name that network too.
+  Seen Begin(const frame_t& frame, result_t* answer, size_t network = 0) {
     std::lock_guard lock(mutex_);
     auto robot = frames_.find(frame.robot);
     if (robot == frames_.end()) {
@@ -41,13 +46,19 @@ class AnswerRecord {
       robot = frames_.emplace(frame.robot, std::deque<Entry>()).first;
     }
     std::deque<Entry>& entries = robot->second;
-    for (const Entry& entry : entries) {
+    for (Entry& entry : entries) {
       if (!entry.key.Matches(frame)) continue;
-      if (!entry.answer) return Seen::kInFlight;
+      if (!entry.answer) {
+        if (network != entry.network &&
+            std::find(entry.also.begin(), entry.also.end(), network) == entry.also.end()) {
+          entry.also.push_back(network);
+        }
+        return Seen::kInFlight;
+      }
       *answer = *entry.answer;
       return Seen::kAnswered;
     }
-    entries.push_back(Entry{Key::Of(frame), std::nullopt});
+    entries.push_back(Entry{Key::Of(frame), std::nullopt, network, {}});
     // Drop the oldest answered entries beyond the bound; frames in flight always stay.
     for (auto it = entries.begin(); entries.size() > per_robot_ && it != entries.end();) {
       it = it->answer ? entries.erase(it) : std::next(it);
@@ -55,27 +66,34 @@ class AnswerRecord {
     return Seen::kNew;
   }
 
-  // `frame` (recorded by Begin) was processed: keep its answer for duplicates.
-  void Finish(const frame_t& frame, const result_t& answer) {
+  // `frame` (recorded by Begin) was processed: keep its answer for duplicates. Returns the
+  // other networks copies of it came on while in flight, which are owed the answer too.
+  std::vector<size_t> Finish(const frame_t& frame, const result_t& answer) {
     std::lock_guard lock(mutex_);
     Entry* entry = Find(frame);
-    if (entry != nullptr) entry->answer = answer;
+    if (entry == nullptr) return {};
+    entry->answer = answer;
+    return std::move(entry->also);
   }
 
   // `frame` (recorded by Begin) was not processed (overloaded, shutting down): forget it, so that
-  // it is processed when it comes again.
-  void Forget(const frame_t& frame) {
+  // it is processed when it comes again. Returns the other networks copies of it came on, which
+  // are owed the refusal too.
+  std::vector<size_t> Forget(const frame_t& frame) {
     std::lock_guard lock(mutex_);
     const auto robot = frames_.find(frame.robot);
-    if (robot == frames_.end()) return;
+    if (robot == frames_.end()) return {};
+    std::vector<size_t> also;
     std::deque<Entry>& entries = robot->second;
     for (auto it = entries.begin(); it != entries.end(); ++it) {
       if (it->key.Matches(frame)) {
+        also = std::move(it->also);
         entries.erase(it);
         break;
       }
     }
     if (entries.empty()) frames_.erase(robot);
+    return also;
   }
 
  private:
@@ -96,6 +114,8 @@ class AnswerRecord {
   struct Entry {
     Key key;
     std::optional<result_t> answer;  // empty while in flight
+    size_t network = 0;              // the network the frame came on
+    std::vector<size_t> also;        // other networks copies came on while in flight
   };
 
   Entry* Find(const frame_t& frame) {

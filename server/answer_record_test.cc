@@ -3,6 +3,7 @@
 #include "server/answer_record.h"
 
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -73,6 +74,30 @@ TEST(AnswerRecordTest, AFrameNotProcessedIsForgotten) {
   EXPECT_EQ(record.Begin(frame, &answer), AnswerRecord::Seen::kNew);
   record.Forget(frame);
   EXPECT_EQ(record.Begin(frame, &answer), AnswerRecord::Seen::kNew);
+}
+
+// A copy that comes on another of the server's networks while the frame is in flight (a device
+// on the robot LAN and the TCP hub at once, or one that moved) was dropped, and the answer went
+// only to the original's network. Now the answer (or the refusal) is owed there too, once.
+TEST(AnswerRecordTest, CopiesOnOtherNetworksAreOwedTheAnswer) {
+  AnswerRecord record;
+  result_t answer;
+  const frame_t frame = Frame("a", 7, 3);
+  EXPECT_EQ(record.Begin(frame, &answer, 0), AnswerRecord::Seen::kNew);
+  EXPECT_EQ(record.Begin(frame, &answer, 0), AnswerRecord::Seen::kInFlight);
+  EXPECT_EQ(record.Begin(frame, &answer, 2), AnswerRecord::Seen::kInFlight);
+  EXPECT_EQ(record.Begin(frame, &answer, 2), AnswerRecord::Seen::kInFlight);
+  EXPECT_EQ(record.Begin(frame, &answer, 1), AnswerRecord::Seen::kInFlight);
+  EXPECT_EQ(record.Finish(frame, Answer(42)), (std::vector<size_t>{2, 1}));
+  // Answered: a later copy gets the answer again wherever it comes from, and owes nothing.
+  ASSERT_EQ(record.Begin(frame, &answer, 1), AnswerRecord::Seen::kAnswered);
+  EXPECT_EQ(answer.place_id, 42);
+
+  const frame_t refused = Frame("a", 8, 4);
+  EXPECT_EQ(record.Begin(refused, &answer, 1), AnswerRecord::Seen::kNew);
+  EXPECT_EQ(record.Begin(refused, &answer, 0), AnswerRecord::Seen::kInFlight);
+  EXPECT_EQ(record.Forget(refused), (std::vector<size_t>{0}));
+  EXPECT_TRUE(record.Forget(refused).empty());
 }
 
 TEST(AnswerRecordTest, KeepsTheLastFramesPerRobotAndFramesInFlight) {

@@ -459,10 +459,11 @@ void Server::OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer,
   const SigningKey* key = job.key ? &*job.key : nullptr;
   stats_.SawRobot(job.frame.robot);
   result_t recorded;
-  switch (answers_.Begin(job.frame, &recorded)) {
+  switch (answers_.Begin(job.frame, &recorded, network)) {
     case AnswerRecord::Seen::kInFlight:
       VLOG(1) << "frame " << job.frame.sequence << " of robot '" << job.frame.robot
-              << "' sent again while it is processed; its answer is on its way";
+              << "' sent again while it is processed; its answer is on its way (on this "
+              << "network too)";
       return;
     case AnswerRecord::Seen::kAnswered:
       VLOG(1) << "frame " << job.frame.sequence << " of robot '" << job.frame.robot
@@ -477,7 +478,7 @@ void Server::OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer,
   key = sender ? &*sender : nullptr;
   LaneWorkQueue<Job>::PushResult pushed = queue_->Push(robot, &job);
   if (pushed.evicted) {
-    answers_.Forget(pushed.evicted->frame);
+    const std::vector<size_t> also = answers_.Forget(pushed.evicted->frame);
     // The queue was full and `robot` held less than its share: the robot holding the most gave
     // way with its newest frame.
     result_t answer = AnswerTemplate(pushed.evicted->frame);
@@ -489,11 +490,15 @@ void Server::OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer,
                  "' waited, so its newest frame gave way; it was not processed, send it again "
                  "later",
              &answer);
-    Publish(&answer, false, pushed.evicted->network,
-            pushed.evicted->key ? &*pushed.evicted->key : nullptr);
+    const SigningKey* evicted_key = pushed.evicted->key ? &*pushed.evicted->key : nullptr;
+    for (const size_t copy : also) {
+      result_t told = answer;
+      Publish(&told, false, copy, evicted_key);
+    }
+    Publish(&answer, false, pushed.evicted->network, evicted_key);
   }
   if (!pushed.queued) {
-    answers_.Forget(job.frame);
+    const std::vector<size_t> also = answers_.Forget(job.frame);
     result_t answer = AnswerTemplate(job.frame);
     if (pushed.stopped) {
       SetError(result_t::STATUS_SHUTTING_DOWN,
@@ -505,6 +510,10 @@ void Server::OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer,
                    " of them this robot's, its share while other robots wait); the frame was "
                    "not processed, send it again later",
                &answer);
+    }
+    for (const size_t copy : also) {
+      result_t told = answer;
+      Publish(&told, false, copy, key);
     }
     Publish(&answer, false, network, key);
   }
@@ -540,7 +549,12 @@ void Server::Work(Job& job) {
     LOG(WARNING) << "frame " << job.frame.sequence << " of robot '" << job.frame.robot
                  << "': " << WireStatusName(answer.status) << ": " << answer.message;
   }
-  answers_.Finish(job.frame, answer);
+  const std::vector<size_t> also = answers_.Finish(job.frame, answer);
+  // Copies of the frame that came on other networks while it ran get the answer there.
+  for (const size_t copy : also) {
+    result_t told = answer;
+    Publish(&told, false, copy, job.key ? &*job.key : nullptr);
+  }
   Publish(&answer, true, job.network, job.key ? &*job.key : nullptr);
   for (change_t& alarm : alarms) PublishAlarm(&alarm);
 }
