@@ -71,7 +71,7 @@ class GatewayTest : public ::testing::Test {
     dir_ = MakeTempDir("placerec_gateway_");
     ASSERT_FALSE(dir_.empty());
     const std::string make_cert = std::string(PLACEREC_SOURCE_DIR) + "/scripts/make-cert.sh";
-    ASSERT_EQ(std::system(("bash " + make_cert + " " + dir_ + " >/dev/null").c_str()), 0);
+    ASSERT_EQ(std::system(("bash '" + make_cert + "' '" + dir_ + "' >/dev/null").c_str()), 0);
     std::ofstream(dir_ + "/tokens") << "# test devices\n"
                                     << kToken << " phone-1\n"
                                     << kOtherToken << " phone-2\n"

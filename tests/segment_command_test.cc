@@ -40,8 +40,8 @@ struct Command {
 Command RunSegment(const std::string& dataset, const std::string& out,
                    const std::string& extra = "") {
   const std::string log = out + ".log";
-  const std::string command = std::string(PLACEREC_BINARY_DIR) +
-                              "/bin/placerec-eval segment --quiet --baseline 0 --overlays 1 "
+  const std::string command = "'" + std::string(PLACEREC_BINARY_DIR) +
+                              "/bin/placerec-eval' segment --quiet --baseline 0 --overlays 1 "
                               "--dataset '" +
                               dataset + "' --out '" + out + "' " + extra + " > '" + log + "' 2>&1";
   const int rc = std::system(command.c_str());

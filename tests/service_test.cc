@@ -1534,7 +1534,7 @@ TEST(ServiceCommandLineTest, HelpAndErrors) {
   auto run = [&](const std::vector<std::string>& argv, const std::string& env = "") {
     std::string command = env;
     for (const std::string& a : argv) command += " '" + a + "'";
-    command += " > " + dir + "/out.txt 2>&1";
+    command += " > '" + dir + "/out.txt' 2>&1";
     const int rc = std::system(command.c_str());
     return std::make_pair(WIFEXITED(rc) ? WEXITSTATUS(rc) : -1,
                           testing_service::ReadTextFile(dir + "/out.txt"));

@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <future>
 #include <limits>
@@ -118,7 +119,7 @@ class MapFile {
     CHECK(mkdtemp(pattern.data()) != nullptr);
     dir_ = pattern;
   }
-  ~MapFile() { std::system(("rm -rf " + dir_).c_str()); }
+  ~MapFile() { std::filesystem::remove_all(dir_); }
   std::string path() const { return dir_ + "/map.db"; }
 
  private:

@@ -10,6 +10,8 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <deque>
+#include <fstream>
 #include <memory>
 #include <string>
 
@@ -68,8 +70,9 @@ class TestCluster {
           "scripts/install-deps.sh)");
     }
     if (code != 0) {
+      // The log goes with the cluster (below): what it said comes along in the message.
       return Status::Internal("scripts/pg.sh start " + cluster->dir_ + " failed (exit code " +
-                              std::to_string(code) + "); see " + cluster->dir_ + ".log");
+                              std::to_string(code) + "); it said:\n" + cluster->LogTail(30));
     }
     return cluster;
   }
@@ -99,6 +102,18 @@ class TestCluster {
  private:
   TestCluster(std::string script, std::string dir)
       : script_(std::move(script)), dir_(std::move(dir)) {}
+  // The last `lines` lines of DIR.log.
+  std::string LogTail(size_t lines) const {
+    std::ifstream in(dir_ + ".log");
+    std::deque<std::string> tail;
+    for (std::string line; std::getline(in, line);) {
+      tail.push_back(line);
+      if (tail.size() > lines) tail.pop_front();
+    }
+    std::string text;
+    for (const std::string& line : tail) text += line + "\n";
+    return text;
+  }
   // Runs scripts/pg.sh COMMAND DIR, output to DIR.log; its exit code.
   int Run(const std::string& command) const {
     const std::string line =
