@@ -1,7 +1,17 @@
 #!/usr/bin/env bash
 # Checks that every C++ file in the repository is clang-format clean (.clang-format: Google
 # style, 100 columns). Lists the files that are not and exits 1; `clang-format -i FILE` fixes one.
+# Usage: scripts/check-format.sh   (changes no file)
 set -euo pipefail
+
+usage() {
+  sed -n '2,4p' "$0" | sed 's/^# \{0,1\}//'
+}
+
+if [ "${1:-}" = "--help" ] || [ "${1:-}" = "-h" ]; then
+  usage
+  exit 0
+fi
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
 command -v clang-format >/dev/null || { echo "check-format: clang-format is missing (scripts/install-deps.sh installs it)" >&2; exit 1; }

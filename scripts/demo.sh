@@ -8,20 +8,31 @@
 # Frames are signed: the demo makes a fresh key for the robots (out/demo/keys, mode 600) and gives
 # it to server (--keys) and client (--key-file).
 # Output: out/demo/answers.csv, summary.json, pr_curve.png, map.db, keys, server.log.
+# Usage: scripts/demo.sh [placerec-client run options...]
 # Extra arguments go to `placerec-client run` (e.g. --max-frames 40). Set PLACEREC_DATA when the
-# data is not at ../shared/data.
+# data is not at ../shared/data; BUILD_DIR when the build is not in build/.
 set -euo pipefail
+
+usage() {
+  sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'
+}
+
+if [ "${1:-}" = "--help" ] || [ "${1:-}" = "-h" ]; then
+  usage
+  exit 0
+fi
 root=$(cd "$(dirname "$0")/.." && pwd)
 build_dir=${BUILD_DIR:-$root/build}
 data=${PLACEREC_DATA:-$root/../shared/data}
 
 source "$root/scripts/service.sh"
 if [ -z "${PLACEREC_SERVICE_STAGE:-}" ]; then
-  bash "$root/scripts/build.sh"
+  # The data first: a missing folder is reported before minutes of installing and building.
   if [ ! -f "$data/gardens_point/runs/day_left_then_day_right.frames.csv" ]; then
     echo "demo: $data/gardens_point is missing; set PLACEREC_DATA to the folder holding gardens_point/" >&2
     exit 1
   fi
+  bash "$root/scripts/build.sh"
 fi
 service_stage demo "$@"
 

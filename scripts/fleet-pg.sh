@@ -16,8 +16,9 @@
 # was down are answered when their resend reaches the restarted server, or refused (bad
 # request: a robot's sequence must increase) when a newer frame of the robot got there first.
 # Runs as root in a private network namespace of its own (unshare -n: LCM multicast on loopback
-# only). Binaries from ${BUILD_DIR:-build}/bin. Writes OUT/fleet.json and acknowledged.csv
-# (placerec-client fleet), OUT/server*.log, OUT/probe*.txt, OUT/probes.txt.
+# only). Binaries from ${BUILD_DIR:-build}/bin; data from ${PLACEREC_DATA:-../shared/data} (its
+# rtabmap_indoor/). Writes OUT/fleet.json and acknowledged.csv (placerec-client fleet),
+# OUT/server*.log, OUT/probe*.txt, OUT/probes.txt.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 
@@ -29,6 +30,17 @@ fi
 servers=$1 robots=$2 rate=$3 duration=$4 out=$5 workers=${6:-2} kill_after=${7:-0}
 case "$kill_after" in '' | *[!0-9]*) echo "fleet-pg: KILL_AFTER must be whole seconds" >&2; exit 2 ;; esac
 bin=${BUILD_DIR:-$root/build}/bin
+# The data as placerec-client finds it (common/util/paths.cc): PLACEREC_DATA when set and not
+# empty, else ../shared/data beside the repository. Checked before anything starts; exported as an
+# absolute path so that the fleet client and the probes read the same folder.
+data=${PLACEREC_DATA:-$root/../shared/data}
+if [ ! -f "$data/rtabmap_indoor/runs/corridor_loop.frames.csv" ]; then
+  echo "fleet-pg: no rtabmap_indoor/runs/corridor_loop.frames.csv under $data; set PLACEREC_DATA" \
+    "to the folder holding rtabmap_indoor/ (default ../shared/data beside the repository)" >&2
+  exit 1
+fi
+PLACEREC_DATA=$(cd "$data" && pwd)
+export PLACEREC_DATA
 
 if [ -z "${PLACEREC_FLEET_NETNS:-}" ]; then
   [ "$(id -u)" -eq 0 ] || { echo "fleet-pg: run as root (private network namespace)" >&2; exit 1; }
@@ -129,7 +141,7 @@ if [ "$kill_after" -gt 0 ]; then
 fi
 
 # Probes: every 8th frame of the run, asked through each server and a server started now.
-dataset=$(cd "$root/../shared/data/rtabmap_indoor" 2>/dev/null && pwd || echo "${PLACEREC_DATA:-}/rtabmap_indoor")
+dataset=$PLACEREC_DATA/rtabmap_indoor
 images=()
 while IFS=, read -r frame _ image _; do
   [ "$frame" = frame ] && continue

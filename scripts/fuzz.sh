@@ -4,8 +4,19 @@
 # committed seed corpus (tests/fuzz/corpus/<target>). Prints each target's executions, and any
 # crash with the input that caused it (saved under build-fuzz/fuzz/findings/<target>/). Exits 1
 # when a target crashed. Usage: scripts/fuzz.sh [SECONDS] [TARGET...] (targets: frame image map);
-# scripts/fuzz.sh --seeds rewrites the seed corpus.
+# scripts/fuzz.sh --seeds rewrites the seed corpus. Installs missing packages first
+# (scripts/install-deps.sh). Environment: FUZZ_BUILD_DIR (default build-fuzz), JOBS (build jobs,
+# default: number of cores).
 set -euo pipefail
+
+usage() {
+  sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'
+}
+
+if [ "${1:-}" = "--help" ] || [ "${1:-}" = "-h" ]; then
+  usage
+  exit 0
+fi
 root=$(cd "$(dirname "$0")/.." && pwd)
 build_dir=${FUZZ_BUILD_DIR:-$root/build-fuzz}
 jobs=${JOBS:-$(nproc)}

@@ -1,7 +1,17 @@
 #!/usr/bin/env bash
 # Installs every Debian package placerec needs to build, test and run. Safe to run twice:
 # packages already present are left alone and apt is only called when something is missing.
+# Usage: scripts/install-deps.sh   (as root, or through sudo when not root)
 set -euo pipefail
+
+usage() {
+  sed -n '2,4p' "$0" | sed 's/^# \{0,1\}//'
+}
+
+if [ "${1:-}" = "--help" ] || [ "${1:-}" = "-h" ]; then
+  usage
+  exit 0
+fi
 
 packages=(
   build-essential cmake pkg-config git ca-certificates

@@ -8,7 +8,8 @@
 #
 #   scripts/lcm-hub.sh start PORT   start it in the background, wait until it accepts
 #                                   connections; pid in $LCM_HUB_DIR/lcm-hub-PORT.pid, log beside
-#   scripts/lcm-hub.sh stop PORT    stop the hub started by `start PORT`
+#   scripts/lcm-hub.sh stop PORT    stop the hub started by `start PORT` (SIGTERM; SIGKILL when it
+#                                   is still alive 5 s later; exit 1 when even that fails)
 #   scripts/lcm-hub.sh status PORT  exit 0 when the hub started by `start PORT` runs
 #   scripts/lcm-hub.sh run PORT     run it in the foreground (tests; Ctrl-C stops it)
 #
@@ -16,7 +17,7 @@
 set -euo pipefail
 
 usage() {
-  sed -n '2,17p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'
 }
 
 if [ $# -lt 1 ] || [ "$1" = "--help" ] || [ "$1" = "-h" ]; then
@@ -51,8 +52,26 @@ accepting() {
   (exec 3<>"/dev/tcp/127.0.0.1/$port") 2>/dev/null
 }
 
+# Whether process $1 is a hub on this port: its command line holds lcm.lcm.TCPService PORT (a pid
+# alone may name another process by now, when the hub ended without removing its pid file).
+is_hub() {
+  local cmdline
+  [[ "${1:-}" =~ ^[0-9]+$ ]] || return 1
+  cmdline=$(tr '\0' ' ' 2>/dev/null <"/proc/$1/cmdline") || return 1
+  [[ " $cmdline " == *" lcm.lcm.TCPService $port "* ]]
+}
+
+# Whether the hub named by the pid file runs. A pid file naming no hub is stale: removed.
 running() {
-  [ -f "$pid_file" ] && kill -0 "$(cat "$pid_file")" 2>/dev/null
+  local pid
+  [ -f "$pid_file" ] || return 1
+  pid=$(cat "$pid_file" 2>/dev/null || true)
+  if is_hub "$pid"; then
+    return 0
+  fi
+  echo "lcm-hub: removed the stale pid file $pid_file (pid ${pid:-none} is no hub on port $port)" >&2
+  rm -f "$pid_file"
+  return 1
 }
 
 case "$command" in
@@ -72,18 +91,20 @@ case "$command" in
     fi
     mkdir -p "$dir"
     nohup java -cp "$jar" lcm.lcm.TCPService "$port" >"$log_file" 2>&1 &
-    echo $! >"$pid_file"
+    pid=$!
+    echo "$pid" >"$pid_file"
+    # Our own child: kill -0 (its command line is not java's yet right after the fork).
     for _ in $(seq 1 100); do
       if accepting; then
-        echo "lcm-hub: listening on port $port (pid $(cat "$pid_file"), log $log_file)"
+        echo "lcm-hub: listening on port $port (pid $pid, log $log_file)"
         exit 0
       fi
-      if ! running; then break; fi
+      if ! kill -0 "$pid" 2>/dev/null; then break; fi
       sleep 0.1
     done
     echo "lcm-hub: the hub did not start on port $port; its log ($log_file):" >&2
     cat "$log_file" >&2 || true
-    if running; then kill "$(cat "$pid_file")" || true; fi
+    kill "$pid" 2>/dev/null || true
     rm -f "$pid_file"
     exit 1
     ;;
@@ -94,11 +115,27 @@ case "$command" in
       exit 0
     fi
     pid=$(cat "$pid_file")
-    kill "$pid"
+    kill "$pid" 2>/dev/null || true
     for _ in $(seq 1 50); do
-      kill -0 "$pid" 2>/dev/null || break
+      is_hub "$pid" || break
       sleep 0.1
     done
+    if is_hub "$pid"; then
+      echo "lcm-hub: the hub (pid $pid, port $port) is still alive 5 s after SIGTERM; sending SIGKILL" >&2
+      kill -9 "$pid" 2>/dev/null || true
+      for _ in $(seq 1 20); do
+        is_hub "$pid" || break
+        sleep 0.1
+      done
+      if is_hub "$pid"; then
+        echo "lcm-hub: the hub (pid $pid, port $port) is still alive after SIGKILL; it may belong to" \
+          "another user (run as that user or root) or hang in the kernel (see ps -o stat,wchan -p $pid)" >&2
+        exit 1
+      fi
+      rm -f "$pid_file"
+      echo "lcm-hub: stopped with SIGKILL (port $port)"
+      exit 0
+    fi
     rm -f "$pid_file"
     echo "lcm-hub: stopped (port $port)"
     ;;

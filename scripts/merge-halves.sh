@@ -14,10 +14,22 @@
 # second pass whose answer differs, both answers (each run against the single run, then merged
 # and split against restart); OUT/compare.txt keeps them.
 #
+# DATASET is a folder, or a name under ${PLACEREC_DATA:-../shared/data}. Needs build/bin (build
+# first: bash scripts/build.sh).
+#
 #   bash scripts/merge-halves.sh DATASET RUN OUT [placerec-eval run options...]
 #   bash scripts/merge-halves.sh rtabmap_indoor corridor_loop out/merge_corridor
 set -euo pipefail
-[ $# -ge 3 ] || { sed -n 2,15p "$0" | sed 's/^# \{0,1\}//'; exit 2; }
+
+usage() {
+  sed -n '2,21p' "$0" | sed 's/^# \{0,1\}//'
+}
+
+if [ "${1:-}" = "--help" ] || [ "${1:-}" = "-h" ]; then
+  usage
+  exit 0
+fi
+[ $# -ge 3 ] || { usage; exit 2; }
 root=$(cd "$(dirname "$0")/.." && pwd)
 dataset=$1 run=$2 out=$3
 shift 3

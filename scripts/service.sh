@@ -1,7 +1,14 @@
 # Sourced by the scripts that run a placerec-server beside its clients (demo.sh, workers.sh,
 # watch-changes.sh, fleet-pg.sh): running in a private network (or on the host's loopback), a
 # server started and awaited, a process stopped. Expects $client (placerec-client) and $url (LCM
-# URL) where it says so.
+# URL) where it says so. Not a command: `source "$root/scripts/service.sh"` in such a script.
+
+# Run on its own (e.g. with --help): this text, and nothing done.
+if [ "${BASH_SOURCE[0]}" = "$0" ]; then
+  sed -n '1,4p' "$0" | sed 's/^# \{0,1\}//'
+  case "${1:-}" in --help | -h) exit 0 ;; esac
+  exit 2
+fi
 
 # service_stage NAME ARG...: the second stage of a script that runs a server. The first run
 # (PLACEREC_SERVICE_STAGE unset) re-runs the script with ARG...: as root in a private network
@@ -31,7 +38,8 @@ service_private_network() {
 }
 
 # service_start_server LOG ARG...: starts placerec-server ARG... (stderr to LOG), sets
-# server_pid and waits until it answers `placerec-client status` on $url (60 s at most).
+# server_pid and waits until it answers `placerec-client status` on $url: 30 tries 1 s apart, each
+# waiting up to 2 s for the answer (30 to 90 s in all).
 # Returns 1, with the log's tail, when it does not come up.
 service_start_server() {
   local log=$1
@@ -43,6 +51,8 @@ service_start_server() {
       return 0
     fi
     kill -0 "$server_pid" 2>/dev/null || break
+    # A status that fails at once (no server subscribed yet) must not use up the tries.
+    sleep 1
   done
   echo "placerec-server did not come up; see $log" >&2
   tail -n 20 "$log" >&2

@@ -5,7 +5,18 @@
 # OUT/soak.json (frames, answers by status, restart time, acknowledged places and any lost,
 # latency per phase, memory) and OUT/memory.csv. Needs root (private network and mount
 # namespaces) and ../shared/data. Usage: scripts/soak.sh [SECONDS] [OUT] (OUT default soak-out).
+# Builds first (scripts/build.sh). Environment: BUILD_DIR (default build), PLACEREC_DATA (the data
+# when not at ../shared/data).
 set -euo pipefail
+
+usage() {
+  sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'
+}
+
+if [ "${1:-}" = "--help" ] || [ "${1:-}" = "-h" ]; then
+  usage
+  exit 0
+fi
 root=$(cd "$(dirname "$0")/.." && pwd)
 build_dir=${BUILD_DIR:-$root/build}
 seconds=${1:-1800}

@@ -10,17 +10,27 @@
 # Usage: bash scripts/watch-changes.sh [DATASET RUN]   (default: rtabmap_indoor corridor_loop)
 # Output in out/watch-changes/RUN: offline/change.json, run/ (the changed run), alarms/ (what
 # watch saved), client/ (answers), alarms.json (the live scores), server.log.
-# Set PLACEREC_DATA when the data is not at ../shared/data; CHANGE_OPTIONS (e.g.
-# "--change-sensitivity 0.7") is given to both the offline pass and the server.
+# Set PLACEREC_DATA when the data is not at ../shared/data, BUILD_DIR when the build is not in
+# build/; CHANGE_OPTIONS (e.g. "--change-sensitivity 0.7") is given to both the offline pass and
+# the server.
 set -euo pipefail
+
+usage() {
+  sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'
+}
+
+if [ "${1:-}" = "-h" ] || [ "${1:-}" = "--help" ]; then
+  usage
+  exit 0
+fi
+if [ "$#" -gt 2 ]; then
+  usage
+  exit 2
+fi
 root=$(cd "$(dirname "$0")/.." && pwd)
 build_dir=${BUILD_DIR:-$root/build}
 dataset=${1:-rtabmap_indoor}
 run=${2:-corridor_loop}
-if [ "$#" -gt 2 ] || [ "${1:-}" = "-h" ] || [ "${1:-}" = "--help" ]; then
-  sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'
-  exit 2
-fi
 out=$root/out/watch-changes/$run
 read -r -a change_options <<< "${CHANGE_OPTIONS:-}"
 

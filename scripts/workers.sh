@@ -13,17 +13,27 @@
 #                    right's frames meet more or fewer of left's places depending on the
 #                    interleaving (the two runs may do different work; compare at equal cost).
 #
-# WORKERS_SERVER_FLAGS adds flags to both servers (e.g. "--opencv-threads 0").
+# WORKERS_SERVER_FLAGS adds flags to both servers (e.g. "--opencv-threads 0"). PLACEREC_DATA: the
+# data when not at ../shared/data; BUILD_DIR: the build (default build; build it first).
 #
 #   bash scripts/workers.sh [FRAMES] [OUT]      (default all frames, out/workers)
 set -euo pipefail
+
+usage() {
+  sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'
+}
+
+if [ "${1:-}" = "--help" ] || [ "${1:-}" = "-h" ]; then
+  usage
+  exit 0
+fi
 root=$(cd "$(dirname "$0")/.." && pwd)
 build_dir=${BUILD_DIR:-$root/build}
 data=${PLACEREC_DATA:-$root/../shared/data}
 frames=${1:-0}
 out=${2:-$root/out/workers}
 routes=${WORKERS_ROUTES:-apart}
-case "$frames" in '' | *[!0-9]*) echo "workers: FRAMES must be a number" >&2; exit 2 ;; esac
+case "$frames" in '' | *[!0-9]*) echo "workers: FRAMES must be a number (see --help)" >&2; exit 2 ;; esac
 case "$routes" in
   apart) first_robot_frames=100 ;;
   crossing) first_robot_frames=200 ;;
