@@ -172,8 +172,9 @@ std::vector<bool> ConsistentOrientation(const std::vector<double>& changes, doub
   constexpr int kBins = 36;
   std::vector<double> histogram(kBins, 0.0);
   for (const double change : changes) {
+    if (!std::isfinite(change)) continue;                   // no direction: inconsistent (below)
     const double d = AngleDifference(change, 0.0) + 180.0;  // [0, 360)
-    histogram[static_cast<int>(d / 10.0) % kBins] += 1.0;
+    histogram[std::clamp(static_cast<int>(d / 10.0), 0, kBins - 1)] += 1.0;
   }
   int peak = 0;
   double best = -1;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <climits>
+#include <cmath>
 #include <cstdlib>
 #include <iterator>
 #include <limits>
@@ -24,8 +25,8 @@ bool LandmarkIndexOptions::Check(std::string* error) const {
     *error = "index count_range_low must be in [0, 1]";
     return false;
   }
-  if (count_range_high < 1) {
-    *error = "index count_range_high must be at least 1";
+  if (!(count_range_high >= 1) || !std::isfinite(count_range_high)) {
+    *error = "index count_range_high must be at least 1 and finite";
     return false;
   }
   return colour.Check(error) && matching.Check(error) && flann.Check(error);
@@ -44,9 +45,7 @@ void LandmarkIndex::Add(Landmark&& landmark) {
   const int32_t slot = static_cast<int32_t>(landmarks_.size());
   landmarks_.push_back(std::move(landmark));
   const Landmark& stored = landmarks_.back();
-  const auto id = static_cast<size_t>(stored.id.value());
-  if (slot_of_id_.size() <= id) slot_of_id_.resize(id + 1, -1);
-  slot_of_id_[id] = slot;
+  slot_of_id_[stored.id.value()] = slot;
   by_count_.Insert(stored.sift_count, slot);
   slots_of_place_[stored.place].push_back(slot);
   descriptors_.Add(slot, stored.descriptors);
@@ -103,8 +102,8 @@ std::vector<PlaceId> LandmarkIndex::VoteNeighbours(
 }
 
 int32_t LandmarkIndex::SlotOf(LandmarkId id) const {
-  if (!id.IsValid() || static_cast<size_t>(id.value()) >= slot_of_id_.size()) return -1;
-  return slot_of_id_[id.value()];
+  const auto it = slot_of_id_.find(id.value());
+  return it == slot_of_id_.end() ? -1 : it->second;
 }
 
 std::vector<int32_t> LandmarkIndex::SlotsOfPlace(PlaceId place) const {

@@ -176,7 +176,9 @@ class LandmarkIndex {
   };
   LandmarkIndexOptions options_;
   std::vector<Landmark> landmarks_;
-  std::vector<int32_t> slot_of_id_;  // landmark id -> slot, -1 where absent
+  // Landmark id -> slot. Not a vector by id: ids need not be dense (a pruned map, a PostgreSQL
+  // sequence moved on), and one large id would size it.
+  std::unordered_map<int64_t, int32_t> slot_of_id_;
   std::unordered_map<PlaceId, std::vector<int32_t>> slots_of_place_;
   std::unordered_map<PlaceId, PlaceInfo> place_info_;
   std::set<std::tuple<int, int64_t, int64_t>> place_by_time_;  // (robot, utime, place id)

@@ -1,6 +1,7 @@
 // Tests of the landmark index (landmark_index.h; seed §5.6): retrieval of stored objects through
 // the texture range and the colour filter, object-level and place-level matches, distinctive
 // votes, slots and counts, with both searches where they must agree.
+#include <limits>
 #include <memory>
 #include <random>
 #include <set>
@@ -98,6 +99,8 @@ TEST(LandmarkIndexOptionsTest, DefaultsPassAndBadValuesAreNamed) {
   bad.count_range_high = 0.5;
   EXPECT_FALSE(bad.Check(&error));
   EXPECT_NE(error.find("count_range_high"), std::string::npos) << error;
+  bad.count_range_high = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(bad.Check(&error));
   bad = LandmarkIndexOptions();
   bad.matching.ratio = 1.5;
   EXPECT_FALSE(bad.Check(&error));
@@ -129,6 +132,28 @@ TEST(LandmarkIndexSlotsTest, SlotsFollowInsertionAndUnknownIdsHaveNone) {
   EXPECT_EQ(index.SlotOf(LandmarkId(5)), -1);    // between the two
   EXPECT_EQ(index.SlotOf(LandmarkId(100)), -1);  // beyond every id
   EXPECT_EQ(index.SlotOf(LandmarkId()), -1);     // the invalid id
+  // Ids need not be dense: one of 2^42 (a PostgreSQL sequence moved on) sized a vector by id,
+  // and opening such a map ended in std::bad_alloc.
+  index.Add(MakeLandmark(int64_t{1} << 42, 1, RandomDescriptors(10, &rng), 10));
+  EXPECT_EQ(index.SlotOf(LandmarkId(int64_t{1} << 42)), 2);
+  EXPECT_EQ(index.SlotOf(LandmarkId((int64_t{1} << 42) - 1)), -1);
+}
+
+// A large upper texture factor (meant as "no upper limit") overflowed the key range to nothing:
+// no landmark was a candidate. The range is clamped to int's.
+TEST(LandmarkIndexCandidatesTest, AHugeUpperTextureFactorStillFindsTheLandmark) {
+  std::mt19937 rng(23);
+  LandmarkIndexOptions options;
+  options.count_range_high = 1e9;
+  std::string error;
+  ASSERT_TRUE(options.Check(&error)) << error;
+  LandmarkIndex index{options};
+  index.AddPlace({PlaceId(1), "robot", 0, 0, 1});
+  const cv::Mat descriptors = RandomDescriptors(30, &rng);
+  index.Add(MakeLandmark(1, 1, descriptors, 30));
+  IndexQuery query{30, ColourSignature(), descriptors};
+  const std::vector<int32_t> candidates = index.Candidates(query);
+  EXPECT_EQ(candidates, std::vector<int32_t>{0});
 }
 
 // Candidates (seed §5.6): SIFT counts in [2n/3, 4n/3], both ends included, and a compatible

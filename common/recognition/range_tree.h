@@ -4,8 +4,10 @@
 // the seed's linked leaves, and the values of one count sit together in a vector.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <limits>
 #include <map>
 #include <vector>
 
@@ -44,9 +46,14 @@ class RangeTree {
 };
 
 // The key range a query object with `count` keypoints looks at (seed §5.6: about [2n/3, 4n/3]).
+// Ends beyond int's range are clamped to it.
 inline void CountRange(int count, double low_factor, double high_factor, int* lo, int* hi) {
-  *lo = static_cast<int>(std::floor(count * low_factor));
-  *hi = static_cast<int>(std::ceil(count * high_factor));
+  const auto clamped = [](double value) {
+    return static_cast<int>(std::clamp(value, static_cast<double>(std::numeric_limits<int>::min()),
+                                       static_cast<double>(std::numeric_limits<int>::max())));
+  };
+  *lo = clamped(std::floor(count * low_factor));
+  *hi = clamped(std::ceil(count * high_factor));
 }
 
 }  // namespace placerec

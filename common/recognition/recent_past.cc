@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <numeric>
+#include <string>
 
 #include "common/features/features.h"
 #include "common/recognition/descriptor_matching.h"
+#include "common/recognition/types.h"
 #include "common/util/logging.h"
 
 namespace placerec {
@@ -17,8 +19,10 @@ constexpr double kOrientationTolerance = 20.0;
 }  // namespace
 
 bool RecentPastOptions::Check(std::string* error) const {
-  if (min_gap_seconds < 0 || away_seconds < 0) {
-    *error = "recent past min_gap_seconds and away_seconds must be >= 0";
+  if (!(min_gap_seconds >= 0 && min_gap_seconds <= kMaxWindowSeconds) ||
+      !(away_seconds >= 0 && away_seconds <= kMaxWindowSeconds)) {
+    *error = "recent past min_gap_seconds and away_seconds must be in [0, " +
+             std::to_string(static_cast<int>(kMaxWindowSeconds)) + "] (a day)";
     return false;
   }
   if (descriptors_per_frame < 1 || min_matches_seen < 1) {

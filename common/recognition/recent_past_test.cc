@@ -1,5 +1,6 @@
 #include "common/recognition/recent_past.h"
 
+#include <limits>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -62,6 +63,17 @@ TEST(RecentPastTest, DefaultsPassAndBadValuesFail) {
   bad = RecentPastOptions();
   bad.min_gap_seconds = -1;
   EXPECT_FALSE(bad.Check(&error));
+  // Taken in microseconds: 1e13 s ("never my own places") overflowed to "every own place",
+  // and NaN passed.
+  for (const double seconds :
+       {1e13, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    bad = RecentPastOptions();
+    bad.min_gap_seconds = seconds;
+    EXPECT_FALSE(bad.Check(&error)) << seconds;
+    bad = RecentPastOptions();
+    bad.away_seconds = seconds;
+    EXPECT_FALSE(bad.Check(&error)) << seconds;
+  }
 }
 
 TEST(RecentPastTest, MatchesCountOnlyConsistentlyTurnedFeatures) {

@@ -2,6 +2,7 @@
 // descriptor index, the range tree, the colour filter and landmark selection. The landmark index
 // and the loop decision have their own tests (landmark_index_test.cc, loop_decision_test.cc).
 #include <algorithm>
+#include <limits>
 #include <random>
 #include <utility>
 #include <vector>
@@ -219,6 +220,19 @@ TEST(RangeTreeTest, CountRangeFollowsTheSeed) {
   CountRange(30, 2.0 / 3.0, 4.0 / 3.0, &lo, &hi);  // seed §5.6: 30 keypoints -> 20..40
   EXPECT_EQ(lo, 20);
   EXPECT_EQ(hi, 40);
+  // Beyond int's range: clamped (was undefined; INT_MIN in practice, an empty range).
+  CountRange(3, 2.0 / 3.0, 1e9, &lo, &hi);
+  EXPECT_EQ(lo, 2);
+  EXPECT_EQ(hi, std::numeric_limits<int>::max());
+}
+
+// A stored keypoint angle that is NaN or infinite (a damaged map) indexed outside the orientation
+// histogram; such a change now counts as inconsistent and the others are judged as before.
+TEST(DescriptorMatchingTest, AnOrientationChangeThatIsNoNumberIsInconsistent) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const double inf = std::numeric_limits<double>::infinity();
+  const std::vector<bool> kept = ConsistentOrientation({10, 12, nan, 11, inf, -inf, 170}, 20);
+  EXPECT_EQ(kept, (std::vector<bool>{true, true, false, true, false, false, false}));
 }
 
 TEST(ColourFilterTest, SeedRules) {

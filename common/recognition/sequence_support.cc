@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
+
+#include "common/recognition/types.h"
 
 namespace placerec {
 
@@ -10,12 +13,15 @@ bool SequenceOptions::Check(std::string* error) const {
     *error = "sequence frames must be in [0, 32] (0: every frame alone)";
     return false;
   }
-  if (!(min_spacing_seconds >= 0) || !(max_age_seconds > 0) || !std::isfinite(max_age_seconds)) {
-    *error = "sequence min_spacing_seconds must be >= 0 and max_age_seconds positive and finite";
+  const std::string day = std::to_string(static_cast<int>(kMaxWindowSeconds));
+  if (!(min_spacing_seconds >= 0 && min_spacing_seconds <= kMaxWindowSeconds) ||
+      !(max_age_seconds > 0 && max_age_seconds <= kMaxWindowSeconds)) {
+    *error = "sequence min_spacing_seconds must be in [0, " + day +
+             "] and max_age_seconds in (0, " + day + "] (a day)";
     return false;
   }
-  if (!(tolerance_seconds > 0) || !std::isfinite(tolerance_seconds)) {
-    *error = "sequence tolerance_seconds must be positive and finite";
+  if (!(tolerance_seconds > 0 && tolerance_seconds <= kMaxWindowSeconds)) {
+    *error = "sequence tolerance_seconds must be in (0, " + day + "] (a day)";
     return false;
   }
   if (places_kept < 1) {

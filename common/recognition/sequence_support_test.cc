@@ -1,5 +1,7 @@
 #include "common/recognition/sequence_support.h"
 
+#include <limits>
+
 #include <gtest/gtest.h>
 
 namespace placerec {
@@ -31,6 +33,16 @@ TEST(SequenceSupportTest, DefaultsPassAndBadValuesFail) {
   bad = SequenceOptions();
   bad.max_age_seconds = std::numeric_limits<double>::infinity();
   EXPECT_FALSE(bad.Check(&error));
+  // An infinite spacing gave a negative one in microseconds.
+  for (const double seconds :
+       {1e13, std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity()}) {
+    bad = SequenceOptions();
+    bad.min_spacing_seconds = seconds;
+    EXPECT_FALSE(bad.Check(&error)) << seconds;
+    bad = SequenceOptions();
+    bad.tolerance_seconds = seconds;
+    EXPECT_FALSE(bad.Check(&error)) << seconds;
+  }
 }
 
 TEST(SequenceSupportTest, FirstFrameKeepsItsScore) {

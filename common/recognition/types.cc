@@ -2,6 +2,8 @@
 
 #include <cctype>
 #include <climits>
+#include <cmath>
+#include <string>
 
 #include "common/features/features.h"
 
@@ -58,6 +60,14 @@ Status Landmark::Validate() const {
     return Status::InvalidArgument(std::to_string(keypoints.size()) + " keypoints for " +
                                    std::to_string(rows) +
                                    " descriptors; there must be one per descriptor");
+  }
+  for (size_t i = 0; i < keypoints.size(); ++i) {
+    const cv::KeyPoint& k = keypoints[i];
+    if (!std::isfinite(k.pt.x) || !std::isfinite(k.pt.y) || !std::isfinite(k.size) ||
+        !std::isfinite(k.angle)) {
+      return Status::InvalidArgument("keypoint " + std::to_string(i) +
+                                     " has a position, size or angle that is not a finite number");
+    }
   }
   if (sift_count < 0) {
     return Status::InvalidArgument("sift_count is negative (" + std::to_string(sift_count) + ")");

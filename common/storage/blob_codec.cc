@@ -1,5 +1,6 @@
 #include "common/storage/blob_codec.h"
 
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <string>
@@ -82,6 +83,13 @@ Status CheckLandmarkBlobs(const EncodedLandmark& encoded) {
     return Status::IoError("keypoints holds " + std::to_string(encoded.keypoints.size) +
                            " bytes, " + std::to_string(n) + " keypoints need " +
                            std::to_string(n * kKeypointBytes));
+  }
+  // x, y, size and angle: a NaN angle would index outside the orientation histogram of matching.
+  for (size_t i = 0; i < n * kKeypointBytes; i += 4) {
+    if (!std::isfinite(ReadFloat(encoded.keypoints.data + i))) {
+      return Status::IoError("keypoint " + std::to_string(i / kKeypointBytes) +
+                             " holds a value that is not a finite number");
+    }
   }
   return Status::Ok();
 }

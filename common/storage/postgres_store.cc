@@ -246,11 +246,12 @@ Status ReadPlaceRow(const PGresult* result, int row, const std::string& store, P
 Status ReadLandmarkRow(const PGresult* result, int row, const std::string& store,
                        EncodedLandmark* out) {
   out->id = 0;
-  ReadInt(result, row, 0, 0, INT64_MAX, &out->id);
+  const bool id_read = ReadInt(result, row, 0, 1, INT64_MAX, &out->id);
   const auto corrupt = [&](const std::string& what) {
     return Status::IoError(store + ": landmark " + std::to_string(out->id) +
                            " is corrupt: " + what + "; " + kDamagedMapAdvice);
   };
+  if (!id_read) return corrupt("its id is missing or not positive");
   const struct {
     int column;
     const char* name;

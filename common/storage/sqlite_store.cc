@@ -111,6 +111,7 @@ Status ReadLandmarkRow(const SqliteStatement& row, const std::string& store, Enc
     return Status::IoError(store + ": landmark " + std::to_string(out->id) +
                            " is corrupt: " + what + "; " + kDamagedMapAdvice);
   };
+  if (out->id < 1) return corrupt("its id is not positive");
   const struct {
     int column;
     const char* name;
@@ -352,8 +353,9 @@ Status SqliteStore::ScanPlaces(const std::function<void(const Place&)>& visit) c
     int64_t num_landmarks = 0;
     int64_t image_width = 0;
     // Types first: reading a column as another type converts it.
-    if (select.ColumnType(1) != SQLITE_TEXT || select.ColumnType(2) != SQLITE_INTEGER ||
-        select.ColumnType(3) != SQLITE_INTEGER || !ReadInt(select, 4, 0, INT_MAX, &num_landmarks) ||
+    if (!place.id.IsValid() || select.ColumnType(1) != SQLITE_TEXT ||
+        select.ColumnType(2) != SQLITE_INTEGER || select.ColumnType(3) != SQLITE_INTEGER ||
+        !ReadInt(select, 4, 0, INT_MAX, &num_landmarks) ||
         !ReadInt(select, 5, 0, INT_MAX, &image_width)) {
       return Status::IoError(Describe() + ": place " + std::to_string(place.id.value()) +
                              " is corrupt: a field is missing or out of range");

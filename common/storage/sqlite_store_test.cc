@@ -529,6 +529,12 @@ TEST(SqliteStoreTest, DataSurvivesKilledProcess) {
   }
 }
 
+std::string Repeat(const std::string& text, int times) {
+  std::string repeated;
+  for (int i = 0; i < times; ++i) repeated += text;
+  return repeated;
+}
+
 TEST(SqliteStoreTest, DamagedLandmarkIsAnIoErrorNamingIt) {
   TempMap map("damaged");
   {
@@ -539,7 +545,7 @@ TEST(SqliteStoreTest, DamagedLandmarkIsAnIoErrorNamingIt) {
     ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
     ASSERT_EQ(landmarks[1].id.value(), 2);
   }
-  const char* const kDamage[] = {
+  const std::string kDamage[] = {
       "UPDATE landmarks SET descriptors = zeroblob(10) WHERE id = 2",
       "UPDATE landmarks SET keypoints = zeroblob(3) WHERE id = 2",
       "UPDATE landmarks SET colour_peaks = zeroblob(5) WHERE id = 2",
@@ -549,8 +555,10 @@ TEST(SqliteStoreTest, DamagedLandmarkIsAnIoErrorNamingIt) {
       "UPDATE landmarks SET object_class = X'00' WHERE id = 2",
       "UPDATE landmarks SET object_class = 'car', class_confidence = 2 WHERE id = 2",
       "UPDATE landmarks SET class_confidence = 'sure' WHERE id = 2",
+      // A NaN keypoint angle indexed outside the orientation histogram of matching.
+      "UPDATE landmarks SET keypoints = x'" + Repeat("0000c07f", 24) + "' WHERE id = 2",
   };
-  for (const char* damage : kDamage) {
+  for (const std::string& damage : kDamage) {
     SCOPED_TRACE(damage);
     TempMap copy("damaged_copy");
     {
@@ -558,7 +566,7 @@ TEST(SqliteStoreTest, DamagedLandmarkIsAnIoErrorNamingIt) {
       std::ofstream out(copy.path(), std::ios::binary);
       out << in.rdbuf();
     }
-    ExecSql(copy.path(), damage);
+    ExecSql(copy.path(), damage.c_str());
     std::unique_ptr<LandmarkStore> store = Open(copy.path());
     ASSERT_NE(store, nullptr);
     int visited = 0;
@@ -579,6 +587,41 @@ void CopyFile(const std::string& from, const std::string& to) {
   std::ifstream in(from, std::ios::binary);
   std::ofstream out(to, std::ios::binary);
   out << in.rdbuf();
+}
+
+// A map whose rows carry an id below 1 (no build writes one) was served until the index met it,
+// which aborted the server on a CHECK. Now the store refuses the row as damage.
+TEST(SqliteStoreTest, IdsBelowOneAreDamage) {
+  TempMap map("negative_ids");
+  {
+    std::unique_ptr<LandmarkStore> store = Open(map.path());
+    ASSERT_NE(store, nullptr);
+    Place place = MakePlace("r", 1);
+    std::vector<Landmark> landmarks = MakeLandmarks(0, 3, 6);
+    ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
+  }
+  {
+    TempMap copy("negative_landmark");
+    CopyFile(map.path(), copy.path());
+    ExecSql(copy.path(), "UPDATE landmarks SET id = -7 WHERE id = 2");
+    std::unique_ptr<LandmarkStore> store = Open(copy.path());
+    ASSERT_NE(store, nullptr);
+    const Status status = store->LoadLandmarks([](Landmark&&) {});
+    EXPECT_EQ(status.code(), StatusCode::kIoError);
+    EXPECT_TRUE(Contains(status.message(), "landmark -7 is corrupt")) << status.message();
+  }
+  {
+    TempMap copy("negative_place");
+    CopyFile(map.path(), copy.path());
+    ExecSql(copy.path(),
+            "INSERT INTO places(id, robot, sequence, utime, num_landmarks, image_width) "
+            "VALUES(-3, 'x', 9, 0, 0, 640)");
+    std::unique_ptr<LandmarkStore> store = Open(copy.path());
+    ASSERT_NE(store, nullptr);
+    const Status status = store->LoadPlaces([](const Place&) {});
+    EXPECT_EQ(status.code(), StatusCode::kIoError);
+    EXPECT_TRUE(Contains(status.message(), "place -3 is corrupt")) << status.message();
+  }
 }
 
 // A small stand-in for place p's thumbnail.
