@@ -149,6 +149,41 @@ TEST(FrameProcessorTest, RunsOfAtMostMaxRobotsAreKeptAndTheRobotSilentLongestIsF
   EXPECT_EQ(Sorted(processor.RobotsWithRuns()), (std::vector<std::string>{"b", "c"}));
 }
 
+// A robot that stands still while the server restarts (or forgets its run) kept sending the same
+// view; the new run's recent past was empty, so once its last place was older than the recent
+// past's minimum gap (20 s) that place answered it as a loop closure: its own recent past. Now
+// the robot's stored places of the last ten minutes are its views again. Without that
+// (resume_within_seconds 0, the old behaviour) the robot's own place answers it: the test can
+// tell.
+TEST(FrameProcessorTest, ARobotThatStoodStillAcrossARestartIsNotAnsweredWithItsOwnPlace) {
+  for (const bool resume : {true, false}) {
+    SCOPED_TRACE(resume ? "resuming" : "not resuming");
+    RecognizerOptions options = TestOptions();
+    if (!resume) options.recent_past.resume_within_seconds = 0;
+    TempMap file;
+    {
+      std::unique_ptr<PlaceMap> map = OpenMap(file.path());
+      FrameProcessor processor(options, DecodeOptions(), map.get());
+      for (int s = 0; s < 4; ++s) {
+        const result_t answer = processor.Process(Frame("r", s, s));
+        ASSERT_EQ(int{answer.status}, int{result_t::STATUS_OK}) << answer.message;
+      }
+      ASSERT_GT(map->Counts().places, 0);
+    }
+    // A minute later, the same view as the last frame, through a restarted server.
+    std::unique_ptr<PlaceMap> map = OpenMap(file.path());
+    FrameProcessor processor(options, DecodeOptions(), map.get());
+    frame_t still = Frame("r", 4, 3);
+    still.utime += 60 * 1000000LL;
+    const result_t answer = processor.Process(still);
+    ASSERT_EQ(int{answer.status}, int{result_t::STATUS_OK}) << answer.message;
+    const bool own =
+        answer.loop_closure && answer.num_matches > 0 && answer.matches[0].robot == "r";
+    EXPECT_EQ(own, !resume) << "loop closure " << answer.loop_closure << ", " << answer.num_matches
+                            << " matches";
+  }
+}
+
 // The attack of issue 23 item 3: one insert with sequence 2^63-1 made every later insert of the
 // robot fail until the server restarted. Now the robot is refused for the restart gap only, and
 // the forged place keeps its sequence.

@@ -63,6 +63,7 @@ nlohmann::json OptionsJson(const RecognizerOptions& o) {
   j["match_ratio"] = o.index.matching.ratio;
   j["index_search"] = o.index.search == IndexSearch::kFlann ? "flann" : "exhaustive";
   j["min_same_robot_gap_seconds"] = o.recent_past.min_gap_seconds;
+  j["resume_within_seconds"] = o.recent_past.resume_within_seconds;
   j["away_seconds"] = o.recent_past.away_seconds;
   j["geometric_verification"] = o.loop.geometric_verification;
   j["sequence_frames"] = o.sequence.frames;

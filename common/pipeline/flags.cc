@@ -214,6 +214,10 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
          "the seed counts frames, which depends on the frame rate)");
   p->Add("away-seconds", &o->recent_past.away_seconds,
          "... and only once the robot's frames have not seen their view for this many seconds");
+  p->Add("resume-within-seconds", &o->recent_past.resume_within_seconds,
+         "after a server restart, a robot whose last stored place is at most this old (capture "
+         "time) takes it (and those up to --away-seconds before it) as its recent views again; "
+         "silent longer, it begins a new session (not in the seed)");
   p->Add("recent-past-descriptors", &o->recent_past.descriptors_per_frame,
          "strongest keypoints per frame compared with the robot's recent views");
   p->Add("recent-past-min-matches", &o->recent_past.min_matches_seen,

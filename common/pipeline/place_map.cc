@@ -258,6 +258,51 @@ std::optional<Place> PlaceMap::FindStored(const std::string& robot, int64_t sequ
   return std::nullopt;
 }
 
+std::vector<StoredView> PlaceMap::StoredViews(const std::string& robot, int64_t before_sequence,
+                                              int64_t from_utime, int64_t to_utime, int64_t span_us,
+                                              int max_places, int max_descriptors) const {
+  std::shared_lock lock(mutex_);
+  std::vector<const Place*> chosen;
+  for (const auto& [id, place] : places_) {
+    if (place.robot == robot && place.sequence < before_sequence && place.utime >= from_utime &&
+        place.utime <= to_utime) {
+      chosen.push_back(&place);
+    }
+  }
+  std::sort(chosen.begin(), chosen.end(),
+            [](const Place* a, const Place* b) { return a->sequence < b->sequence; });
+  // The robot's views when it stored its last place: those captured shortly before (the tracker
+  // leaves a view once unseen for a while; a robot that stood still stored one place).
+  if (!chosen.empty()) {
+    const int64_t last = chosen.back()->utime;
+    chosen.erase(std::remove_if(chosen.begin(), chosen.end(),
+                                [&](const Place* p) { return p->utime < last - span_us; }),
+                 chosen.end());
+  }
+  if (static_cast<int>(chosen.size()) > max_places) {
+    chosen.erase(chosen.begin(), chosen.end() - max_places);
+  }
+  std::vector<StoredView> views;
+  for (const Place* place : chosen) {
+    StoredView view;
+    view.sequence = place->sequence;
+    view.utime = place->utime;
+    std::vector<cv::Mat> rows;
+    for (const int32_t slot : index_.SlotsOfPlace(place->id)) {
+      const Landmark& landmark = index_.landmark(slot);
+      for (int r = 0;
+           r < landmark.descriptors.rows && static_cast<int>(view.angles.size()) < max_descriptors;
+           ++r) {
+        rows.push_back(landmark.descriptors.row(r));
+        view.angles.push_back(landmark.keypoints[r].angle);
+      }
+    }
+    if (!rows.empty()) cv::vconcat(rows, view.descriptors);
+    views.push_back(std::move(view));
+  }
+  return views;
+}
+
 StatusOr<uint64_t> PlaceMap::Checksum() const {
   std::shared_lock lock(mutex_);
   return store_->Checksum();

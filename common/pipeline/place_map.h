@@ -95,6 +95,13 @@ class PlaceMap {
   // map's; used in memory as the nearest bound) is never one: no frame of such a time is accepted.
   // A pass over every place.
   std::optional<Place> FindStored(const std::string& robot, int64_t sequence, int64_t utime) const;
+  // Views of `robot`'s recent past (RecentPast::Resume): of its places with sequences below
+  // `before_sequence` captured in [from_utime, to_utime], the last (by sequence) and those
+  // captured at most `span_us` before it, at most `max_places` of them, oldest first; each with
+  // up to `max_descriptors` of its landmarks' descriptors. A pass over every place.
+  std::vector<StoredView> StoredViews(const std::string& robot, int64_t before_sequence,
+                                      int64_t from_utime, int64_t to_utime, int64_t span_us,
+                                      int max_places, int max_descriptors) const;
   StatusOr<uint64_t> Checksum() const;
   std::string Describe() const;
   // Milliseconds Open spent loading the store and building the index.

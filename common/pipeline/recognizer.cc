@@ -347,6 +347,17 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   stage.emplace("recent_past");
   RecentPastUpdate recent;
   std::optional<RecentPastGuard> recent_guard;
+  if (request.insert && !state->resumed) {
+    // The robot's places stored before this recognizer knew it (a server restart, a forgotten
+    // run) are its views again; a new run of the robot numbers its frames from below them.
+    state->resumed = true;
+    const int64_t within_us =
+        static_cast<int64_t>(options_.recent_past.resume_within_seconds * 1e6);
+    const int64_t away_us = static_cast<int64_t>(options_.recent_past.away_seconds * 1e6);
+    state->recent_past.Resume(map_->StoredViews(
+        request.robot, request.sequence, request.utime - within_us, request.utime, away_us,
+        options_.recent_past.max_views, options_.recent_past.descriptors_per_frame));
+  }
   if (request.insert) {
     recent_guard.emplace(&state->recent_past);
     recent =
@@ -439,6 +450,9 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
   }
   const bool seed = options_.mode == RecognitionMode::kSeed;
   bool seed_loop = false;
+  // The map this frame's answer knows: read before the lookup, so that places other robots store
+  // meanwhile are looked up again by the robot's next frame, never taken as already answered.
+  const int64_t places_looked_up = map_->Counts().places;
   MapLookupResult found =
       seed ? map_->LookupSeed(lookup, options_.seed, loop.max_matches, &seed_loop)
            : map_->Lookup(lookup, loop);
@@ -570,7 +584,7 @@ RecognitionResult Recognizer::Recognize(const FrameRequest& request,
     summary.point_landmarks.clear();
     state->last_matches.push_back(std::move(summary));
   }
-  state->last_map_places = map_->Counts().places;
+  state->last_map_places = places_looked_up + (result.place.IsValid() ? 1 : 0);
   state->last_sequence = request.sequence;
   state->sequence.Record(std::move(sequence_frame));
   result.timings.emplace_back("insert", timer.ElapsedMs());

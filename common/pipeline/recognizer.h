@@ -171,6 +171,9 @@ class Recognizer {
     RecentPast recent_past;
     SequenceSupport sequence;
     int64_t last_sequence = INT64_MIN;
+    // Whether the robot's stored places were taken as its views (RecentPast::Resume; at its
+    // first inserted frame).
+    bool resumed = false;
     // The answer to the robot's last distinct frame and the map's place count after it: a
     // frame that shows nothing new while the map is unchanged gets that answer again.
     std::vector<PlaceMatch> last_matches;

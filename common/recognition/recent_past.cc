@@ -33,6 +33,11 @@ bool RecentPastOptions::Check(std::string* error) const {
     *error = "recent past new_view_fraction must be in [0, 1]";
     return false;
   }
+  if (!(resume_within_seconds >= 0 && resume_within_seconds <= kMaxWindowSeconds)) {
+    *error = "recent past resume_within_seconds must be in [0, " +
+             std::to_string(static_cast<int>(kMaxWindowSeconds)) + "] (a day)";
+    return false;
+  }
   if (duplicate_fraction <= 0 || duplicate_fraction > 1) {
     *error = "recent past duplicate_fraction must be in (0, 1]";
     return false;
@@ -64,6 +69,22 @@ int ConsistentMatches(const cv::Mat& query, const std::vector<float>& query_angl
 }
 
 RecentPast::RecentPast(const RecentPastOptions& options) : options_(options) {}
+
+void RecentPast::Resume(const std::vector<StoredView>& stored) {
+  const size_t first = stored.size() > static_cast<size_t>(options_.max_views)
+                           ? stored.size() - options_.max_views
+                           : 0;
+  for (size_t i = first; i < stored.size(); ++i) {
+    const StoredView& place = stored[i];
+    CHECK_EQ(place.descriptors.rows, static_cast<int>(place.angles.size()));
+    View view;
+    view.sequence = place.sequence;
+    view.last_seen_utime = place.utime;
+    view.descriptors = place.descriptors;
+    view.angles = place.angles;
+    views_.push_back(std::move(view));
+  }
+}
 
 RecentPastUpdate RecentPast::Observe(int64_t sequence, int64_t utime,
                                      const std::vector<cv::KeyPoint>& keypoints,

@@ -49,6 +49,13 @@ struct RecentPastOptions {
   // neither fills the map with copies of one place nor makes every object "widely visible".
   // 1 keeps every frame.
   double duplicate_fraction = 0.9;
+  // A robot's tracker begins afresh when the server restarts (or forgets the robot's run). When
+  // the robot's last stored place was captured at most this many seconds before its next
+  // inserted frame, that place and those captured up to away_seconds before it are its views
+  // again, as if the tracker had kept them, so that a robot that stood still meanwhile is not
+  // answered with its own place; a robot silent for longer begins a new session, in which its
+  // older places may answer it.
+  double resume_within_seconds = 600.0;
 
   bool Check(std::string* error) const;
 };
@@ -78,10 +85,23 @@ struct RecentPastUpdate {
   bool duplicate = false;  // last_distinct_overlap >= duplicate_fraction: nothing new
 };
 
+// One of a robot's stored places as a view (RecentPast::Resume).
+struct StoredView {
+  int64_t sequence = 0;
+  int64_t utime = 0;          // its capture time
+  cv::Mat descriptors;        // CV_8U x 128, some of its stored landmarks' descriptors
+  std::vector<float> angles;  // their keypoint orientations, degrees
+};
+
 // One robot's views. Not thread-safe: a robot's frames arrive one at a time.
 class RecentPast {
  public:
   explicit RecentPast(const RecentPastOptions& options);
+
+  // Takes the robot's stored places (oldest first, before any Observe) as its views, each last
+  // seen at its capture time; the next frames see them or leave them as any view. At most
+  // max_views of the newest are kept.
+  void Resume(const std::vector<StoredView>& stored);
 
   // Observes an inserted frame with `sequence` captured at `utime` (its SIFT keypoints and
   // descriptors, CV_8U x 128). Sequences increase.
