@@ -268,6 +268,10 @@ StatusOr<ExportReport> ExportMap(const std::string& path, const std::string& out
   PLACEREC_RETURN_IF_ERROR(
       ForEachThumbnail(path, [&](int64_t id, const std::vector<uint8_t>& jpeg) {
         if (!written.ok()) return;
+        // Only the places read above: a server writing beside the export may have committed a
+        // place (and its thumbnail) since, which places.csv does not list.
+        const auto place = by_id.find(id);
+        if (place == by_id.end() || !place->second->thumbnail) return;
         const std::string file = out_dir + "/thumbnails/" + std::to_string(id) + ".jpg";
         std::ofstream out(file, std::ios::binary);
         out.write(reinterpret_cast<const char*>(jpeg.data()),
@@ -279,8 +283,7 @@ StatusOr<ExportReport> ExportMap(const std::string& path, const std::string& out
         ++report.thumbnails;
         if (seen++ % every != 0) return;
         const cv::Mat image = cv::imdecode(jpeg, cv::IMREAD_COLOR);
-        const auto place = by_id.find(id);
-        if (image.empty() || place == by_id.end()) return;
+        if (image.empty()) return;
         tiles.push_back(
             Tile(image, place->second->robot + " #" + std::to_string(place->second->sequence)));
       }));
