@@ -1236,6 +1236,32 @@ TEST_F(ServiceTest, UnauthorisedFramesAreRefusedAndNeverTouchTheMap) {
   for (const Place& place : map.places) EXPECT_LE(place.sequence, 3) << "a refused frame's place";
 }
 
+// An answer to `pending` as a server builds it (ok, no matches), for tests that publish answers
+// themselves; `place_id` and every count set to the given values. Unsigned.
+result_t AnswerTo(const PendingFrame& pending, int64_t place_id, int count) {
+  result_t a;
+  a.utime = 1;
+  a.robot = pending.robot;
+  a.sequence = pending.sequence;
+  a.request_id = pending.request_id;
+  a.frame_utime = 0;
+  a.insert = true;
+  a.status = result_t::STATUS_OK;
+  a.message = "";
+  a.loop_closure = false;
+  a.num_matches = 0;
+  a.keypoints = a.objects = a.landmarks = a.stored_descriptors = count;
+  a.place_id = place_id;
+  a.map_places = a.map_landmarks = a.map_descriptors = count;
+  a.queue_ms = a.server_ms = 0;
+  a.num_timings = 0;
+  a.change_checked = false;
+  a.change_place_id = -1;
+  a.num_changes = 0;
+  ClearAnswerSignature(&a);
+  return a;
+}
+
 // An answer not signed with the client's key (unsigned, signed with a made-up secret, or signed
 // with another device's real key) is not taken for the server's: the client waits for the
 // server's signed answer, and when none comes, its timeout says what it ignored.
@@ -1250,26 +1276,8 @@ TEST_F(ServiceTest, TheClientRejectsForgedAnswers) {
   made_up.secret[5] ^= 0x20;
   auto forge = [&](const PendingFrame& pending) {
     for (int variant = 0; variant < 3; ++variant) {
-      result_t a;
-      a.utime = 1;
-      a.robot = pending.robot;
-      a.sequence = pending.sequence;
-      a.request_id = pending.request_id;
-      a.frame_utime = 0;
-      a.insert = true;
-      a.status = result_t::STATUS_OK;
-      a.message = "";
+      result_t a = AnswerTo(pending, 777, 12345);
       a.loop_closure = true;
-      a.num_matches = 0;
-      a.keypoints = a.objects = a.landmarks = a.stored_descriptors = 7;
-      a.place_id = 777;
-      a.map_places = a.map_landmarks = a.map_descriptors = 12345;
-      a.queue_ms = a.server_ms = 0;
-      a.num_timings = 0;
-      a.change_checked = false;
-      a.change_place_id = -1;
-      a.num_changes = 0;
-      ClearAnswerSignature(&a);
       if (variant == 1) SignAnswer(made_up, &a);
       if (variant == 2) SignAnswer(field_key_, &a);
       const std::vector<uint8_t> bytes = EncodeAnswer(a);
@@ -1328,24 +1336,7 @@ TEST_F(ServiceTest, AnAnswerCallbackThatTakesLongDoesNotTurnTheAnswerIntoATimeou
   StatusOr<PendingFrame> pending = client.Publish(frame);
   ASSERT_TRUE(pending.ok()) << pending.status().ToString();
   // The server's answer, as the test's own server would sign it.
-  result_t a;
-  a.utime = 1;
-  a.robot = pending->robot;
-  a.sequence = pending->sequence;
-  a.request_id = pending->request_id;
-  a.frame_utime = 0;
-  a.insert = true;
-  a.status = result_t::STATUS_OK;
-  a.loop_closure = false;
-  a.num_matches = 0;
-  a.keypoints = a.objects = a.landmarks = a.stored_descriptors = 0;
-  a.place_id = 5;
-  a.map_places = a.map_landmarks = a.map_descriptors = 1;
-  a.queue_ms = a.server_ms = 0;
-  a.num_timings = 0;
-  a.change_checked = false;
-  a.change_place_id = -1;
-  a.num_changes = 0;
+  result_t a = AnswerTo(*pending, 5, 1);
   SignAnswer(robots_key_, &a);
   AnswerSpy server;
   ASSERT_TRUE(server.good());

@@ -535,16 +535,19 @@ std::string Repeat(const std::string& text, int times) {
   return repeated;
 }
 
+// Writes one place of robot "r" with three landmarks (ids 1-3, six descriptors each) to `path`.
+void WriteOnePlace(const std::string& path) {
+  std::unique_ptr<LandmarkStore> store = Open(path);
+  ASSERT_NE(store, nullptr);
+  Place place = MakePlace("r", 1);
+  std::vector<Landmark> landmarks = MakeLandmarks(0, 3, 6);
+  ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
+  ASSERT_EQ(landmarks[1].id.value(), 2);
+}
+
 TEST(SqliteStoreTest, DamagedLandmarkIsAnIoErrorNamingIt) {
   TempMap map("damaged");
-  {
-    std::unique_ptr<LandmarkStore> store = Open(map.path());
-    ASSERT_NE(store, nullptr);
-    Place place = MakePlace("r", 1);
-    std::vector<Landmark> landmarks = MakeLandmarks(0, 3, 6);
-    ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
-    ASSERT_EQ(landmarks[1].id.value(), 2);
-  }
+  WriteOnePlace(map.path());
   const std::string kDamage[] = {
       "UPDATE landmarks SET descriptors = zeroblob(10) WHERE id = 2",
       "UPDATE landmarks SET keypoints = zeroblob(3) WHERE id = 2",
@@ -593,13 +596,7 @@ void CopyFile(const std::string& from, const std::string& to) {
 // which aborted the server on a CHECK. Now the store refuses the row as damage.
 TEST(SqliteStoreTest, IdsBelowOneAreDamage) {
   TempMap map("negative_ids");
-  {
-    std::unique_ptr<LandmarkStore> store = Open(map.path());
-    ASSERT_NE(store, nullptr);
-    Place place = MakePlace("r", 1);
-    std::vector<Landmark> landmarks = MakeLandmarks(0, 3, 6);
-    ASSERT_TRUE(store->AddPlace(&place, &landmarks).ok());
-  }
+  WriteOnePlace(map.path());
   {
     TempMap copy("negative_landmark");
     CopyFile(map.path(), copy.path());
