@@ -73,7 +73,25 @@ class AnswerRecord {
     Entry* entry = Find(frame);
     if (entry == nullptr) return {};
     entry->answer = answer;
-    return std::move(entry->also);
+    return entry->also;
+  }
+
+  // A byte-identical copy of an accepted frame (the replay guard's "replayed": not processed,
+  // and on the frame's own network not answered) that came on `network`. When the frame came on
+  // another network, the copy's network is owed the answer once: kInFlight, noted for Finish;
+  // kAnswered, *answer is to be sent there now. kNew: nothing to do (the frame's own network, a
+  // network already served, or a frame no longer recorded).
+  Seen CopyOnNetwork(const frame_t& frame, size_t network, result_t* answer) {
+    std::lock_guard lock(mutex_);
+    Entry* entry = Find(frame);
+    if (entry == nullptr || network == entry->network ||
+        std::find(entry->also.begin(), entry->also.end(), network) != entry->also.end()) {
+      return Seen::kNew;
+    }
+    entry->also.push_back(network);
+    if (!entry->answer) return Seen::kInFlight;
+    *answer = *entry->answer;
+    return Seen::kAnswered;
   }
 
   // `frame` (recorded by Begin) was not processed (overloaded, shutting down): forget it, so that
@@ -115,7 +133,7 @@ class AnswerRecord {
     Key key;
     std::optional<result_t> answer;  // empty while in flight
     size_t network = 0;              // the network the frame came on
-    std::vector<size_t> also;        // other networks copies came on while in flight
+    std::vector<size_t> also;        // other networks copies came on (answered there too)
   };
 
   Entry* Find(const frame_t& frame) {

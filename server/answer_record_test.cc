@@ -100,6 +100,25 @@ TEST(AnswerRecordTest, CopiesOnOtherNetworksAreOwedTheAnswer) {
   EXPECT_TRUE(record.Forget(refused).empty());
 }
 
+// Byte-identical copies (the replay guard's "replayed") are never processed; one that came on
+// another network is owed the answer there, once.
+TEST(AnswerRecordTest, AnIdenticalCopyOnAnotherNetworkIsOwedTheAnswerOnce) {
+  AnswerRecord record;
+  result_t answer;
+  const frame_t frame = Frame("a", 7, 3);
+  EXPECT_EQ(record.CopyOnNetwork(frame, 1, &answer), AnswerRecord::Seen::kNew);  // unknown
+  EXPECT_EQ(record.Begin(frame, &answer, 0), AnswerRecord::Seen::kNew);
+  EXPECT_EQ(record.CopyOnNetwork(frame, 0, &answer), AnswerRecord::Seen::kNew);  // its own
+  EXPECT_EQ(record.CopyOnNetwork(frame, 1, &answer), AnswerRecord::Seen::kInFlight);
+  EXPECT_EQ(record.CopyOnNetwork(frame, 1, &answer), AnswerRecord::Seen::kNew);  // noted once
+  EXPECT_EQ(record.Finish(frame, Answer(42)), (std::vector<size_t>{1}));
+  EXPECT_EQ(record.CopyOnNetwork(frame, 1, &answer), AnswerRecord::Seen::kNew);  // served
+  answer = result_t();
+  ASSERT_EQ(record.CopyOnNetwork(frame, 2, &answer), AnswerRecord::Seen::kAnswered);
+  EXPECT_EQ(answer.place_id, 42);
+  EXPECT_EQ(record.CopyOnNetwork(frame, 2, &answer), AnswerRecord::Seen::kNew);
+}
+
 TEST(AnswerRecordTest, KeepsTheLastFramesPerRobotAndFramesInFlight) {
   AnswerRecord record(/*per_robot=*/3, /*max_robots=*/2);
   result_t answer;

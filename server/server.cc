@@ -438,6 +438,19 @@ void Server::OnFrameMessage(size_t network, const lcm::ReceiveBuffer* buffer,
   if (!verdict.ok) {
     // Never queued: the map and the robot's state stay as they are.
     if (verdict.replayed) {
+      // A copy that came on another network (a device on the robot LAN and the hub at once) is
+      // owed the answer there: the genuine answer, so a copier gains nothing.
+      result_t recorded;
+      const SigningKey* copy_key = verdict.key ? &*verdict.key : nullptr;
+      switch (answers_.CopyOnNetwork(job.frame, network, &recorded)) {
+        case AnswerRecord::Seen::kAnswered:
+          Publish(&recorded, false, network, copy_key);
+          return;
+        case AnswerRecord::Seen::kInFlight:
+          return;
+        case AnswerRecord::Seen::kNew:
+          break;
+      }
       // Not answered (Authenticator::Verdict::replayed): the original frame has its answer.
       if (replays_logged_ < 10 || replays_logged_ % 100 == 0) {
         LOG(WARNING) << "ignored a copy of frame " << job.frame.sequence << " of robot '"

@@ -229,7 +229,8 @@ MapContents ReadMap(const std::string& db) {
 class AnswerSpy {
  public:
   // Frames published through Publish(frame_t) are signed with `key` when given.
-  explicit AnswerSpy(const SigningKey* key = nullptr) : lcm_(TestLcmUrl()) {
+  explicit AnswerSpy(const SigningKey* key = nullptr, const std::string& url = TestLcmUrl())
+      : lcm_(url) {
     if (key != nullptr) key_ = *key;
     lcm::Subscription* all = lcm_.subscribe("PLACEREC_RESULT.*", &AnswerSpy::OnAnswer, this);
     if (all != nullptr) all->setQueueCapacity(0);  // keep everything
@@ -1514,6 +1515,35 @@ TEST_F(ServiceTest, AFieldClientOverTcpqGetsTheRobotsPlaces) {
       "robot %s)\n",
       median(udpm_ms), median(tcpq_ms), median(udpm_transport_ms), median(tcpq_transport_ms),
       udpm_ms.size(), with_robot_places, run.frames[0].robot.c_str());
+
+  // One signed frame's very bytes on both networks at once (a device on the robot LAN and on the
+  // hub): the copy is not processed again (the replay guard), but each network gets the answer.
+  // The copy's network got none.
+  AnswerSpy on_lan(&field_key_);
+  AnswerSpy on_hub(&field_key_, testing_service::HubLcmUrl(kPort));
+  ASSERT_TRUE(on_lan.good() && on_hub.good());
+  const OutgoingFrame query = FrameOf(run, 70, "field", 70, false);
+  frame_t twice;
+  twice.utime = query.utime;
+  twice.sequence = query.sequence;
+  twice.request_id = 424242;
+  twice.insert = false;
+  twice.encoding = frame_t::ENCODING_JPEG;
+  twice.width = twice.height = 0;
+  twice.robot = query.robot;
+  twice.data = query.image.bytes;
+  twice.size = static_cast<int32_t>(twice.data.size());
+  on_lan.Sign(&twice);
+  const std::vector<uint8_t> bytes = EncodeFrame(twice);
+  ASSERT_EQ(on_lan.Publish("PLACEREC_FRAME", bytes.data(), bytes.size()), 0);
+  ASSERT_EQ(on_hub.Publish("PLACEREC_FRAME", bytes.data(), bytes.size()), 0);
+  for (AnswerSpy* spy : {&on_lan, &on_hub}) {
+    ASSERT_TRUE(spy->WaitFor(1, 60)) << (spy == &on_lan ? "udpm" : "tcpq") << ServerLog();
+    const result_t answer = spy->answers().front().second;
+    EXPECT_EQ(answer.request_id, twice.request_id);
+    EXPECT_EQ(int{answer.status}, int{result_t::STATUS_OK}) << answer.message;
+    EXPECT_TRUE(AnswerSignatureValid(answer, field_key_, nullptr, 0));
+  }
   StopTheServer();
   EXPECT_EQ(ReadMap(db_).places.size(), static_cast<size_t>(map_places));
 }
