@@ -271,7 +271,13 @@ cv::Mat ResizeToWidth(const cv::Mat& bgr, int width) {
 cv::Mat FitWidth(const cv::Mat& bgr, int min_width, int max_width, double* scale) {
   *scale = 1.0;
   int width = bgr.cols;
-  if (min_width > 0 && width < min_width) width = min_width;
+  if (min_width > 0 && width < min_width && bgr.rows > 0) {
+    // The width whose frame holds 2 x min_width^2 pixels at the frame's aspect ratio.
+    const double budget = 2.0 * min_width * static_cast<double>(min_width);
+    const int affordable =
+        static_cast<int>(std::floor(std::sqrt(budget * bgr.cols / static_cast<double>(bgr.rows))));
+    width = std::max(bgr.cols, std::min(min_width, affordable));
+  }
   if (max_width > 0 && width > max_width) width = max_width;
   if (width == bgr.cols || bgr.cols == 0) return bgr;
   *scale = static_cast<double>(width) / bgr.cols;

@@ -59,8 +59,10 @@ StatusOr<cv::Mat> ReadImageFile(const std::string& path);
 cv::Mat LimitWidth(const cv::Mat& bgr, int max_width, double* scale);
 
 // Scales `bgr` so that its width lies in [min_width, max_width]: down with INTER_AREA, up with
-// INTER_CUBIC; a bound of 0 is no bound, and max_width wins where the two disagree. Returns the
-// factor new/old through `scale`.
+// INTER_CUBIC; a bound of 0 is no bound, and max_width wins where the two disagree. Scaling up
+// stops at 2 x min_width^2 pixels (a 1:2 portrait frame reaches min_width), so that a tall, narrow
+// frame (16 x 8192 px) does not become hundreds of megapixels. Returns the factor new/old
+// through `scale`.
 cv::Mat FitWidth(const cv::Mat& bgr, int min_width, int max_width, double* scale);
 
 // Scales `bgr` to exactly `width` pixels wide (aspect kept; down INTER_AREA, up INTER_CUBIC).

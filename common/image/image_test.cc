@@ -247,6 +247,19 @@ TEST(ResizeTest, FitWidthScalesUpAndDown) {
   const cv::Mat kept = FitWidth(Flat(512, 384, cv::Scalar(0, 0, 0)), 400, 0, &scale);
   EXPECT_EQ(kept.cols, 512);
   EXPECT_EQ(scale, 1.0);
+  // Scaling up stops at 2 x 640^2 pixels: a 16 x 8192 frame became 640 x 327,680 (209 Mpx,
+  // minutes of work and tens of GB); a 1:2 portrait frame still reaches the width.
+  const cv::Mat tall = FitWidth(Flat(16, 8192, cv::Scalar(0, 0, 0)), 640, 0, &scale);
+  EXPECT_LE(static_cast<double>(tall.total()), 2.0 * 640 * 640);
+  EXPECT_GE(tall.cols, 16);
+  EXPECT_NEAR(tall.rows, 8192 * scale, 1.0);
+  const cv::Mat portrait = FitWidth(Flat(200, 400, cv::Scalar(0, 0, 0)), 640, 0, &scale);
+  EXPECT_EQ(portrait.cols, 640);
+  EXPECT_EQ(portrait.rows, 1280);
+  // Never below the frame's own width.
+  const cv::Mat thread = FitWidth(Flat(16, 65536, cv::Scalar(0, 0, 0)), 640, 0, &scale);
+  EXPECT_EQ(thread.cols, 16);
+  EXPECT_EQ(scale, 1.0);
 }
 
 TEST(ResizeTest, ResizeToWidthKeepsAspect) {

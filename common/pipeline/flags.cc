@@ -107,7 +107,9 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
          "frames narrower than this (pixels) are scaled up to upscaled-width before SIFT and "
          "segmentation, so that small cameras give objects of enough keypoints (0: keep the "
          "size; not in the seed, which ran on full-size frames)");
-  p->Add("upscaled-width", &a.upscaled_width, "the width small frames are scaled up to (pixels)");
+  p->Add("upscaled-width", &a.upscaled_width,
+         "the width small frames are scaled up to (pixels); a frame taller than twice its width "
+         "is scaled up less, to at most 2 x upscaled-width^2 pixels");
   p->Add("sift-max-features", &a.features.max_features, "keep the strongest N keypoints (0: all)");
   p->Add("sift-octave-layers", &a.features.octave_layers, "SIFT scale-space layers per octave");
   p->Add("sift-contrast-threshold", &a.features.contrast_threshold,

@@ -92,11 +92,17 @@ FrameObservation FrameAnalyzer::Analyze(const cv::Mat& bgr) const {
       FitWidth(bgr, bgr.cols < options_.small_frame_width ? options_.upscaled_width : 0,
                options_.max_image_width, &observation.scale);
   observation.processed_size = frame.size();
+  // Pictures `width` wide, at most twice as tall (a tall, narrow frame gets a narrower one).
   const auto scaled_to = [&frame](int width) {
     cv::Mat small;
     if (width <= 0) return small;
-    const int height = std::max(
+    int height = std::max(
         1, static_cast<int>(std::lround(static_cast<double>(frame.rows) * width / frame.cols)));
+    if (height > 2 * width) {
+      height = 2 * width;
+      width = std::max(
+          1, static_cast<int>(std::lround(static_cast<double>(frame.cols) * height / frame.rows)));
+    }
     cv::resize(frame, small, cv::Size(width, height), 0, 0, cv::INTER_AREA);
     return small;
   };

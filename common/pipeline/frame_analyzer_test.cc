@@ -65,5 +65,25 @@ TEST(FrameAnalyzerTest, SmallFramesAreScaledUp) {
   EXPECT_GT(upscaled.objects.size(), kept.objects.size());
 }
 
+// A tall, narrow frame within the decoder's limits (16 x 1024 px, a few hundred bytes as PNG) was
+// scaled up to 640 x 40,960 (79 s and 6 GB for one frame); its pictures were as tall. The scale
+// up now stops at 2 x 640^2 pixels, and the pictures at twice their width in height.
+TEST(FrameAnalyzerTest, ATallNarrowFrameIsNotScaledIntoAHugeOne) {
+  const AnalyzerOptions defaults;
+  AnalyzerOptions options = SyntheticAnalyzerOptions();
+  options.small_frame_width = defaults.small_frame_width;
+  options.upscaled_width = defaults.upscaled_width;
+  options.thumbnail_width = defaults.thumbnail_width;
+  options.preview_width = defaults.preview_width;
+  const cv::Mat tall(1024, 16, CV_8UC3, cv::Scalar(30, 60, 90));
+  const FrameObservation observation = FrameAnalyzer(options).Analyze(tall);
+  EXPECT_LE(static_cast<double>(observation.processed_size.area()),
+            2.0 * defaults.upscaled_width * defaults.upscaled_width);
+  EXPECT_GT(observation.processed_size.width, 16);  // still scaled up, within the budget
+  EXPECT_LE(observation.thumbnail.rows, 2 * defaults.thumbnail_width);
+  EXPECT_LE(observation.preview.rows, 2 * defaults.preview_width);
+  EXPECT_GE(observation.thumbnail.cols, 1);
+}
+
 }  // namespace
 }  // namespace placerec
