@@ -6,12 +6,16 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <random>
+#include <regex>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 #include <opencv2/core.hpp>
+#include <opencv2/ml.hpp>
 
 #include "common/classification/feature_selection.h"
 #include "common/classification/object_classifier.h"
@@ -232,6 +236,25 @@ TEST(ObjectClassifierTest, OnePerClassTellsClassesApartAndRoundTrips) {
   for (int c = 0; c < 3; ++c) EXPECT_EQ(loaded->columns(c), classifier->columns(c));
   EXPECT_EQ(cv::norm(loaded->Scores(test), scores, cv::NORM_INF), 0.0);
   EXPECT_FALSE(ObjectClassifier::Load(dir + "/missing").ok());
+
+  // A damaged model file whose leaf values are NaN loaded, and NaN then took every class
+  // decision (class 0 won: no score compares greater than NaN). It is refused now.
+  {
+    const std::string file = dir + "/objects_1.yml.gz";
+    const std::string text = dir + "/damaged.yml";
+    cv::Algorithm::load<cv::ml::Boost>(file)->save(text);
+    std::ifstream in(text);
+    const std::string yaml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string nan =
+        std::regex_replace(yaml, std::regex("value:[ ]*[-+0-9.eE]+"), "value: .nan");
+    ASSERT_NE(nan, yaml);
+    std::ofstream(text, std::ios::trunc) << nan;
+    cv::Algorithm::load<cv::ml::Boost>(text)->save(file);
+  }
+  const StatusOr<ObjectClassifier> damaged = ObjectClassifier::Load(dir);
+  EXPECT_FALSE(damaged.ok());
+  EXPECT_NE(damaged.status().message().find("not finite"), std::string::npos)
+      << damaged.status().message();
   std::filesystem::remove_all(dir);
 }
 

@@ -10,6 +10,7 @@
 #include <opencv2/core/persistence.hpp>
 
 #include "common/organization/background.h"
+#include "common/organization/boosted_forest.h"
 #include "common/util/paths.h"
 #include "common/util/timer.h"
 
@@ -250,6 +251,10 @@ StatusOr<ObjectClassifier> ObjectClassifier::Load(const std::string& directory) 
           boost->getVarCount() != static_cast<int>(classifier.columns_[c].size())) {
         return Status::InvalidArgument(file + ": not a classifier of " +
                                        std::to_string(classifier.columns_[c].size()) + " features");
+      }
+      if (!BoostedForest::Finite(*boost)) {
+        return Status::InvalidArgument(file + ": values that are not finite numbers (a damaged " +
+                                       "model); restore models/ or retrain");
       }
       classifier.boosts_.push_back(boost);
     }

@@ -1,6 +1,7 @@
 #include "common/organization/boosted_forest.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 
 #include <glog/logging.h>
@@ -20,6 +21,16 @@ int BoostedForest::Depth(const cv::ml::Boost& boost) {
   int depth = 0;
   for (const int root : boost.getRoots()) depth = std::max(depth, DepthOf(boost.getNodes(), root));
   return depth;
+}
+
+bool BoostedForest::Finite(const cv::ml::Boost& boost) {
+  for (const cv::ml::DTrees::Node& node : boost.getNodes()) {
+    if (!std::isfinite(node.value)) return false;
+  }
+  for (const cv::ml::DTrees::Split& split : boost.getSplits()) {
+    if (!std::isfinite(split.c)) return false;
+  }
+  return true;
 }
 
 BoostedForest::BoostedForest(const cv::ml::Boost& boost) : var_count_(boost.getVarCount()) {

@@ -182,8 +182,10 @@ StatusOr<BoundaryModel> BoundaryModel::Load(const std::string& directory) {
     cv::Ptr<cv::ml::Boost> boost = cv::ml::Boost::create();
     boost->read(fs["boost"]);
     if (!boost->isTrained() || boost->getVarCount() != kBoundaryFeatures ||
-        BoostedForest::Depth(*boost) > BoostedForest::kMaxDepth) {
-      return Status::InvalidArgument(path + " is not a trained boundary classifier");
+        BoostedForest::Depth(*boost) > BoostedForest::kMaxDepth || !BoostedForest::Finite(*boost)) {
+      return Status::InvalidArgument(path +
+                                     " is not a trained boundary classifier (or holds values "
+                                     "that are not finite numbers)");
     }
     model.boost_ = boost;
     model.forest_ = BoostedForest(*boost);

@@ -506,11 +506,13 @@ StatusOr<RegionMergeModel> RegionMergeModel::Load(const std::string& directory) 
       cv::Ptr<cv::ml::Boost> boost = cv::ml::Boost::create();
       boost->read(fs[version == 1 ? std::string("boost") : "member_" + std::to_string(i)]);
       if (!boost->isTrained() || boost->getVarCount() < 1 || boost->getVarCount() > features ||
-          BoostedForest::Depth(*boost) > BoostedForest::kMaxDepth) {
+          BoostedForest::Depth(*boost) > BoostedForest::kMaxDepth ||
+          !BoostedForest::Finite(*boost)) {
         return Status::InvalidArgument(path + ": member " + std::to_string(i) +
                                        " is not a trained grouping classifier (or has trees "
                                        "deeper than " +
-                                       std::to_string(BoostedForest::kMaxDepth) + ")");
+                                       std::to_string(BoostedForest::kMaxDepth) +
+                                       ", or values that are not finite numbers)");
       }
       model.AddMember(boost);
     }
