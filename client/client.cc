@@ -534,10 +534,16 @@ void PlacerecClient::OnResult(const lcm::ReceiveBuffer* buffer, const std::strin
     ++callbacks_running_;
     answered_.notify_all();
   }
+  // Counted down however the callback ends, so that SetAnswerCallback never waits for ever.
+  struct Ended {
+    PlacerecClient* client;
+    ~Ended() {
+      std::lock_guard lock(client->mutex_);
+      --client->callbacks_running_;
+      client->answered_.notify_all();
+    }
+  } ended{this};
   callback(result);
-  std::lock_guard lock(mutex_);
-  --callbacks_running_;
-  answered_.notify_all();
 }
 
 void PlacerecClient::OnStatus(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
