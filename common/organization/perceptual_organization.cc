@@ -101,7 +101,6 @@ class RegionGrower {
   RegionGrower(const PartGraph& graph, int reference, const OrganizationOptions& options)
       : graph_(graph),
         options_(options),
-        reference_(reference),
         c_(static_cast<size_t>(graph.size()), 0.0),
         inside_(static_cast<size_t>(graph.size()), 0),
         complexity_term_(static_cast<size_t>(graph.size()), 0.0) {
@@ -210,7 +209,6 @@ class RegionGrower {
 
   const PartGraph& graph_;
   const OrganizationOptions& options_;
-  const int reference_;
   std::vector<double> c_;
   std::vector<char> inside_;
   std::vector<double> complexity_term_;
