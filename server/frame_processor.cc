@@ -124,10 +124,12 @@ result_t FrameProcessor::ProcessOrThrow(const frame_t& frame, std::vector<change
     if (!admission.ok()) {
       // An insert sent again (a server killed between committing the frame and answering it lost
       // the answer; the robot sends the frame again to the restarted server) is answered with the
-      // place it stored. Only refused inserts look, so the pass over the places costs nothing in
-      // normal running.
+      // place it stored. Only refused inserts of a stored sequence look, so the pass over the
+      // places costs nothing in normal running, nor for a robot sending stale sequences.
       const std::optional<Place> stored =
-          map_->FindStored(request.robot, request.sequence, request.utime);
+          gate_.IsStored(request.robot, request.sequence)
+              ? map_->FindStored(request.robot, request.sequence, request.utime)
+              : std::nullopt;
       if (!stored) return fail(result_t::STATUS_BAD_REQUEST, admission.status().message());
       // Answered ok with the place it stored; the loop-closure answer is not kept (the server's
       // answer record, which holds it, does not survive a restart).

@@ -84,4 +84,10 @@ void SequenceGate::Accepted(const std::string& robot, int64_t sequence, bool sto
   if (stored) r.stored.insert(sequence);
 }
 
+bool SequenceGate::IsStored(const std::string& robot, int64_t sequence) const {
+  std::lock_guard lock(mutex_);
+  const auto it = robots_.find(robot);
+  return it != robots_.end() && it->second.stored.count(sequence) > 0;
+}
+
 }  // namespace placerec

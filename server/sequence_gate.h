@@ -66,6 +66,9 @@ class SequenceGate {
   // that showed nothing new is answered without one).
   void Accepted(const std::string& robot, int64_t sequence, bool stored, Clock::time_point now);
 
+  // Whether the map holds a place of `robot` with `sequence` (as far as this gate learned).
+  bool IsStored(const std::string& robot, int64_t sequence) const;
+
  private:
   struct Robot {
     int64_t last = 0;

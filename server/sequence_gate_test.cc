@@ -90,6 +90,12 @@ TEST(SequenceGateTest, StoredSequencesAreNeverReusedAndTheNextFreeOneIsNamed) {
   EXPECT_EQ(*gate.Admit("r", 2, t0), SequenceGate::Admission::kNewRun);
   EXPECT_EQ(*gate.Admit("r", 4, t0), SequenceGate::Admission::kNewRun);
   EXPECT_EQ(*gate.Admit("r", 6, t0), SequenceGate::Admission::kSameRun);
+  // What the map holds, as the gate learned it (a refused insert of a stored sequence is looked
+  // up among the places; others are not).
+  EXPECT_TRUE(gate.IsStored("r", 3));
+  EXPECT_FALSE(gate.IsStored("r", 2));
+  EXPECT_FALSE(gate.IsStored("r", 4));
+  EXPECT_FALSE(gate.IsStored("other", 0));
 }
 
 TEST(SequenceGateTest, AMapsPlacesSetTheLastSequenceAtStartUp) {
