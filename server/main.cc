@@ -102,7 +102,7 @@ int Main(int argc, char** argv) {
              "seconds after a robot's last accepted insert from which a lower sequence begins a "
              "new run of the robot (a restart) instead of being refused as out of order");
   parser.Add("max-robot-runs", &options.sequence_rule.max_robot_runs,
-             "robots whose short-term memory (recent past, tracked landmarks; about 1 MB each) "
+             "robots whose short-term memory (recent past, tracked landmarks) "
              "the server keeps; beyond it the robot silent longest is forgotten and its next "
              "frame begins a new run");
   AddRecognizerFlags(&parser, &options.recognizer);

@@ -32,8 +32,8 @@ struct SequenceRuleOptions {
   // Robots whose run (short-term memory: the recent past that keeps a robot's own places from
   // answering it, the frames its landmarks are tracked in) the server keeps at most; beyond it
   // the run of the robot silent longest is forgotten, and that robot's next frame begins a new
-  // run. A run takes about a megabyte; a site's robots are far fewer, so only a server that
-  // sees ever new robot ids (ids made per boot, forged ids) reaches it.
+  // run (its size: docs/results.md). A site's robots are far fewer, so only a server that sees
+  // ever new robot ids (ids made per boot, forged ids) reaches it.
   int max_robot_runs = 1000;
 
   bool Check(std::string* error) const;

@@ -3,6 +3,7 @@
 #include <libpq-fe.h>
 #include <poll.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <climits>
@@ -876,32 +877,22 @@ class ChangeFeed final : public PostgresChangeFeed {
         &damaged));
     if (!status.ok()) return status;
     if (damage.empty()) return Status::Ok();
-    // Merge the damaged places in, in id order, each without landmarks.
-    std::vector<CommittedPlace> merged;
-    merged.reserve(places->size() + damage.size());
-    auto next_damage = damage.begin();
-    for (CommittedPlace& committed : *places) {
-      const int64_t id = committed.place.id.value();
-      for (; next_damage != damage.end() && next_damage->first <= id; ++next_damage) {
-        if (next_damage->first == id) {
-          committed.landmarks.clear();
-          committed.damage = next_damage->second;
-        } else {
-          CommittedPlace lost;
-          lost.place.id = PlaceId(next_damage->first);
-          lost.damage = next_damage->second;
-          merged.push_back(std::move(lost));
-        }
+    // The damaged places, each without landmarks, in id order among the others.
+    for (const auto& [id, why] : damage) {
+      const auto it = slot.find(id);
+      CommittedPlace* lost = nullptr;
+      if (it != slot.end()) {
+        lost = &(*places)[it->second];
+      } else {
+        lost = &places->emplace_back();
+        lost->place.id = PlaceId(id);
       }
-      merged.push_back(std::move(committed));
+      lost->landmarks.clear();
+      lost->damage = why;
     }
-    for (; next_damage != damage.end(); ++next_damage) {
-      CommittedPlace lost;
-      lost.place.id = PlaceId(next_damage->first);
-      lost.damage = next_damage->second;
-      merged.push_back(std::move(lost));
-    }
-    *places = std::move(merged);
+    std::sort(places->begin(), places->end(), [](const CommittedPlace& a, const CommittedPlace& b) {
+      return a.place.id < b.place.id;
+    });
     return Status::Ok();
   }
 
