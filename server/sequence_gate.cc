@@ -1,5 +1,6 @@
 #include "server/sequence_gate.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -23,21 +24,28 @@ void SequenceGate::AddStored(const std::string& robot, int64_t sequence) {
   auto [it, added] = robots_.try_emplace(robot);
   Robot& r = it->second;
   if (added || sequence > r.last) r.last = sequence;
+  r.highest = std::max(r.highest, sequence);
   // A robot's own inserts keep their time; a place stored elsewhere does not make it recent.
   if (added) r.last_accepted = start_;
   r.stored.insert(sequence);
 }
 
-bool SequenceGate::NextFree(const Robot& robot, int64_t sequence, int64_t* next) {
+std::string SequenceGate::Advice(const Robot& robot, int64_t sequence) {
+  if (robot.highest < std::numeric_limits<int64_t>::max()) {
+    return "continue from " + std::to_string(robot.highest + 1) +
+           ", after every sequence the robot has used";
+  }
+  // A forged frame took the largest sequence: name the next free one after the refused one.
   int64_t candidate = sequence;
   for (auto it = robot.stored.upper_bound(sequence); it != robot.stored.end(); ++it) {
-    if (candidate == std::numeric_limits<int64_t>::max()) return false;
+    if (candidate == std::numeric_limits<int64_t>::max()) break;
     if (*it != candidate + 1) break;
     candidate = *it;
   }
-  if (candidate == std::numeric_limits<int64_t>::max()) return false;
-  *next = candidate + 1;
-  return true;
+  if (candidate == std::numeric_limits<int64_t>::max()) {
+    return "no sequence after it is free, choose a lower one that is not stored";
+  }
+  return "the next free sequence after it is " + std::to_string(candidate + 1);
 }
 
 StatusOr<SequenceGate::Admission> SequenceGate::Admit(const std::string& robot, int64_t sequence,
@@ -55,22 +63,17 @@ StatusOr<SequenceGate::Admission> SequenceGate::Admit(const std::string& robot, 
       std::snprintf(gap, sizeof(gap), "%g", options_.restart_gap_s);
       return Status::InvalidArgument(
           frame + " is not after " + std::to_string(r.last) +
-          " (frames of a robot must come in order; a robot that restarted may begin again from a "
-          "lower sequence " +
-          gap + " s after its last accepted frame)");
+          " (frames of a robot must come in order: " + Advice(r, sequence) +
+          "; a robot that restarted may also begin again from a lower sequence " + gap +
+          " s after its last accepted frame)");
     }
     admission = Admission::kNewRun;
   }
   if (r.stored.count(sequence) > 0) {
-    int64_t next = 0;
-    const std::string advice =
-        NextFree(r, sequence, &next)
-            ? "; the next free sequence after it is " + std::to_string(next)
-            : "; no sequence after it is free, choose a lower one that is not stored";
     return Status::InvalidArgument(frame +
                                    " is already in the map: a robot's places are named by their "
-                                   "sequence, so a restarted robot must not reuse one" +
-                                   advice);
+                                   "sequence, so a restarted robot must not reuse one; " +
+                                   Advice(r, sequence));
   }
   return admission;
 }
@@ -80,6 +83,7 @@ void SequenceGate::Accepted(const std::string& robot, int64_t sequence, bool sto
   std::lock_guard lock(mutex_);
   Robot& r = robots_[robot];
   r.last = sequence;
+  r.highest = std::max(r.highest, sequence);
   r.last_accepted = now;
   if (stored) r.stored.insert(sequence);
 }

@@ -3,8 +3,9 @@
 // server restart:
 //
 // - A place is named by its robot and sequence (the map stores each pair once), so an insert
-//   whose sequence is already stored for its robot is refused, and the answer names the next
-//   free sequence after it.
+//   whose sequence is already stored for its robot is refused, and the answer names the sequence
+//   to continue from: the one after every sequence the robot has used, so that a robot that
+//   follows it numbers its frames after its earlier runs instead of into their gaps.
 // - Within a run of the robot, sequences increase: an insert whose sequence is not after the
 //   robot's last accepted one is refused (a late or repeated datagram) ...
 // - ... unless the robot's last accepted insert is at least `restart_gap_s` old (server clock):
@@ -16,6 +17,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <limits>
 #include <mutex>
 #include <set>
 #include <string>
@@ -71,12 +73,14 @@ class SequenceGate {
 
  private:
   struct Robot {
-    int64_t last = 0;
+    int64_t last = 0;  // the last accepted sequence (of the robot's current run)
+    int64_t highest = std::numeric_limits<int64_t>::min();  // of every run, stored or accepted
     Clock::time_point last_accepted;
     std::set<int64_t> stored;
   };
-  // The smallest sequence after `sequence` not stored for `robot`; false when there is none.
-  static bool NextFree(const Robot& robot, int64_t sequence, int64_t* next);
+  // What a refused robot should send instead: the sequence after every one it has used, or, when
+  // there is none (a forged frame took the largest), a lower one that is not stored.
+  static std::string Advice(const Robot& robot, int64_t sequence);
 
   const SequenceRuleOptions options_;
   const Clock::time_point start_;

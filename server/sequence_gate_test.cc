@@ -72,7 +72,7 @@ TEST(SequenceGateTest, AForgedHugeSequenceLocksTheRobotOutOnlyForTheGap) {
   EXPECT_NE(again.find("no sequence after it is free"), std::string::npos) << again;
 }
 
-TEST(SequenceGateTest, StoredSequencesAreNeverReusedAndTheNextFreeOneIsNamed) {
+TEST(SequenceGateTest, StoredSequencesAreNeverReusedAndTheRobotIsToldToContinueAfterThemAll) {
   const Clock::time_point t0 = Clock::now();
   SequenceGate gate(Gap(0), t0);
   gate.Accepted("r", 0, true, t0);
@@ -80,22 +80,41 @@ TEST(SequenceGateTest, StoredSequencesAreNeverReusedAndTheNextFreeOneIsNamed) {
   gate.Accepted("r", 2, false, t0);  // answered, showed nothing new: not stored
   gate.Accepted("r", 3, true, t0);
   gate.Accepted("r", 5, true, t0);
+  gate.Accepted("r", 9, true, t0);
+  // A robot that restarted from 0 is told to go on after its whole earlier run, not into the
+  // gaps between its stored sequences (where its new frames would weave into the old run).
   const std::string reused = Refusal(gate, "r", 0, t0);
   EXPECT_EQ(reused,
             "sequence 0 of robot 'r' is already in the map: a robot's places are named by their "
-            "sequence, so a restarted robot must not reuse one; the next free sequence after it is "
-            "2");
-  EXPECT_NE(Refusal(gate, "r", 3, t0).find("the next free sequence after it is 4"),
-            std::string::npos);
+            "sequence, so a restarted robot must not reuse one; continue from 10, after every "
+            "sequence the robot has used");
+  EXPECT_NE(Refusal(gate, "r", 3, t0).find("continue from 10"), std::string::npos);
+  EXPECT_EQ(*gate.Admit("r", 10, t0), SequenceGate::Admission::kSameRun);
+  // A lower sequence that is not stored still begins a new run after the restart gap ...
   EXPECT_EQ(*gate.Admit("r", 2, t0), SequenceGate::Admission::kNewRun);
   EXPECT_EQ(*gate.Admit("r", 4, t0), SequenceGate::Admission::kNewRun);
-  EXPECT_EQ(*gate.Admit("r", 6, t0), SequenceGate::Admission::kSameRun);
+  // ... and the advice stays after the highest sequence of every run, stored or not.
+  gate.Accepted("r", 4, true, t0);
+  gate.Accepted("r", 11, false, t0);
+  gate.Accepted("r", 7, true, t0);
+  EXPECT_NE(Refusal(gate, "r", 5, t0).find("continue from 12"), std::string::npos);
   // What the map holds, as the gate learned it (a refused insert of a stored sequence is looked
   // up among the places; others are not).
   EXPECT_TRUE(gate.IsStored("r", 3));
   EXPECT_FALSE(gate.IsStored("r", 2));
-  EXPECT_FALSE(gate.IsStored("r", 4));
+  EXPECT_FALSE(gate.IsStored("r", 11));
   EXPECT_FALSE(gate.IsStored("other", 0));
+}
+
+TEST(SequenceGateTest, AFrameOutOfOrderIsToldWhereToContinue) {
+  const Clock::time_point t0 = Clock::now();
+  SequenceGate gate(Gap(5), t0);
+  gate.AddStored("r", 4);
+  gate.AddStored("r", 9);
+  const std::string late = Refusal(gate, "r", 7, t0 + std::chrono::seconds(1));
+  EXPECT_NE(late.find("is not after 9 (frames of a robot must come in order: continue from 10"),
+            std::string::npos)
+      << late;
 }
 
 TEST(SequenceGateTest, AMapsPlacesSetTheLastSequenceAtStartUp) {
