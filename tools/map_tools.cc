@@ -439,9 +439,9 @@ StatusOr<PruneReport> PruneMap(const std::string& path, const PruneOptions& opti
   if (!std::filesystem::exists(path, ignored)) {
     return Status::NotFound("no placerec map at " + path);
   }
-  // A server holding the map in another process locks only its shared-memory file while idle,
-  // which the exclusive lock below does not see: look there before opening the map, and again
-  // once the lock is held (a server that opened it in between).
+  // A server holding the map in another process locks its shared-memory file (and a shared lock
+  // on the map file, which the exclusive lock below meets too): look there before opening the
+  // map, and again once the lock is held (a server that opened it in between).
   const auto refuse_if_held = [&path]() -> Status {
     const StatusOr<bool> elsewhere = SqliteOpenElsewhere(path);
     if (!elsewhere.ok()) return elsewhere.status();

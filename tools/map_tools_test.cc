@@ -288,9 +288,9 @@ TEST(MapToolsTest, PruneRefusesAMapHeldOpenAndLeavesItUnchanged) {
   EXPECT_TRUE(PruneMap(map.path(), options).ok());  // closed: allowed
 }
 
-// A server in another process holds its map with no lock on the map file while it is idle (WAL
-// mode: its connection locks only the shared-memory file, MAP-shm). Prune must still refuse the
-// map: changed under a server, the map was left corrupt.
+// A server in another process holds its map open while it is idle (WAL mode: its connection
+// locks the shared-memory file, MAP-shm, and holds a shared lock on the map file). Prune must
+// refuse the map: changed under a server, the map was left corrupt.
 TEST(MapToolsTest, PruneRefusesAMapHeldOpenByAnotherProcess) {
   TempMap map("prune_held_elsewhere");
   BuildSite(map.path());

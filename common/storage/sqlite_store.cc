@@ -518,10 +518,11 @@ std::string Join(const std::vector<std::string>& parts, size_t max_parts) {
 // array, cell = payload size and rowid varints) is a place, or a landmark whose place is read by
 // its id. Complaints about anything else (interior pages, indexes, unused pages) name no place:
 // rows under a damaged interior page fail to read and are dropped by the reading itself.
-std::set<int64_t> PlacesNamedByQuickCheck(sqlite3* db, const std::string& path,
+// `file` is the map, opened before the connection `db` and closed after it (closing a descriptor
+// of the file drops every POSIX lock the process holds on it, SQLite's too).
+std::set<int64_t> PlacesNamedByQuickCheck(sqlite3* db, std::ifstream& file,
                                           const std::vector<std::string>& problems) {
   std::set<int64_t> places;
-  std::ifstream file(path, std::ios::binary);
   uint8_t header[100];
   if (!file.read(reinterpret_cast<char*>(header), sizeof(header))) return places;
   const uint32_t raw_page_size = (uint32_t{header[16]} << 8) | header[17];
@@ -750,10 +751,11 @@ StatusOr<std::unique_ptr<LandmarkStore>> OpenReadOnlySqliteStore(
     return Status::InvalidArgument("a map opened for reading only must be a file, not :memory:");
   }
   int version = 0;
+  // Before the connection, as in OpenSqliteStore: closing a descriptor drops the process's locks.
+  if (options.quick_check) ReadAhead(path, kReadAheadShare);
   StatusOr<SqliteConnection> db = OpenSqliteMapReadOnly(path, options.busy_timeout_ms, &version);
   if (!db.ok()) return db.status();
   if (options.quick_check) {
-    ReadAhead(path, kReadAheadShare);
     const std::vector<std::string> problems = QuickCheck(db->get(), 5);
     if (!problems.empty()) {
       return Status::IoError("map " + path + " is damaged (SQLite quick_check: " +
@@ -814,6 +816,13 @@ StatusOr<std::unique_ptr<LandmarkStore>> OpenSqliteStore(const std::string& path
       return Status::NotFound("no placerec map at " + path + " (it must exist)");
     }
   }
+  // quick_check walks the file's trees page by page, a wait on the disk for each page that is not
+  // cached; one pass in order brings them in at the disk's full speed (the map's load reads every
+  // page next anyway). It comes before the connection: closing any descriptor of the file drops
+  // every POSIX lock this process holds on it, SQLite's too, and without its lock on the map
+  // another process's connection that closes takes itself for the last one and deletes the -wal
+  // under this one.
+  if (options.quick_check && path != ":memory:") ReadAhead(path, kReadAheadShare);
   StatusOr<SqliteConnection> db = OpenConnection(path, options);
   if (!db.ok()) return db.status();
   // SQLite falls back to reading a file it may not write; every frame's landmarks would then fail
@@ -840,10 +849,6 @@ StatusOr<std::unique_ptr<LandmarkStore>> OpenSqliteStore(const std::string& path
     return Status::NotFound(path + " holds no placerec map (an empty database)");
   }
   if (options.quick_check && *version > 0) {
-    // quick_check walks the file's trees page by page, a wait on the disk for each page that is
-    // not cached; one pass in order brings them in at the disk's full speed. The map's load reads
-    // every page next anyway.
-    if (path != ":memory:") ReadAhead(path, kReadAheadShare);
     const std::vector<std::string> problems = QuickCheck(db->get(), 5);
     if (!problems.empty()) {
       return Status::IoError("map " + path + " is damaged (SQLite quick_check: " +
@@ -893,6 +898,9 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
       sqlite3_exec(db->get(), "PRAGMA wal_checkpoint(TRUNCATE)", nullptr, nullptr, nullptr);
     }
   }
+  // The file's pages that quick_check names are read directly, through a descriptor that outlives
+  // the connection (see PlacesNamedByQuickCheck).
+  std::ifstream file(path, std::ios::binary);
   {
     // Read-only: the damaged file is not changed by the reading.
     StatusOr<SqliteConnection> opened =
@@ -910,7 +918,7 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
     report.problems = Join(problems, 3);
     // Damage inside a BLOB's overflow pages reads back without an error; quick_check names the
     // cell whose chain is broken.
-    const std::set<int64_t> named = PlacesNamedByQuickCheck(db.get(), path, problems);
+    const std::set<int64_t> named = PlacesNamedByQuickCheck(db.get(), file, problems);
 
     SqliteStatement max_id;
     int step = SqliteStatement::Prepare(db.get(), "SELECT COALESCE(MAX(id), 0) FROM places", false,
@@ -967,6 +975,7 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
                          " places whose sightings cannot be read";
     }
   }
+  file.close();  // after the connection
   for (const WholePlace& place : kept) {
     ++report.places_kept;
     report.landmarks_kept += static_cast<int64_t>(place.landmarks.size());

@@ -738,6 +738,58 @@ void WriteMapOfThreePlaces(const std::string& path) {
   }
 }
 
+// A map reopened by one process (a server) while a tool in another process opens and closes a
+// connection of its own (placerec-map index, prune --dry-run): the server's commits after that
+// survive a kill. The store used to read the file ahead through a descriptor of its own after
+// its connection took its lock on the map; closing that descriptor dropped the lock, so the tool's
+// connection took itself for the last one and deleted the -wal the server went on committing to.
+TEST(SqliteStoreTest, AnotherProcessClosingItsConnectionLeavesAnOpenMapsCommitsAlone) {
+  TempMap map("held");
+  WriteMapOfThreePlaces(map.path());
+  int ready[2], go[2];
+  ASSERT_EQ(pipe(ready), 0);
+  ASSERT_EQ(pipe(go), 0);
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    close(ready[0]);
+    close(go[1]);
+    StatusOr<std::unique_ptr<LandmarkStore>> store =
+        OpenSqliteStore(map.path(), SqliteStoreOptions());
+    char reply = store.ok() ? 'o' : '0';
+    if (write(ready[1], &reply, 1) != 1) _exit(2);
+    char byte = 0;
+    if (read(go[0], &byte, 1) != 1) _exit(2);
+    reply = '0';
+    if (store.ok()) {
+      Place place = MakePlace("r", 3);
+      std::vector<Landmark> landmarks = MakeLandmarks(30, 2, 6);
+      if ((*store)->AddPlace(&place, &landmarks).ok()) reply = '1';
+    }
+    if (write(ready[1], &reply, 1) != 1) _exit(2);
+    for (;;) pause();
+  }
+  close(ready[1]);
+  close(go[0]);
+  char reply = 0;
+  ASSERT_EQ(read(ready[0], &reply, 1), 1);
+  EXPECT_EQ(reply, 'o');
+  ExecSql(map.path(), "SELECT COUNT(*) FROM places");  // a tool's connection, opened and closed
+  EXPECT_TRUE(FileExists(map.path() + "-wal")) << "the open map's -wal was deleted";
+  ASSERT_EQ(write(go[1], "x", 1), 1);
+  ASSERT_EQ(read(ready[0], &reply, 1), 1);
+  close(ready[0]);
+  close(go[1]);
+  kill(child, SIGKILL);
+  int wait_status = 0;
+  ASSERT_EQ(waitpid(child, &wait_status, 0), child);
+  ASSERT_EQ(reply, '1');
+
+  std::unique_ptr<LandmarkStore> store = Open(map.path());
+  ASSERT_NE(store, nullptr);
+  ExpectCounts(*store, 4, 8, 48);
+}
+
 // The same as a map of schema v1.
 void WriteV1MapOfThreePlaces(const std::string& path) {
   WriteMapOfThreePlaces(path);
