@@ -56,6 +56,11 @@ int Main(int argc, char** argv) {
              "left to other servers on the same network and map (default: every id)");
   parser.Add("pg-connect-timeout", &options.postgres.connect_timeout_s,
              "seconds a connection to a PostgreSQL map may take before it counts as lost");
+  parser.Add("pg-insert-timeout-ms", &options.postgres.insert_timeout_ms,
+             "milliseconds an insert into a PostgreSQL map may wait for the map's insert lock (and "
+             "each of its statements may run) before its frame is answered STATUS_STORAGE_ERROR: "
+             "another server stopped or cut off inside its insert keeps the lock until PostgreSQL "
+             "ends its session");
   parser.AddRepeated(
       "lcm-url", &options.lcm_urls,
       "LCM URL of a network to serve; give it once per network, e.g. --lcm-url "

@@ -119,6 +119,7 @@ TEST(ServerOptionsTest, DefaultsPassAndBadValuesNameTheirFlag) {
       {"--auth-window", [](ServerOptions* o) { o->auth.window_s = 0; }},
       {"max_image_width", [](ServerOptions* o) { o->recognizer.analyzer.max_image_width = 10; }},
       {"connect_timeout_s", [](ServerOptions* o) { o->postgres.connect_timeout_s = 0; }},
+      {"insert_timeout_ms", [](ServerOptions* o) { o->postgres.insert_timeout_ms = 0; }},
       {"--robots",
        [](ServerOptions* o) {
          o->robots = {"r1", ""};

@@ -28,10 +28,9 @@
 namespace placerec {
 namespace {
 
-// Advisory lock keys (pg_advisory_xact_lock): one serialises inserts, so that place ids become
-// visible in increasing order; the other serialises schema creation by concurrent servers.
-constexpr int64_t kInsertLockKey = 0x706c616365726563;  // "placerec"
-constexpr int64_t kSchemaLockKey = 0x706c6163736368;    // "placsch"
+// Advisory lock keys (pg_advisory_xact_lock): kPostgresInsertLockKey serialises inserts; this one
+// serialises schema creation by concurrent servers.
+constexpr int64_t kSchemaLockKey = 0x706c6163736368;  // "placsch"
 
 // SQLSTATEs the store tells apart.
 constexpr char kUniqueViolation[] = "23505";
@@ -308,6 +307,7 @@ class Connection {
   Connection& operator=(const Connection&) = delete;
 
   const std::string& url() const { return url_; }
+  const PostgresStoreOptions& options() const { return options_; }
   PGconn* get() const { return conn_; }
 
   // Connects when there is no good connection; IoError when the database cannot be reached.
@@ -613,7 +613,11 @@ Status PostgresStore::AddPlace(Place* place, std::vector<Landmark>* landmarks) {
   std::vector<int64_t> landmark_ids;
   landmark_ids.reserve(items.size());
   PLACEREC_RETURN_IF_ERROR(db_->Begin("BEGIN"));
-  Status status = InsertRows(*place, items, &place_id, &landmark_ids);
+  const std::string timeouts =
+      "SET LOCAL lock_timeout = " + std::to_string(db_->options().insert_timeout_ms) +
+      "; SET LOCAL statement_timeout = " + std::to_string(db_->options().insert_timeout_ms);
+  Status status = db_->Command(timeouts.c_str(), "cannot set the insert's timeouts");
+  if (status.ok()) status = InsertRows(*place, items, &place_id, &landmark_ids);
   if (status.ok()) {
     Params notify;
     notify.Text(kPostgresPlacesChannel);
@@ -648,9 +652,15 @@ Status PostgresStore::InsertRows(const Place& place, const std::vector<Landmark>
                                  int64_t* place_id, std::vector<int64_t>* landmark_ids) {
   {
     Params lock;
-    lock.Int(kInsertLockKey);
+    lock.Int(kPostgresInsertLockKey);
     Result locked = db_->Exec("SELECT pg_advisory_xact_lock($1)", lock);
-    if (locked.status() != PGRES_TUPLES_OK) return db_->Error("cannot lock the map", locked);
+    if (locked.status() != PGRES_TUPLES_OK) {
+      return db_->Error(
+          "cannot lock the map for the insert (another server's insert holds the lock; one "
+          "stopped or cut off inside it keeps it until PostgreSQL ends its session, which "
+          "idle_in_transaction_session_timeout on the cluster bounds)",
+          locked);
+    }
   }
   {
     Params row;
@@ -904,6 +914,10 @@ class ChangeFeed final : public PostgresChangeFeed {
 bool PostgresStoreOptions::Check(std::string* error) const {
   if (connect_timeout_s < 1 || connect_timeout_s > 3600) {
     *error = "postgres connect_timeout_s must be between 1 and 3600 seconds";
+    return false;
+  }
+  if (insert_timeout_ms < 1 || insert_timeout_ms > 3600000) {
+    *error = "postgres insert_timeout_ms must be between 1 and 3600000 milliseconds";
     return false;
   }
   return true;

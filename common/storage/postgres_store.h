@@ -24,9 +24,19 @@ namespace placerec {
 // The NOTIFY channel of new places; the payload is the place id in decimal.
 constexpr char kPostgresPlacesChannel[] = "placerec_places";
 
+// The advisory lock (pg_advisory_xact_lock) that serialises the inserts of every server on one
+// map, so that place ids become visible in increasing order.
+constexpr int64_t kPostgresInsertLockKey = 0x706c616365726563;  // "placerec"
+
 struct PostgresStoreOptions {
   // How long opening (or re-opening) a connection may wait for the database, seconds.
   int connect_timeout_s = 5;
+  // How long an insert may wait for the map's insert lock, and each of its statements may run,
+  // milliseconds (PostgreSQL's lock_timeout and statement_timeout within the insert). A server
+  // stopped or cut off inside its insert keeps the lock until PostgreSQL ends its session (see
+  // idle_in_transaction_session_timeout); the other servers' inserts then fail with an error after
+  // this wait instead of blocking their workers, their queries and their shutdown.
+  int insert_timeout_ms = 10000;
 
   bool Check(std::string* error) const;
 };

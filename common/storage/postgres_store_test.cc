@@ -138,6 +138,10 @@ TEST(PostgresStoreOptionsTest, DefaultsPassAndBadValuesFail) {
   EXPECT_TRUE(Contains(error, "connect_timeout_s"));
   EXPECT_EQ(OpenPostgresStore("postgresql:///x", bad).status().code(),
             StatusCode::kInvalidArgument);
+  PostgresStoreOptions no_wait;
+  no_wait.insert_timeout_ms = 0;
+  EXPECT_FALSE(no_wait.Check(&error));
+  EXPECT_TRUE(Contains(error, "insert_timeout_ms"));
   EXPECT_EQ(OpenPostgresStore("map.db", PostgresStoreOptions()).status().code(),
             StatusCode::kInvalidArgument);
   EXPECT_TRUE(IsPostgresUrl("postgresql:///placerec?host=/tmp/x"));
@@ -495,6 +499,44 @@ TEST_F(PostgresStoreTest, ALostConnectionIsAnIoErrorAndTheStoreReconnects) {
   const Status stored = store->AddPlace(&after_restart, nullptr);
   EXPECT_TRUE(stored.ok()) << stored.ToString();
   ExpectCounts(*store, 3, 3, 2 + 3 + 4);
+}
+
+// Another server stopped (or cut off) inside its insert keeps the map's insert lock until
+// PostgreSQL ends its session. An insert here used to wait for it with no bound, holding the
+// store, and with it this server's workers, queries and shutdown; it now fails after the insert
+// timeout, stores nothing, and succeeds once the lock is free.
+TEST_F(PostgresStoreTest, AnInsertLockHeldElsewhereFailsTheInsertAfterTheTimeout) {
+  PostgresStoreOptions options;
+  options.insert_timeout_ms = 300;
+  StatusOr<std::unique_ptr<LandmarkStore>> opened = OpenPostgresStore(url_, options);
+  ASSERT_TRUE(opened.ok()) << opened.status().ToString();
+  LandmarkStore& store = **opened;
+  PGconn* peer = PQconnectdb(url_.c_str());
+  ASSERT_EQ(PQstatus(peer), CONNECTION_OK) << PQerrorMessage(peer);
+  const std::string lock =
+      "BEGIN; SELECT pg_advisory_xact_lock(" + std::to_string(kPostgresInsertLockKey) + ")";
+  PGresult* locked = PQexec(peer, lock.c_str());
+  EXPECT_EQ(PQresultStatus(locked), PGRES_TUPLES_OK) << PQerrorMessage(peer);
+  PQclear(locked);
+
+  Place place = MakePlace("r", 1);
+  std::vector<Landmark> landmarks = MakeLandmarks(0, 2);
+  const auto start = std::chrono::steady_clock::now();
+  const Status refused = store.AddPlace(&place, &landmarks);
+  const double waited_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(refused.code(), StatusCode::kIoError) << refused.ToString();
+  EXPECT_TRUE(Contains(refused.message(), "another server's insert holds the lock"))
+      << refused.ToString();
+  EXPECT_LT(waited_s, 30.0);
+  EXPECT_FALSE(place.id.IsValid());
+  ExpectCounts(store, 0, 0, 0);
+
+  PQclear(PQexec(peer, "ROLLBACK"));
+  PQfinish(peer);
+  const Status stored = store.AddPlace(&place, &landmarks);
+  EXPECT_TRUE(stored.ok()) << stored.ToString();
+  ExpectCounts(store, 1, 2, 2 + 3);
 }
 
 }  // namespace
