@@ -5,6 +5,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
 
 #include "common/util/logging.h"
 
@@ -107,7 +108,10 @@ int SqliteTransaction::Commit() {
 }
 
 StatusOr<bool> SqliteOpenElsewhere(const std::string& path) {
-  const std::string shm = path + "-shm";
+  // SQLite keeps the -shm file beside the file a link names.
+  std::error_code error_code;
+  const std::filesystem::path target = std::filesystem::canonical(path, error_code);
+  const std::string shm = (error_code ? path : target.string()) + "-shm";
   const int fd = open(shm.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
     if (errno == ENOENT) return false;

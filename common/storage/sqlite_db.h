@@ -31,14 +31,13 @@ std::string SqliteMessage(sqlite3* db, int rc);
 StatusOr<SqliteConnection> OpenSqliteDatabase(const std::string& path, int flags,
                                               int busy_timeout_ms);
 
-// Whether another process has the database at `path` open in WAL mode: every such connection
-// holds a read lock on the database's shared-memory file (`path`-shm) for as long as it is open,
-// even when idle, while it holds no lock on the database file itself between transactions (so
-// SQLite's own exclusive locking does not see it). False when there is no -shm file or nobody
-// locks it; IoError when the file cannot be examined. Linux (open-file-description locks: it
-// sees connections of this process too). Examining the file drops this process's own POSIX
-// locks on it, as closing any descriptor of a file does: ask before this process opens the map,
-// or while holding it in exclusive locking mode (which keeps no lock there).
+// Whether another process has the database at `path` (a symbolic link is followed, as SQLite
+// follows it) open in WAL mode: every such connection holds a read lock on the database's
+// shared-memory file (`path`-shm) for as long as it is open, even when idle. False when there is
+// no -shm file or nobody locks it; IoError when the file cannot be examined. Linux
+// (open-file-description locks: it sees connections of this process too). Examining the file drops
+// this process's own POSIX locks on it, as closing any descriptor of a file does: ask before this
+// process opens the map, or while holding it in exclusive locking mode (which keeps no lock there).
 StatusOr<bool> SqliteOpenElsewhere(const std::string& path);
 
 // Runs constant SQL without results; the error names the SQL and `path` (for messages only).

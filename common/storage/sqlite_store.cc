@@ -728,18 +728,36 @@ std::vector<uint8_t> ReadThumbnailForRepair(sqlite3* db, int version, int64_t id
   return std::vector<uint8_t>(bytes, bytes + size);
 }
 
-// Moves `from` (and its -wal and -shm companions) to `to`; companions that do not exist are
-// skipped.
-Status MoveMapFiles(const std::string& from, const std::string& to) {
-  for (const char* suffix : {"", "-wal", "-shm"}) {
-    std::error_code error;
-    const std::string source = from + suffix;
-    if (!std::filesystem::exists(source, error)) continue;
-    std::filesystem::rename(source, to + suffix, error);
+// Puts the map `fresh` (closed: one file) in the place of the map `path`, keeping the old one as
+// `damaged` (its -wal too), so that a kill at any point leaves a map at `path`: the old one is
+// linked (or, where the file system has no hard links, copied) to `damaged` first, then `fresh`
+// replaces it in one rename.
+Status SwapInRepairedMap(const std::string& path, const std::string& fresh,
+                         const std::string& damaged) {
+  std::error_code error;
+  std::filesystem::create_hard_link(path, damaged, error);
+  if (error) {
+    error.clear();
+    std::filesystem::copy_file(path, damaged, error);
+  }
+  if (error) {
+    return Status::IoError("cannot keep " + path + " as " + damaged + ": " + error.message() +
+                           "; the map is unchanged");
+  }
+  if (std::filesystem::exists(path + "-wal", error)) {
+    std::filesystem::copy_file(path + "-wal", damaged + "-wal", error);
     if (error) {
-      return Status::IoError("cannot move " + source + " to " + to + suffix + ": " +
-                             error.message());
+      return Status::IoError("cannot keep " + path + "-wal as " + damaged +
+                             "-wal: " + error.message() + "; the map is unchanged");
     }
+  }
+  // The old map's log and shared memory must not be read with the new file.
+  for (const char* suffix : {"-wal", "-shm"}) std::filesystem::remove(path + suffix, error);
+  std::filesystem::remove(fresh + "-shm", error);
+  std::filesystem::rename(fresh, path, error);
+  if (error) {
+    return Status::IoError("cannot move " + fresh + " to " + path + ": " + error.message() +
+                           " (the damaged map is still at " + path + ")");
   }
   return Status::Ok();
 }
@@ -886,6 +904,14 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
   if (!std::filesystem::exists(path, ignored)) {
     return Status::NotFound("no placerec map at " + path + " to repair");
   }
+  // Repair moves the map's files: a server still writing would commit into the moved ones.
+  const StatusOr<bool> elsewhere = SqliteOpenElsewhere(path);
+  if (!elsewhere.ok()) return elsewhere.status();
+  if (*elsewhere) {
+    return Status::IoError("map " + path +
+                           " is open in another process (a running placerec-server?): stop it "
+                           "and repair the map again");
+  }
   MapRepairReport report;
   std::vector<WholePlace> kept;
   if (std::filesystem::exists(path + "-wal", ignored) &&
@@ -1012,8 +1038,7 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
   for (const char* suffix : {"", "-wal", "-shm"}) {
     std::filesystem::remove(report.damaged_copy + suffix, ignored);
   }
-  PLACEREC_RETURN_IF_ERROR(MoveMapFiles(path, report.damaged_copy));
-  PLACEREC_RETURN_IF_ERROR(MoveMapFiles(fresh, path));
+  PLACEREC_RETURN_IF_ERROR(SwapInRepairedMap(path, fresh, report.damaged_copy));
   report.rewritten = true;
   return report;
 }

@@ -16,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/storage/sqlite_db.h"
 #include "common/storage/storage_testing.h"
 
 namespace placerec {
@@ -788,6 +789,59 @@ TEST(SqliteStoreTest, AnotherProcessClosingItsConnectionLeavesAnOpenMapsCommitsA
   std::unique_ptr<LandmarkStore> store = Open(map.path());
   ASSERT_NE(store, nullptr);
   ExpectCounts(*store, 4, 8, 48);
+}
+
+// A map held open by a server in another process: SqliteOpenElsewhere sees it under its own name
+// and through a symbolic link (SQLite follows the link; prune through a link used to change a
+// map under its server), and repair, which moves the map's files, refuses it.
+TEST(SqliteStoreTest, AMapHeldByAnotherProcessIsSeenThroughALinkAndNotRepaired) {
+  TempMap map("held_repair");
+  WriteMapOfThreePlaces(map.path());
+  const std::string link = map.path() + ".link";
+  std::filesystem::remove(link);
+  std::filesystem::create_symlink(map.path(), link);
+  int ready[2], done[2];
+  ASSERT_EQ(pipe(ready), 0);
+  ASSERT_EQ(pipe(done), 0);
+  const pid_t child = fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    close(ready[0]);
+    close(done[1]);
+    StatusOr<std::unique_ptr<LandmarkStore>> store =
+        OpenSqliteStore(map.path(), SqliteStoreOptions());
+    const char reply = store.ok() ? '1' : '0';
+    if (write(ready[1], &reply, 1) != 1) _exit(2);
+    char byte = 0;
+    if (read(done[0], &byte, 1) != 1) _exit(2);
+    _exit(0);
+  }
+  close(ready[1]);
+  close(done[0]);
+  char reply = 0;
+  ASSERT_EQ(read(ready[0], &reply, 1), 1);
+  EXPECT_EQ(reply, '1');
+  const StatusOr<bool> direct = SqliteOpenElsewhere(map.path());
+  const StatusOr<bool> linked = SqliteOpenElsewhere(link);
+  const StatusOr<MapRepairReport> repaired = RepairSqliteMap(map.path(), SqliteStoreOptions());
+  ASSERT_EQ(write(done[1], "x", 1), 1);
+  close(ready[0]);
+  close(done[1]);
+  int wait_status = 0;
+  ASSERT_EQ(waitpid(child, &wait_status, 0), child);
+  ASSERT_TRUE(direct.ok()) << direct.status().ToString();
+  ASSERT_TRUE(linked.ok()) << linked.status().ToString();
+  EXPECT_TRUE(*direct);
+  EXPECT_TRUE(*linked);
+  ASSERT_FALSE(repaired.ok());
+  EXPECT_TRUE(Contains(repaired.status().message(), "is open in another process"))
+      << repaired.status().ToString();
+  // Closed by its server: neither is held, and repair finds the map whole.
+  EXPECT_FALSE(*SqliteOpenElsewhere(link));
+  const StatusOr<MapRepairReport> whole = RepairSqliteMap(map.path(), SqliteStoreOptions());
+  ASSERT_TRUE(whole.ok()) << whole.status().ToString();
+  EXPECT_FALSE(whole->rewritten);
+  std::filesystem::remove(link);
 }
 
 // The same as a map of schema v1.
