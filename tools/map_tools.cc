@@ -739,6 +739,16 @@ StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, cons
                                    " exists: merge writes a new map; remove it or choose "
                                    "another --out");
   }
+  // A log left by a killed writer of an earlier map of that name would be replayed onto the new
+  // map by the next connection that opens it.
+  for (const char* suffix : {"-wal", "-journal"}) {
+    if (std::filesystem::exists(out + suffix, ignored)) {
+      return Status::InvalidArgument(
+          out + suffix + " exists (left by an earlier map " + out +
+          "): SQLite would replay it onto the merged map; remove it (and " + out +
+          "-shm) or choose another --out");
+    }
+  }
   SqliteStoreOptions read;
   read.read_only = true;  // the inputs stay as they are (an older schema is not upgraded)
   StatusOr<std::unique_ptr<LandmarkStore>> store_a = OpenSqliteStore(a, read);

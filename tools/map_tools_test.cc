@@ -472,6 +472,26 @@ TEST(MapToolsTest, MergeLeavesAnotherMergesWorkAlone) {
   EXPECT_EQ(Places(c.path()).size(), 2 * Places(a.path()).size());
 }
 
+// An earlier map C whose writer was killed left C-wal beside it; C itself was removed. The merge
+// into C is refused: SQLite would replay that log onto the merged map.
+TEST(MapToolsTest, MergeRefusesAnOutputWithAnEarlierMapsLog) {
+  TempMap a("merge_stale_a");
+  TempMap b("merge_stale_b");
+  TempMap c("merge_stale_c");
+  BuildSite(a.path());
+  BuildSite(b.path());
+  std::filesystem::copy_file(a.path(), c.path());
+  std::ofstream(c.path() + "-wal") << "an earlier map's log";
+  std::filesystem::remove(c.path());
+  StatusOr<MergeReport> report = MergeMaps(a.path(), b.path(), c.path(), MergeOptions());
+  ASSERT_FALSE(report.ok());
+  EXPECT_NE(report.status().message().find("-wal exists"), std::string::npos)
+      << report.status().ToString();
+  EXPECT_FALSE(std::filesystem::exists(c.path()));
+  std::filesystem::remove(c.path() + "-wal");
+  EXPECT_TRUE(MergeMaps(a.path(), b.path(), c.path(), MergeOptions()).ok());
+}
+
 // A merge that was killed left C.merging.HOST.<pid> (and its -wal): the next merge into C removes
 // them, while a running process's work file, another machine's, files that only look alike and
 // an input stay.
