@@ -18,6 +18,10 @@
 namespace placerec {
 namespace {
 
+// A device's body over --max-upload-bytes but at most this many times it is read and dropped
+// before its 413 (so that the answer reaches it); a larger one is refused unread.
+constexpr int64_t kMaxDiscardedUploadFactor = 4;
+
 int64_t NowUnix() {
   return std::chrono::duration_cast<std::chrono::seconds>(
              std::chrono::system_clock::now().time_since_epoch())
@@ -452,17 +456,43 @@ Status Gateway::Serve() {
   // A body must say its length, so that --max-upload-bytes holds before anything is read: the
   // library reads a chunked body whole, whatever its size, before any handler runs. So any
   // Transfer-Encoding (whatever its case, also beside a Content-Length) is refused unread.
-  http.set_pre_routing_handler([](const httplib::Request& req, httplib::Response& res) {
+  // A body over --max-upload-bytes is refused before it is read (the library reads and discards
+  // such a body whole before its 413, at whatever rate and length anybody sends it): without a
+  // valid token at once (401), from a device at once when it claims more than
+  // kMaxDiscardedUploadFactor times the limit (413); a device's body up to that is read and
+  // dropped, so that its 413 reaches it (a server closing on an unread body may reset the
+  // connection before the client reads the answer). This handler runs before any body is read.
+  http.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
     const bool encoded = req.has_header("Transfer-Encoding");
-    if (!encoded && (req.method != "POST" || req.has_header("Content-Length"))) {
-      return httplib::Server::HandlerResponse::Unhandled;
+    if (!encoded && req.method != "POST") return httplib::Server::HandlerResponse::Unhandled;
+    const auto refuse = [&res](int status, const std::string& why) {
+      res.status = status;
+      res.set_content(JsonText({{"error", why}}), "application/json");
+      return httplib::Server::HandlerResponse::Handled;
+    };
+    if (encoded || !req.has_header("Content-Length")) {
+      return refuse(411,
+                    "send the photo with a Content-Length header (a chunked body, or one without "
+                    "a length, is not read)");
     }
-    res.status = 411;
-    res.set_content(JsonText({{"error",
-                               "send the photo with a Content-Length header (a chunked body, or "
-                               "one without a length, is not read)"}}),
-                    "application/json");
-    return httplib::Server::HandlerResponse::Handled;
+    int64_t length = 0;
+    if (!ParseInt64(req.get_header_value("Content-Length"), &length) || length < 0) {
+      return refuse(400, "the Content-Length header is no number of bytes");
+    }
+    if (length <= options_.max_upload_bytes) return httplib::Server::HandlerResponse::Unhandled;
+    const std::string token = BearerToken(req.get_header_value("Authorization"));
+    if (token.empty()) {
+      return refuse(401, "send the device's token as 'Authorization: Bearer TOKEN'");
+    }
+    if (StatusOr<DeviceToken> who = tokens_.Authenticate(token, NowUnix()); !who.ok()) {
+      return refuse(401, who.status().message());
+    }
+    if (length / kMaxDiscardedUploadFactor > options_.max_upload_bytes) {
+      return refuse(413, "the photo has " + std::to_string(length) + " bytes; the limit is " +
+                             std::to_string(options_.max_upload_bytes) +
+                             " (send a smaller JPEG)");
+    }
+    return httplib::Server::HandlerResponse::Unhandled;
   });
   // Every error, including the library's own (404, 405, 413 ...), is a JSON body. The library
   // calls this outside its exception guard: nothing here may throw.
