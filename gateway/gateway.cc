@@ -489,8 +489,7 @@ Status Gateway::Serve() {
     }
     if (length / kMaxDiscardedUploadFactor > options_.max_upload_bytes) {
       return refuse(413, "the photo has " + std::to_string(length) + " bytes; the limit is " +
-                             std::to_string(options_.max_upload_bytes) +
-                             " (send a smaller JPEG)");
+                             std::to_string(options_.max_upload_bytes) + " (send a smaller JPEG)");
     }
     return httplib::Server::HandlerResponse::Unhandled;
   });

@@ -66,8 +66,8 @@ class Reader {
 constexpr size_t kMinStringBytes = 4 + 1;
 
 inline void WalkMatch(Reader* r) {
-  r->Skip(8);  // utime
-  r->String();  // robot
+  r->Skip(8);                      // utime
+  r->String();                     // robot
   r->Skip(8 + 8 + 8 + 4 + 4 + 4);  // sequence, place_id, score, three counts
   const int32_t classes = r->Int32();
   if (!r->Count(classes, kMinStringBytes)) return;
@@ -78,11 +78,11 @@ inline void WalkMatch(Reader* r) {
 // Whether every length in a result_t's bytes fits (proto/result_t.lcm, match_t, stage_time_t).
 inline bool LengthsFit(const void* data, size_t size, const result_t*) {
   Reader r(data, size);
-  r.Skip(8);  // utime
-  r.String();  // robot
+  r.Skip(8);                  // utime
+  r.String();                 // robot
   r.Skip(8 + 8 + 8 + 1 + 1);  // sequence, request_id, frame_utime, insert, status
-  r.String();  // message
-  r.Skip(1);  // loop_closure
+  r.String();                 // message
+  r.Skip(1);                  // loop_closure
   const int32_t matches = r.Int32();
   // A match takes at least its fixed fields, a robot id and a class count.
   if (!r.Count(matches, 8 + kMinStringBytes + 40)) return false;
@@ -93,9 +93,9 @@ inline bool LengthsFit(const void* data, size_t size, const result_t*) {
   if (!r.Count(timings, kMinStringBytes + 8)) return false;
   for (int32_t i = 0; i < timings && r.ok(); ++i) {
     r.String();  // stage
-    r.Skip(8);  // ms
+    r.Skip(8);   // ms
   }
-  r.String();  // key_id
+  r.String();          // key_id
   r.Skip(32 + 1 + 8);  // signature, change_checked, change_place_id
   const int32_t changes = r.Int32();
   // kinds (1 byte), boxes (16), classes (a string), confidences (4) per change.
@@ -109,13 +109,13 @@ inline bool LengthsFit(const void* data, size_t size, const result_t*) {
 // Whether every length in a change_t's bytes fits (proto/change_t.lcm).
 inline bool LengthsFit(const void* data, size_t size, const change_t*) {
   Reader r(data, size);
-  r.Skip(8);  // utime
-  r.String();  // robot
-  r.Skip(8 + 8 + 8 + 8);  // sequence, request_id, frame_utime, place_id
-  r.String();  // place_robot
+  r.Skip(8);                       // utime
+  r.String();                      // robot
+  r.Skip(8 + 8 + 8 + 8);           // sequence, request_id, frame_utime, place_id
+  r.String();                      // place_robot
   r.Skip(8 + 8 + 4 + 4 + 1 + 16);  // place_sequence .. kind, box
-  r.String();  // object_class
-  r.Skip(4 + 4 + 4);  // confidence, frame_width, frame_height
+  r.String();                      // object_class
+  r.Skip(4 + 4 + 4);               // confidence, frame_width, frame_height
   const int32_t frame_jpeg = r.Int32();
   if (!r.Count(frame_jpeg, 1)) return false;
   r.Skip(static_cast<size_t>(frame_jpeg));
