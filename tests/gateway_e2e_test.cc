@@ -24,6 +24,8 @@
 #include <httplib.h>
 #include <lcm/lcm-cpp.hpp>
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "client/client.h"
 #include "common/eval/run.h"
@@ -643,6 +645,45 @@ TEST_F(GatewayTest, ThePageInARealBrowserShowsWhereAPhotoWasTaken) {
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // pictures and overview load
+  const std::string first_state = state, first_answer = answer;
+
+  // A phone's photo: the same view at 12 megapixels, over the gateway's upload limit (and more
+  // than LCM's UDP multicast carries). The page sends a smaller JPEG of it and gets the answer.
+  const cv::Mat view = cv::imread(run_.frames[kMapped + 2].image, cv::IMREAD_COLOR);
+  ASSERT_FALSE(view.empty());
+  cv::Mat large;
+  cv::resize(view, large, cv::Size(4000, 4000 * view.rows / view.cols), 0, 0, cv::INTER_CUBIC);
+  cv::Mat noise(large.size(), CV_16SC3);  // a camera's sensor noise: megabytes, as a phone's JPEG
+  cv::randn(noise, 0, 4);
+  large.convertTo(large, CV_16SC3);
+  large += noise;
+  large.convertTo(large, CV_8UC3);
+  const std::string large_photo = dir_ + "/phone-photo.jpg";
+  ASSERT_TRUE(cv::imwrite(large_photo, large, {cv::IMWRITE_JPEG_QUALITY, 100}));
+  ASSERT_GT(std::filesystem::file_size(large_photo), 2000000u) << "not over the upload limit";
+  call("POST", base + "/execute/sync",
+       {{"script", "document.getElementById('answer-status').dataset.state = 'idle';"},
+        {"args", nlohmann::json::array()}});
+  call("POST", base + "/element/" + element + "/value",
+       {{"text", std::filesystem::canonical(large_photo).string()}});
+  std::string large_state, large_answer;
+  for (int i = 0; i < 600; ++i) {
+    const nlohmann::json shown =
+        call("POST", base + "/execute/sync",
+             {{"script",
+               "return [document.getElementById('answer-status').dataset.state,"
+               " document.getElementById('answer-status').textContent + ' ' +"
+               " document.getElementById('answer').textContent];"},
+              {"args", nlohmann::json::array()}});
+    if (shown["value"].is_array()) {
+      large_state = shown["value"][0].get<std::string>();
+      large_answer = shown["value"][1].get<std::string>();
+    }
+    if (large_state == "done" || large_state == "error") break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  state = first_state;
+  answer = first_answer;
   const nlohmann::json screenshot = call("GET", base + "/screenshot");
   if (screenshot["value"].is_string()) {
     const std::string artefacts = std::string(PLACEREC_BINARY_DIR) + "/test-artefacts";
@@ -660,6 +701,8 @@ TEST_F(GatewayTest, ThePageInARealBrowserShowsWhereAPhotoWasTaken) {
       << answer;
   EXPECT_NE(answer.find("seen by robot robot"), std::string::npos) << answer;
   EXPECT_NE(answer.find(std::to_string(MapPlaces()) + " places"), std::string::npos) << answer;
+  EXPECT_EQ(large_state, "done") << large_answer;
+  EXPECT_NE(large_answer.find("seen by robot robot"), std::string::npos) << large_answer;
 }
 
 }  // namespace

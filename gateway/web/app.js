@@ -109,17 +109,42 @@ function showAnswer(answer) {
   showThumbnail(best);
 }
 
+// A phone's photo (3-12 MB at 12 megapixels) goes as a JPEG of at most this many pixels on its
+// long side: the gateway hands it to the server over LCM, whose UDP multicast loses frames of
+// megabytes, and the robots' frames the map was built from are far smaller anyway.
+const kMaxPhotoSide = 1280;
+
+// The photo to send: `file` itself when it is small, else a smaller JPEG of it (the browser turns
+// it upright by its EXIF orientation); `file` too when the browser cannot decode it (the gateway
+// then says what is wrong).
+async function shrink(file) {
+  try {
+    const bitmap = await createImageBitmap(file);
+    const scale = Math.min(1, kMaxPhotoSide / Math.max(bitmap.width, bitmap.height));
+    if (scale === 1 && file.size <= 1000000) return file;
+    const canvas = document.createElement('canvas');
+    canvas.width = Math.max(1, Math.round(bitmap.width * scale));
+    canvas.height = Math.max(1, Math.round(bitmap.height * scale));
+    canvas.getContext('2d').drawImage(bitmap, 0, 0, canvas.width, canvas.height);
+    const blob = await new Promise((resolve) => canvas.toBlob(resolve, 'image/jpeg', 0.9));
+    return blob || file;
+  } catch (e) {
+    return file;
+  }
+}
+
 async function ask(file) {
   const status = $('answer-status');
-  $('mine').src = URL.createObjectURL(file);
   $('answer').replaceChildren();
   status.dataset.state = 'asking';
   status.textContent = 'Asking the map...';
+  const photo = await shrink(file);
+  $('mine').src = URL.createObjectURL(photo);  // change boxes are in the sent photo's pixels
   try {
     const response = await fetch('/v1/query', {
       method: 'POST',
-      headers: Object.assign({ 'Content-Type': file.type || 'application/octet-stream' }, authHeaders()),
-      body: file,
+      headers: Object.assign({ 'Content-Type': photo.type || 'application/octet-stream' }, authHeaders()),
+      body: photo,
     });
     if (!response.ok) {
       status.dataset.state = 'error';
