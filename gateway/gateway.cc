@@ -502,6 +502,13 @@ Status Gateway::Serve() {
       if (res.status == 404) message = "no such page or endpoint: " + req.path;
       if (res.status == 413) message = "the request is larger than the gateway accepts";
       if (res.status == 405) message = "method not allowed on " + req.path;
+      if (res.status == 400) {
+        message =
+            "malformed request (a broken multipart upload, or a body that ended early): send the "
+            "photo as the request body, or as the form field 'image'";
+      }
+      if (res.status == 414 || res.status == 431)
+        message = "the request's URL or headers are too long";
       res.set_content(JsonText({{"error", message}}), "application/json");
     } catch (const std::exception&) {
       res.set_content(R"({"error":"the request cannot be answered"})", "application/json");

@@ -378,6 +378,11 @@ TEST_F(GatewayTest, RefusalsAreJsonErrorsAndChangeNothing) {
     EXPECT_NE(body["error"].get<std::string>().find(c.says), std::string::npos)
         << c.name << ": " << body.dump();
   }
+  // A broken multipart upload (the library's own 400) says what to send.
+  const auto [broken_status, broken] =
+      Json(Https()->Post("/v1/query", Bearer(kToken), photo, "multipart/form-data; boundary=xyz"));
+  EXPECT_EQ(broken_status, 400) << broken.dump();
+  EXPECT_NE(broken.dump().find("form field 'image'"), std::string::npos) << broken.dump();
   // The gateway never inserts: there is no such endpoint.
   const auto [insert_status, insert_body] =
       Json(Https()->Post("/v1/insert", Bearer(kToken), photo, "image/jpeg"));
