@@ -308,10 +308,18 @@ Status Server::Run() {
   // unanswered), which the stopped queue refuses and OnFrameMessage answers the same way.
   std::vector<Job> pending = queue_->Shutdown();
   for (Job& job : pending) {
+    // No longer in flight: a copy that comes later is refused too, and copies that came on other
+    // networks meanwhile are told as well.
+    const std::vector<size_t> also = answers_.Forget(job.frame);
     result_t answer = AnswerTemplate(job.frame);
     SetError(result_t::STATUS_SHUTTING_DOWN,
              "the server is shutting down; the frame was not processed", &answer);
-    Publish(&answer, false, job.network, job.key ? &*job.key : nullptr);
+    const SigningKey* key = job.key ? &*job.key : nullptr;
+    for (const size_t copy : also) {
+      result_t told = answer;
+      Publish(&told, false, copy, key);
+    }
+    Publish(&answer, false, job.network, key);
   }
   const int drained = DrainReceivedFrames();
   for (const std::unique_ptr<Network>& network : networks_) {
