@@ -110,6 +110,12 @@ std::set<std::string> TokenTable::KeyIds() const {
   return ids;
 }
 
+std::set<std::string> TokenTable::Devices() const {
+  std::set<std::string> ids;
+  for (const DeviceToken& entry : tokens_) ids.insert(entry.device);
+  return ids;
+}
+
 bool RateLimiter::Allow(const std::string& key, Clock::time_point now, double* retry_after_s) {
   std::lock_guard lock(mutex_);
   auto [it, inserted] = buckets_.try_emplace(key);

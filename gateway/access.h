@@ -41,6 +41,8 @@ class TokenTable {
   size_t size() const { return tokens_.size(); }
   // The distinct key ids the devices name ("" for devices signed with the gateway's own key).
   std::set<std::string> KeyIds() const;
+  // The devices' ids.
+  std::set<std::string> Devices() const;
 
  private:
   std::vector<DeviceToken> tokens_;

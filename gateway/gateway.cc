@@ -218,8 +218,8 @@ StatusOr<std::unique_ptr<Gateway>> Gateway::Create(const GatewayOptions& options
     }
     gateway->clients_[key_id] = std::move(*client);
   }
-  StatusOr<std::unique_ptr<SiteWatcher>> watcher =
-      SiteWatcher::Start(options.client.lcm_url, options.recent_loop_closures);
+  StatusOr<std::unique_ptr<SiteWatcher>> watcher = SiteWatcher::Start(
+      options.client.lcm_url, options.recent_loop_closures, gateway->tokens_.Devices());
   if (!watcher.ok()) return watcher.status();
   gateway->watcher_ = std::move(*watcher);
   if (!options.db.empty()) {

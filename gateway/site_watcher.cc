@@ -12,12 +12,14 @@
 
 namespace placerec {
 
-StatusOr<std::unique_ptr<SiteWatcher>> SiteWatcher::Start(const std::string& lcm_url, size_t keep) {
+StatusOr<std::unique_ptr<SiteWatcher>> SiteWatcher::Start(const std::string& lcm_url, size_t keep,
+                                                          std::set<std::string> hidden_robots) {
   auto lcm = std::make_unique<lcm::LCM>(lcm_url);
   if (!lcm->good()) {
     return Status::IoError("cannot open LCM" + (lcm_url.empty() ? "" : " at " + lcm_url));
   }
-  std::unique_ptr<SiteWatcher> watcher(new SiteWatcher(std::move(lcm), keep));
+  std::unique_ptr<SiteWatcher> watcher(
+      new SiteWatcher(std::move(lcm), keep, std::move(hidden_robots)));
   lcm::Subscription* results = watcher->lcm_->subscribe(std::string(kResultChannelPrefix) + ".*",
                                                         &SiteWatcher::OnResult, watcher.get());
   lcm::Subscription* status =
@@ -34,9 +36,11 @@ StatusOr<std::unique_ptr<SiteWatcher>> SiteWatcher::Start(const std::string& lcm
   return watcher;
 }
 
-SiteWatcher::SiteWatcher(std::unique_ptr<lcm::LCM> lcm, size_t keep)
+SiteWatcher::SiteWatcher(std::unique_ptr<lcm::LCM> lcm, size_t keep,
+                         std::set<std::string> hidden_robots)
     : lcm_(std::move(lcm)),
       keep_(keep),
+      hidden_robots_(std::move(hidden_robots)),
       next_alarm_id_(std::chrono::duration_cast<std::chrono::milliseconds>(
                          std::chrono::system_clock::now().time_since_epoch())
                          .count()) {}
@@ -63,7 +67,7 @@ void SiteWatcher::OnChange(const lcm::ReceiveBuffer* buffer, const std::string&)
 
 void SiteWatcher::Hear(const result_t& answer) {
   std::string why;
-  if (!IsValidWireRobotId(answer.robot, &why)) return;
+  if (!IsValidWireRobotId(answer.robot, &why) || hidden_robots_.count(answer.robot) > 0) return;
   std::lock_guard lock(mutex_);
   if (robots_.contains(answer.robot)) {
     robots_[answer.robot] = robots_[answer.robot].get<int64_t>() + 1;
@@ -104,7 +108,7 @@ void SiteWatcher::Hear(const status_t& s) {
 
 void SiteWatcher::Hear(const change_t& c) {
   std::string why;
-  if (!IsValidWireRobotId(c.robot, &why)) return;
+  if (!IsValidWireRobotId(c.robot, &why) || hidden_robots_.count(c.robot) > 0) return;
   std::lock_guard lock(mutex_);
   Alarm alarm;
   alarm.id = next_alarm_id_++;

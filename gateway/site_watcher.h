@@ -9,6 +9,7 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -31,8 +32,11 @@ class status_t;
 class SiteWatcher {
  public:
   // Listens on `lcm_url` (empty: LCM's default); keeps the last `keep` loop closures and the
-  // last `keep` alarms (with their two small pictures).
-  static StatusOr<std::unique_ptr<SiteWatcher>> Start(const std::string& lcm_url, size_t keep);
+  // last `keep` alarms (with their two small pictures). The answers and alarms of
+  // `hidden_robots` (the gateway's own devices: where a person asked from, and their photo) are
+  // not kept, so that no device sees where another one is.
+  static StatusOr<std::unique_ptr<SiteWatcher>> Start(const std::string& lcm_url, size_t keep,
+                                                      std::set<std::string> hidden_robots = {});
   ~SiteWatcher();
 
   // {"server": {...heartbeat...} or null, "loop_closures": [{robot, sequence, utime, place:
@@ -57,7 +61,7 @@ class SiteWatcher {
   static constexpr size_t kMaxRobots = 1000;
 
  private:
-  SiteWatcher(std::unique_ptr<lcm::LCM> lcm, size_t keep);
+  SiteWatcher(std::unique_ptr<lcm::LCM> lcm, size_t keep, std::set<std::string> hidden_robots);
   void OnResult(const lcm::ReceiveBuffer* buffer, const std::string& channel);
   void OnStatus(const lcm::ReceiveBuffer* buffer, const std::string& channel);
   void OnChange(const lcm::ReceiveBuffer* buffer, const std::string& channel);
@@ -71,6 +75,7 @@ class SiteWatcher {
 
   std::unique_ptr<lcm::LCM> lcm_;
   size_t keep_;
+  const std::set<std::string> hidden_robots_;
   mutable std::mutex mutex_;
   nlohmann::json status_;
   std::deque<nlohmann::json> loop_closures_;          // newest first

@@ -58,6 +58,32 @@ TEST(SiteWatcherTest, MessagesNamingNoValidRobotAreIgnoredAndRobotsAreBounded) {
   EXPECT_EQ(watcher->Overview()["robots"].size(), SiteWatcher::kMaxRobots);
 }
 
+// The gateway's own devices are not shown: where a person asked from, and their photo in an
+// alarm, are nobody else's business (every device could read them in the overview).
+TEST(SiteWatcherTest, TheGatewaysDevicesAreNotShown) {
+  StatusOr<std::unique_ptr<SiteWatcher>> started = SiteWatcher::Start("memq://", 5, {"phone-anna"});
+  ASSERT_TRUE(started.ok()) << started.status().ToString();
+  SiteWatcher& watcher = **started;
+  result_t asked = Answer("phone-anna");
+  asked.loop_closure = true;
+  asked.num_matches = 1;
+  asked.matches.resize(1);
+  asked.matches[0].robot = "left";
+  watcher.Hear(asked);
+  watcher.Hear(Alarm("phone-anna"));
+  result_t patrol = asked;
+  patrol.robot = "right";
+  watcher.Hear(patrol);
+  watcher.Hear(Alarm("right"));
+  const nlohmann::json overview = watcher.Overview();
+  ASSERT_EQ(overview["robots"].size(), 1u) << JsonText(overview);
+  EXPECT_EQ(overview["robots"][0]["robot"], "right");
+  ASSERT_EQ(overview["loop_closures"].size(), 1u) << JsonText(overview);
+  EXPECT_EQ(overview["loop_closures"][0]["robot"], "right");
+  ASSERT_EQ(overview["alarms"].size(), 1u) << JsonText(overview);
+  EXPECT_EQ(overview["alarms"][0]["robot"], "right");
+}
+
 // Text that is no UTF-8 (a decoded URL path) is printed with replacement characters instead of
 // an exception.
 TEST(SiteWatcherTest, JsonTextReplacesBytesThatAreNoUtf8) {
