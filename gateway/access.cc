@@ -1,14 +1,17 @@
 #include "gateway/access.h"
 
 #include <openssl/crypto.h>
+#include <sys/stat.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <ctime>
 #include <fstream>
 #include <iomanip>
 #include <set>
 #include <sstream>
 
+#include "common/util/logging.h"
 #include "proto/auth/signing.h"
 #include "proto/channels.h"
 
@@ -85,6 +88,13 @@ StatusOr<TokenTable> TokenTable::Load(const std::string& path) {
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   StatusOr<TokenTable> table = Parse(text);
   if (!table.ok()) return Status::InvalidArgument(path + ": " + table.status().message());
+  struct stat info = {};
+  if (stat(path.c_str(), &info) == 0 && (info.st_mode & 077) != 0) {
+    char mode[8];
+    std::snprintf(mode, sizeof(mode), "%04o", static_cast<unsigned>(info.st_mode & 07777));
+    LOG(WARNING) << "the tokens file " << path << " has mode " << mode
+                 << ": group or others may read the tokens; run chmod 600 " << path;
+  }
   return table;
 }
 

@@ -33,7 +33,8 @@ constexpr char kUsage[] =
     "per\n"
     "line: TOKEN DEVICE [key=KEY_ID] [expires=YYYY-MM-DDTHH:MM:SSZ]. DEVICE names the device's\n"
     "frames like a robot id; KEY_ID, a query key of --key-file, signs its queries (default: the\n"
-    "gateway's --key-id), so the server's keys file can revoke that device alone.\n"
+    "gateway's --key-id), so the server's keys file can revoke that device alone. The tokens\n"
+    "file is read at start (restart the gateway to change it; SIGHUP is ignored).\n"
     "scripts/make-cert.sh DIR makes a self-signed certificate for tests and demos.";
 
 int Main(int argc, char** argv) {
@@ -85,6 +86,9 @@ int Main(int argc, char** argv) {
   action.sa_handler = OnStopSignal;
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
+  // The tokens file is read at start only (the gateway keeps no state: restart it to change
+  // tokens); a SIGHUP, which reloads the server's keys, must not stop it.
+  signal(SIGHUP, SIG_IGN);
   const Status served = (*gateway)->Serve();
   g_gateway = nullptr;
   if (!served.ok()) {

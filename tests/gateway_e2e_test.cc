@@ -378,6 +378,10 @@ TEST_F(GatewayTest, RefusalsAreJsonErrorsAndChangeNothing) {
     EXPECT_NE(body["error"].get<std::string>().find(c.says), std::string::npos)
         << c.name << ": " << body.dump();
   }
+  // A SIGHUP (which reloads the server's keys) leaves the gateway serving.
+  gateway_->Signal(SIGHUP);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ASSERT_TRUE(gateway_->running()) << "SIGHUP stopped the gateway";
   // A broken multipart upload (the library's own 400) says what to send.
   const auto [broken_status, broken] =
       Json(Https()->Post("/v1/query", Bearer(kToken), photo, "multipart/form-data; boundary=xyz"));
