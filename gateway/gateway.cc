@@ -309,6 +309,28 @@ HttpReply Gateway::Query(const std::string& authorization, const std::string& im
     busy.retry_after_s = 5;
     return busy;
   }
+  const int per_device = std::max(1, options_.max_waiting_queries / 2);
+  struct DeviceWaiting {
+    Gateway* gateway;
+    std::string device;
+    ~DeviceWaiting() {
+      std::lock_guard lock(gateway->waiting_mutex_);
+      if (--gateway->waiting_by_device_[device] <= 0) gateway->waiting_by_device_.erase(device);
+    }
+  };
+  int device_waiting = 0;
+  {
+    std::lock_guard lock(waiting_mutex_);
+    device_waiting = ++waiting_by_device_[device.device];
+  }
+  const DeviceWaiting device_slot{this, device.device};
+  if (device_waiting > per_device) {
+    HttpReply busy = ErrorReply(503, std::to_string(per_device) +
+                                         " queries of this device are waiting on the placerec "
+                                         "server; wait for their answers");
+    busy.retry_after_s = 5;
+    return busy;
+  }
   frame.image.bytes.assign(image.begin(), image.end());
   frame.robot = device.device;
   frame.sequence = next_sequence_++;

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 
 #include "client/client.h"
@@ -89,6 +90,10 @@ class Gateway {
   RateLimiter query_limiter_;
   RateLimiter read_limiter_;
   std::atomic<int> waiting_queries_{0};
+  // Queries of each device waiting on the server: at most half of max_waiting_queries (at least
+  // one), so that one device cannot take every slot.
+  std::mutex waiting_mutex_;
+  std::map<std::string, int> waiting_by_device_;
   // One LCM client per key the devices' queries are signed with (DeviceToken::key_id; "" is the
   // gateway's own key, ClientOptions::key_id).
   std::map<std::string, std::unique_ptr<PlacerecClient>> clients_;

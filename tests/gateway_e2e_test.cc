@@ -535,6 +535,34 @@ TEST_F(GatewayTest, QueriesWaitingOnTheServerAreBoundedAndReadsAreServedMeanwhil
   EXPECT_EQ(site->status, 200) << site->body;
   EXPECT_LT(waited_s, 2.5) << "the refusal and the overview waited for the first query";
   EXPECT_EQ(first_status, 504);
+
+  // One device may hold at most half of the slots: its third query waits for none, another
+  // device's query still gets a slot (and times out, as nothing answers).
+  std::unique_ptr<ChildProcess> shared =
+      StartGateway(kOtherPort + 1, {"--max-waiting-queries", "4", "--query-timeout", "3"});
+  ASSERT_NE(shared, nullptr);
+  std::vector<int> statuses(3, 0);
+  std::vector<std::thread> waiting;
+  for (int i = 0; i < 2; ++i) {
+    waiting.emplace_back([&, i] {
+      httplib::Result r =
+          Https(kOtherPort + 1)->Post("/v1/query", Bearer(kToken), photo, "image/jpeg");
+      statuses[i] = r ? r->status : -1;
+    });
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+  httplib::Result third =
+      Https(kOtherPort + 1)->Post("/v1/query", Bearer(kToken), photo, "image/jpeg");
+  waiting.emplace_back([&] {
+    httplib::Result r =
+        Https(kOtherPort + 1)->Post("/v1/query", Bearer(kOtherToken), photo, "image/jpeg");
+    statuses[2] = r ? r->status : -1;
+  });
+  for (std::thread& t : waiting) t.join();
+  ASSERT_TRUE(third);
+  EXPECT_EQ(third->status, 503) << third->body;
+  EXPECT_NE(third->body.find("of this device"), std::string::npos) << third->body;
+  EXPECT_EQ(statuses, (std::vector<int>{504, 504, 504}));
 }
 
 // A device whose token names its own key (key=phone-4) is signed with it, so the server's keys
