@@ -485,13 +485,19 @@ Status Gateway::Serve() {
   // dropped, so that its 413 reaches it (a server closing on an unread body may reset the
   // connection before the client reads the answer). This handler runs before any body is read.
   http.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
-    const bool encoded = req.has_header("Transfer-Encoding");
-    if (!encoded && req.method != "POST") return httplib::Server::HandlerResponse::Unhandled;
     const auto refuse = [&res](int status, const std::string& why) {
       res.status = status;
       res.set_content(JsonText({{"error", why}}), "application/json");
       return httplib::Server::HandlerResponse::Handled;
     };
+    // The library reads a body for PUT, PATCH, DELETE ... too (one without a length unbounded):
+    // no endpoint takes them, so they are refused unread.
+    if (req.method != "GET" && req.method != "HEAD" && req.method != "POST") {
+      return refuse(405, "method " + req.method +
+                             " not allowed: GET the page and the overview, POST /v1/query a photo");
+    }
+    const bool encoded = req.has_header("Transfer-Encoding");
+    if (!encoded && req.method != "POST") return httplib::Server::HandlerResponse::Unhandled;
     if (encoded || !req.has_header("Content-Length")) {
       return refuse(411,
                     "send the photo with a Content-Length header (a chunked body, or one without "
@@ -526,11 +532,10 @@ Status Gateway::Serve() {
       if (res.status == 405) message = "method not allowed on " + req.path;
       if (res.status == 400) {
         message =
-            "malformed request (a broken multipart upload, or a body that ended early): send the "
-            "photo as the request body, or as the form field 'image'";
+            "malformed request (its request line or headers, a broken multipart upload, or a body "
+            "that ended early): send the photo as the request body, or as the form field 'image'";
       }
-      if (res.status == 414 || res.status == 431)
-        message = "the request's URL or headers are too long";
+      if (res.status == 414) message = "the request's URL is too long";
       res.set_content(JsonText({{"error", message}}), "application/json");
     } catch (const std::exception&) {
       res.set_content(R"({"error":"the request cannot be answered"})", "application/json");

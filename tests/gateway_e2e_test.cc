@@ -502,6 +502,31 @@ TEST_F(GatewayTest, HostileRequestsNeitherStopTheGatewayNorFillItsMemory) {
     EXPECT_LT(streamed, kOffered / 4)
         << "the gateway read " << streamed << " bytes of a body over its limit";
   }
+  // Methods no endpoint takes, whose bodies the library reads too (without a length, whole into
+  // memory): refused unread.
+  for (const bool with_length : {true, false}) {
+    size_t streamed = 0;
+    const auto provide = [&](size_t, httplib::DataSink& sink) {
+      if (streamed >= kOffered) return false;
+      if (!sink.write(chunk.data(), chunk.size())) return false;
+      streamed += chunk.size();
+      return true;
+    };
+    httplib::Result other =
+        with_length ? Https()->Put(
+                          "/v1/query", httplib::Headers{}, size_t{1} << 40,
+                          [&](size_t offset, size_t, httplib::DataSink& sink) {
+                            return provide(offset, sink);
+                          },
+                          "image/jpeg")
+                    : Https()->Patch("/v1/query", httplib::Headers{}, provide, "image/jpeg");
+    ASSERT_TRUE(gateway_->running()) << Tail(gateway_->log_path());
+    if (other) {
+      EXPECT_EQ(other->status, 405) << other->body;
+    }
+    EXPECT_LT(streamed, kOffered / 4) << "the gateway read " << streamed << " bytes of a "
+                                      << (with_length ? "PUT" : "PATCH") << " body";
+  }
 }
 
 // Queries waiting on a server that does not answer hold an HTTPS thread each until
