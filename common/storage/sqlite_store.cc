@@ -735,25 +735,42 @@ std::vector<uint8_t> ReadThumbnailForRepair(sqlite3* db, int version, int64_t id
 Status SwapInRepairedMap(const std::string& path, const std::string& fresh,
                          const std::string& damaged) {
   std::error_code error;
-  std::filesystem::create_hard_link(path, damaged, error);
-  if (error) {
+  if (std::filesystem::exists(fresh + "-wal", error) &&
+      std::filesystem::file_size(fresh + "-wal", error) > 0) {
+    return Status::IoError("the repaired map " + fresh + " kept a write-ahead log; the map " +
+                           path + " is unchanged");
+  }
+  if (!std::filesystem::equivalent(path, damaged, error)) {
     error.clear();
-    std::filesystem::copy_file(path, damaged, error);
+    std::filesystem::create_hard_link(path, damaged, error);
+    if (error) {
+      error.clear();
+      std::filesystem::copy_file(path, damaged, error);
+    }
+    if (error) {
+      return Status::IoError("cannot keep " + path + " as " + damaged + ": " + error.message() +
+                             "; the map is unchanged");
+    }
   }
-  if (error) {
-    return Status::IoError("cannot keep " + path + " as " + damaged + ": " + error.message() +
-                           "; the map is unchanged");
-  }
+  error.clear();
   if (std::filesystem::exists(path + "-wal", error)) {
-    std::filesystem::copy_file(path + "-wal", damaged + "-wal", error);
+    std::filesystem::copy_file(path + "-wal", damaged + "-wal",
+                               std::filesystem::copy_options::overwrite_existing, error);
     if (error) {
       return Status::IoError("cannot keep " + path + "-wal as " + damaged +
                              "-wal: " + error.message() + "; the map is unchanged");
     }
   }
   // The old map's log and shared memory must not be read with the new file.
-  for (const char* suffix : {"-wal", "-shm"}) std::filesystem::remove(path + suffix, error);
+  for (const char* suffix : {"-wal", "-shm"}) {
+    std::filesystem::remove(path + suffix, error);
+    if (error) {
+      return Status::IoError("cannot remove " + path + suffix + ": " + error.message() +
+                             "; the map is unchanged");
+    }
+  }
   std::filesystem::remove(fresh + "-shm", error);
+  error.clear();
   std::filesystem::rename(fresh, path, error);
   if (error) {
     return Status::IoError("cannot move " + fresh + " to " + path + ": " + error.message() +
@@ -904,14 +921,6 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
   if (!std::filesystem::exists(path, ignored)) {
     return Status::NotFound("no placerec map at " + path + " to repair");
   }
-  // Repair moves the map's files: a server still writing would commit into the moved ones.
-  const StatusOr<bool> elsewhere = SqliteOpenElsewhere(path);
-  if (!elsewhere.ok()) return elsewhere.status();
-  if (*elsewhere) {
-    return Status::IoError("map " + path +
-                           " is open in another process (a running placerec-server?): stop it "
-                           "and repair the map again");
-  }
   MapRepairReport report;
   std::vector<WholePlace> kept;
   if (std::filesystem::exists(path + "-wal", ignored) &&
@@ -923,6 +932,15 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
     if (db.ok()) {
       sqlite3_exec(db->get(), "PRAGMA wal_checkpoint(TRUNCATE)", nullptr, nullptr, nullptr);
     }
+  }
+  // A log that could not be folded in would be lost with the swap below (the old map's log cannot
+  // stay beside the new file).
+  const StatusOr<bool> held = SqliteOpenElsewhere(path);
+  if (std::filesystem::exists(path + "-wal", ignored) &&
+      std::filesystem::file_size(path + "-wal", ignored) > 0 && held.ok() && !*held) {
+    return Status::IoError("the write-ahead log " + path +
+                           "-wal cannot be folded into the map; it cannot be repaired: copy " +
+                           path + " and " + path + "-wal somewhere safe, then restore a backup");
   }
   // The file's pages that quick_check names are read directly, through a descriptor that outlives
   // the connection (see PlacesNamedByQuickCheck).
@@ -1008,6 +1026,15 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
   }
   if (report.problems.empty() && report.places_dropped == 0) return report;  // whole: untouched
 
+  // The rewrite moves the map's files: a server still writing would commit into the moved ones.
+  const StatusOr<bool> elsewhere = SqliteOpenElsewhere(path);
+  if (!elsewhere.ok()) return elsewhere.status();
+  if (*elsewhere) {
+    return Status::IoError("map " + path +
+                           " is damaged and open in another process (a placerec-server, a "
+                           "placerec-gateway with --db, a tool): stop it and repair the map again");
+  }
+
   // Write the kept places to a new map beside the old one, then swap the files.
   const std::string fresh = path + ".repairing";
   for (const char* suffix : {"", "-wal", "-shm"}) std::filesystem::remove(fresh + suffix, ignored);
@@ -1035,8 +1062,12 @@ StatusOr<MapRepairReport> RepairSqliteMap(const std::string& path,
     }
   }  // closed: the new map is one file again
   report.damaged_copy = path + ".damaged";
-  for (const char* suffix : {"", "-wal", "-shm"}) {
-    std::filesystem::remove(report.damaged_copy + suffix, ignored);
+  if (!std::filesystem::equivalent(path, report.damaged_copy, ignored)) {
+    // An earlier repair's copy goes; one that is this map's own link (a repair killed before its
+    // swap) stays, as it is.
+    for (const char* suffix : {"", "-wal", "-shm"}) {
+      std::filesystem::remove(report.damaged_copy + suffix, ignored);
+    }
   }
   PLACEREC_RETURN_IF_ERROR(SwapInRepairedMap(path, fresh, report.damaged_copy));
   report.rewritten = true;

@@ -823,6 +823,10 @@ TEST(SqliteStoreTest, AMapHeldByAnotherProcessIsSeenThroughALinkAndNotRepaired) 
   EXPECT_EQ(reply, '1');
   const StatusOr<bool> direct = SqliteOpenElsewhere(map.path());
   const StatusOr<bool> linked = SqliteOpenElsewhere(link);
+  // A whole map held open (by a server, a gateway reading pictures) needs no repair: left alone.
+  const StatusOr<MapRepairReport> whole = RepairSqliteMap(map.path(), SqliteStoreOptions());
+  // A damaged one would be rewritten under its holder: refused.
+  ExecSql(map.path(), "UPDATE landmarks SET segment_class = 999 WHERE id = 1");
   const StatusOr<MapRepairReport> repaired = RepairSqliteMap(map.path(), SqliteStoreOptions());
   ASSERT_EQ(write(done[1], "x", 1), 1);
   close(ready[0]);
@@ -833,15 +837,21 @@ TEST(SqliteStoreTest, AMapHeldByAnotherProcessIsSeenThroughALinkAndNotRepaired) 
   ASSERT_TRUE(linked.ok()) << linked.status().ToString();
   EXPECT_TRUE(*direct);
   EXPECT_TRUE(*linked);
-  ASSERT_FALSE(repaired.ok());
-  EXPECT_TRUE(Contains(repaired.status().message(), "is open in another process"))
-      << repaired.status().ToString();
-  // Closed by its server: neither is held, and repair finds the map whole.
-  EXPECT_FALSE(*SqliteOpenElsewhere(link));
-  const StatusOr<MapRepairReport> whole = RepairSqliteMap(map.path(), SqliteStoreOptions());
   ASSERT_TRUE(whole.ok()) << whole.status().ToString();
   EXPECT_FALSE(whole->rewritten);
+  ASSERT_FALSE(repaired.ok());
+  EXPECT_TRUE(Contains(repaired.status().message(), "open in another process"))
+      << repaired.status().ToString();
+  // Closed by its server: not held, and the repair drops the damaged place.
+  EXPECT_FALSE(*SqliteOpenElsewhere(link));
+  const StatusOr<MapRepairReport> rewritten = RepairSqliteMap(map.path(), SqliteStoreOptions());
+  ASSERT_TRUE(rewritten.ok()) << rewritten.status().ToString();
+  EXPECT_TRUE(rewritten->rewritten);
+  EXPECT_EQ(rewritten->places_kept, 2);
   std::filesystem::remove(link);
+  for (const char* suffix : {"", "-wal", "-shm"}) {
+    std::filesystem::remove(map.path() + ".damaged" + suffix);
+  }
 }
 
 // The same as a map of schema v1.
