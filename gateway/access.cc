@@ -93,7 +93,7 @@ StatusOr<TokenTable> TokenTable::Load(const std::string& path) {
     char mode[8];
     std::snprintf(mode, sizeof(mode), "%04o", static_cast<unsigned>(info.st_mode & 07777));
     LOG(WARNING) << "the tokens file " << path << " has mode " << mode
-                 << ": group or others may read the tokens; run chmod 600 " << path;
+                 << ": group or others have access to the tokens; run chmod 600 " << path;
   }
   return table;
 }

@@ -308,8 +308,9 @@ Status Server::Run() {
   // unanswered), which the stopped queue refuses and OnFrameMessage answers the same way.
   std::vector<Job> pending = queue_->Shutdown();
   for (Job& job : pending) {
-    // No longer in flight: a copy that comes later is refused too, and copies that came on other
-    // networks meanwhile are told as well.
+    // No longer in flight, and copies that came on other networks meanwhile are told as well. (A
+    // copy coming later is refused when unsigned; a signed one is a replay of its counter and is
+    // dropped unanswered, as any replay.)
     const std::vector<size_t> also = answers_.Forget(job.frame);
     result_t answer = AnswerTemplate(job.frame);
     SetError(result_t::STATUS_SHUTTING_DOWN,

@@ -35,6 +35,8 @@ constexpr int64_t kSchemaLockKey = 0x706c6163736368;  // "placsch"
 // SQLSTATEs the store tells apart.
 constexpr char kUniqueViolation[] = "23505";
 constexpr char kForeignKeyViolation[] = "23503";
+constexpr char kLockNotAvailable[] = "55P03";  // lock_timeout
+constexpr char kQueryCanceled[] = "57014";     // statement_timeout
 
 // Schema v3 (schema.h) in PostgreSQL types: every integer BIGINT, BLOBs BYTEA (stored
 // uncompressed: descriptors do not compress), the class confidence DOUBLE PRECISION.
@@ -655,11 +657,15 @@ Status PostgresStore::InsertRows(const Place& place, const std::vector<Landmark>
     lock.Int(kPostgresInsertLockKey);
     Result locked = db_->Exec("SELECT pg_advisory_xact_lock($1)", lock);
     if (locked.status() != PGRES_TUPLES_OK) {
-      return db_->Error(
-          "cannot lock the map for the insert (another server's insert holds the lock; one "
-          "stopped or cut off inside it keeps it until PostgreSQL ends its session, which "
-          "idle_in_transaction_session_timeout on the cluster bounds)",
-          locked);
+      const std::string state = locked.sqlstate();
+      if (state == kLockNotAvailable || state == kQueryCanceled) {
+        return db_->Error(
+            "cannot lock the map for the insert (another server's insert holds the lock; one "
+            "stopped or cut off inside it keeps it until PostgreSQL ends its session, which "
+            "idle_in_transaction_session_timeout on the cluster bounds)",
+            locked);
+      }
+      return db_->Error("cannot lock the map for the insert", locked);
     }
   }
   {

@@ -121,11 +121,15 @@ async function shrink(file) {
   try {
     const bitmap = await createImageBitmap(file);
     const scale = Math.min(1, kMaxPhotoSide / Math.max(bitmap.width, bitmap.height));
-    if (scale === 1 && file.size <= 1000000) return file;
+    if (scale === 1 && file.size <= 1000000) {
+      bitmap.close();
+      return file;
+    }
     const canvas = document.createElement('canvas');
     canvas.width = Math.max(1, Math.round(bitmap.width * scale));
     canvas.height = Math.max(1, Math.round(bitmap.height * scale));
     canvas.getContext('2d').drawImage(bitmap, 0, 0, canvas.width, canvas.height);
+    bitmap.close();
     const blob = await new Promise((resolve) => canvas.toBlob(resolve, 'image/jpeg', 0.9));
     return blob || file;
   } catch (e) {
