@@ -280,32 +280,52 @@ class AnswerSpy {
   // changes nothing and is answered "bad image") and waits for the markers' answers. The server
   // runs a robot's frames one at a time in the order they came (server/work_queue.h), and it
   // answers bad robot ids and drops non-frames on receipt, so any answer to the earlier messages
-  // is heard before the last marker's. False, saying which marker is missing, on timeout.
+  // is heard before a later marker's. A marker (a UDP datagram) may be lost on a loaded machine:
+  // one not answered within kMarkerPatience is sent again, as a new marker. False, saying which
+  // robot's marker is missing, on timeout.
   ::testing::AssertionResult Flush(const std::vector<std::string>& robots, double timeout_s) {
-    std::vector<int64_t> markers;
-    for (const std::string& robot : robots) {
-      frame_t marker;
-      marker.request_id = next_marker_--;  // senders choose ids; the client's are >= 0
-      marker.insert = false;
-      marker.encoding = frame_t::ENCODING_JPEG;
-      marker.robot = robot;
-      marker.data.assign(64, 0x42);
-      marker.size = static_cast<int32_t>(marker.data.size());
-      if (Publish(marker) != 0) return ::testing::AssertionFailure() << "cannot publish a marker";
-      markers.push_back(marker.request_id);
-    }
-    std::unique_lock lock(mutex_);
-    const bool all = arrived_.wait_for(lock, Seconds(timeout_s), [&] {
-      for (const int64_t id : markers) {
-        if (marker_answers_.count(id) == 0) return false;
+    constexpr double kMarkerPatience = 5.0;
+    std::vector<std::vector<int64_t>> markers(robots.size());
+    const auto answered = [&](size_t i) {
+      for (const int64_t id : markers[i]) {
+        if (marker_answers_.count(id) > 0) return true;
       }
-      return true;
-    });
-    if (all) return ::testing::AssertionSuccess();
+      return false;
+    };
+    const auto deadline = std::chrono::steady_clock::now() + Seconds(timeout_s);
+    for (;;) {
+      for (size_t i = 0; i < robots.size(); ++i) {
+        {
+          std::lock_guard lock(mutex_);
+          if (answered(i)) continue;
+        }
+        frame_t marker;
+        marker.request_id = next_marker_--;  // senders choose ids; the client's are >= 0
+        marker.insert = false;
+        marker.encoding = frame_t::ENCODING_JPEG;
+        marker.robot = robots[i];
+        marker.data.assign(64, 0x42);
+        marker.size = static_cast<int32_t>(marker.data.size());
+        if (Publish(marker) != 0) return ::testing::AssertionFailure() << "cannot publish a marker";
+        markers[i].push_back(marker.request_id);
+      }
+      std::unique_lock lock(mutex_);
+      const auto until =
+          std::min(deadline, std::chrono::steady_clock::now() + Seconds(kMarkerPatience));
+      const bool all = arrived_.wait_until(lock, until, [&] {
+        for (size_t i = 0; i < robots.size(); ++i) {
+          if (!answered(i)) return false;
+        }
+        return true;
+      });
+      if (all) return ::testing::AssertionSuccess();
+      if (std::chrono::steady_clock::now() >= deadline) break;
+    }
+    std::lock_guard lock(mutex_);
     ::testing::AssertionResult failure = ::testing::AssertionFailure();
-    failure << "no answer within " << timeout_s << " s to the marker frame of robot";
-    for (size_t i = 0; i < markers.size(); ++i) {
-      if (marker_answers_.count(markers[i]) == 0) failure << " '" << robots[i] << "'";
+    failure << "no answer within " << timeout_s << " s to the marker frames of robot";
+    for (size_t i = 0; i < robots.size(); ++i) {
+      if (!answered(i)) failure << " '" << robots[i] << "'";
     }
     return failure;
   }
