@@ -614,12 +614,15 @@ Status PostgresStore::AddPlace(Place* place, std::vector<Landmark>* landmarks) {
   int64_t place_id = 0;
   std::vector<int64_t> landmark_ids;
   landmark_ids.reserve(items.size());
-  PLACEREC_RETURN_IF_ERROR(db_->Begin("BEGIN"));
-  const std::string timeouts =
-      "SET LOCAL lock_timeout = " + std::to_string(db_->options().insert_timeout_ms) +
-      "; SET LOCAL statement_timeout = " + std::to_string(db_->options().insert_timeout_ms);
-  Status status = db_->Command(timeouts.c_str(), "cannot set the insert's timeouts");
-  if (status.ok()) status = InsertRows(*place, items, &place_id, &landmark_ids);
+  // The insert's timeouts go with its BEGIN, in the same round trip.
+  const std::string timeout = std::to_string(db_->options().insert_timeout_ms);
+  const std::string begin =
+      "BEGIN; SET LOCAL lock_timeout = " + timeout + "; SET LOCAL statement_timeout = " + timeout;
+  if (const Status begun = db_->Begin(begin.c_str()); !begun.ok()) {
+    PQclear(PQexec(db_->get(), "ROLLBACK"));  // a BEGIN that went through, its SETs not
+    return begun;
+  }
+  Status status = InsertRows(*place, items, &place_id, &landmark_ids);
   if (status.ok()) {
     Params notify;
     notify.Text(kPostgresPlacesChannel);
