@@ -739,6 +739,64 @@ void WriteMapOfThreePlaces(const std::string& path) {
   }
 }
 
+// A map held open by a child process as a server holds it (OpenSqliteStore), which stores one
+// more place on request; stopped (killed) by Stop or at the end.
+class ServerProcess {
+ public:
+  explicit ServerProcess(const std::string& path) {
+    if (pipe(ask_) != 0 || pipe(reply_) != 0) return;
+    pid_ = fork();
+    if (pid_ == 0) Serve(path);
+    close(ask_[0]);
+    close(reply_[1]);
+    char reply = 0;
+    opened_ = read(reply_[0], &reply, 1) == 1 && reply == '1';
+  }
+  ~ServerProcess() { Stop(); }
+
+  bool opened() const { return opened_; }
+
+  // Whether the child stored place `sequence` of robot "r" (two landmarks).
+  bool AddPlace(int sequence) {
+    const char ask = static_cast<char>(sequence);
+    char reply = 0;
+    return write(ask_[1], &ask, 1) == 1 && read(reply_[0], &reply, 1) == 1 && reply == '1';
+  }
+
+  // Kills the child at once, as a killed server.
+  void Stop() {
+    if (pid_ <= 0) return;
+    kill(pid_, SIGKILL);
+    int status = 0;
+    waitpid(pid_, &status, 0);
+    close(ask_[1]);
+    close(reply_[0]);
+    pid_ = -1;
+  }
+
+ private:
+  [[noreturn]] void Serve(const std::string& path) {
+    close(ask_[1]);
+    close(reply_[0]);
+    StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(path, SqliteStoreOptions());
+    char reply = store.ok() ? '1' : '0';
+    if (write(reply_[1], &reply, 1) != 1) _exit(2);
+    char ask = 0;
+    while (read(ask_[0], &ask, 1) == 1) {
+      Place place = MakePlace("r", ask);
+      std::vector<Landmark> landmarks = MakeLandmarks(10 * ask, 2, 6);
+      reply = store.ok() && (*store)->AddPlace(&place, &landmarks).ok() ? '1' : '0';
+      if (write(reply_[1], &reply, 1) != 1) _exit(2);
+    }
+    _exit(0);
+  }
+
+  int ask_[2] = {-1, -1};
+  int reply_[2] = {-1, -1};
+  pid_t pid_ = -1;
+  bool opened_ = false;
+};
+
 // A map reopened by one process (a server) while a tool in another process opens and closes a
 // connection of its own (placerec-map index, prune --dry-run): the server's commits after that
 // survive a kill. The store used to read the file ahead through a descriptor of its own after
@@ -747,44 +805,12 @@ void WriteMapOfThreePlaces(const std::string& path) {
 TEST(SqliteStoreTest, AnotherProcessClosingItsConnectionLeavesAnOpenMapsCommitsAlone) {
   TempMap map("held");
   WriteMapOfThreePlaces(map.path());
-  int ready[2], go[2];
-  ASSERT_EQ(pipe(ready), 0);
-  ASSERT_EQ(pipe(go), 0);
-  const pid_t child = fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {
-    close(ready[0]);
-    close(go[1]);
-    StatusOr<std::unique_ptr<LandmarkStore>> store =
-        OpenSqliteStore(map.path(), SqliteStoreOptions());
-    char reply = store.ok() ? 'o' : '0';
-    if (write(ready[1], &reply, 1) != 1) _exit(2);
-    char byte = 0;
-    if (read(go[0], &byte, 1) != 1) _exit(2);
-    reply = '0';
-    if (store.ok()) {
-      Place place = MakePlace("r", 3);
-      std::vector<Landmark> landmarks = MakeLandmarks(30, 2, 6);
-      if ((*store)->AddPlace(&place, &landmarks).ok()) reply = '1';
-    }
-    if (write(ready[1], &reply, 1) != 1) _exit(2);
-    for (;;) pause();
-  }
-  close(ready[1]);
-  close(go[0]);
-  char reply = 0;
-  ASSERT_EQ(read(ready[0], &reply, 1), 1);
-  EXPECT_EQ(reply, 'o');
+  ServerProcess server(map.path());
+  ASSERT_TRUE(server.opened());
   ExecSql(map.path(), "SELECT COUNT(*) FROM places");  // a tool's connection, opened and closed
   EXPECT_TRUE(FileExists(map.path() + "-wal")) << "the open map's -wal was deleted";
-  ASSERT_EQ(write(go[1], "x", 1), 1);
-  ASSERT_EQ(read(ready[0], &reply, 1), 1);
-  close(ready[0]);
-  close(go[1]);
-  kill(child, SIGKILL);
-  int wait_status = 0;
-  ASSERT_EQ(waitpid(child, &wait_status, 0), child);
-  ASSERT_EQ(reply, '1');
+  ASSERT_TRUE(server.AddPlace(3));
+  server.Stop();
 
   std::unique_ptr<LandmarkStore> store = Open(map.path());
   ASSERT_NE(store, nullptr);
@@ -800,27 +826,8 @@ TEST(SqliteStoreTest, AMapHeldByAnotherProcessIsSeenThroughALinkAndNotRepaired) 
   const std::string link = map.path() + ".link";
   std::filesystem::remove(link);
   std::filesystem::create_symlink(map.path(), link);
-  int ready[2], done[2];
-  ASSERT_EQ(pipe(ready), 0);
-  ASSERT_EQ(pipe(done), 0);
-  const pid_t child = fork();
-  ASSERT_GE(child, 0);
-  if (child == 0) {
-    close(ready[0]);
-    close(done[1]);
-    StatusOr<std::unique_ptr<LandmarkStore>> store =
-        OpenSqliteStore(map.path(), SqliteStoreOptions());
-    const char reply = store.ok() ? '1' : '0';
-    if (write(ready[1], &reply, 1) != 1) _exit(2);
-    char byte = 0;
-    if (read(done[0], &byte, 1) != 1) _exit(2);
-    _exit(0);
-  }
-  close(ready[1]);
-  close(done[0]);
-  char reply = 0;
-  ASSERT_EQ(read(ready[0], &reply, 1), 1);
-  EXPECT_EQ(reply, '1');
+  ServerProcess server(map.path());
+  ASSERT_TRUE(server.opened());
   const StatusOr<bool> direct = SqliteOpenElsewhere(map.path());
   const StatusOr<bool> linked = SqliteOpenElsewhere(link);
   // A whole map held open (by a server, a gateway reading pictures) needs no repair: left alone.
@@ -828,11 +835,7 @@ TEST(SqliteStoreTest, AMapHeldByAnotherProcessIsSeenThroughALinkAndNotRepaired) 
   // A damaged one would be rewritten under its holder: refused.
   ExecSql(map.path(), "UPDATE landmarks SET segment_class = 999 WHERE id = 1");
   const StatusOr<MapRepairReport> repaired = RepairSqliteMap(map.path(), SqliteStoreOptions());
-  ASSERT_EQ(write(done[1], "x", 1), 1);
-  close(ready[0]);
-  close(done[1]);
-  int wait_status = 0;
-  ASSERT_EQ(waitpid(child, &wait_status, 0), child);
+  server.Stop();
   ASSERT_TRUE(direct.ok()) << direct.status().ToString();
   ASSERT_TRUE(linked.ok()) << linked.status().ToString();
   EXPECT_TRUE(*direct);
