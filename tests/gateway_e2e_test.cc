@@ -688,26 +688,32 @@ TEST_F(GatewayTest, ThePageInARealBrowserShowsWhereAPhotoWasTaken) {
       call("POST", base + "/element/" + element + "/value", {{"text", photo}});
   ASSERT_TRUE(typed["value"].is_null()) << "choosing the file failed: " << typed.dump();
 
-  std::string state, answer;
-  for (int i = 0; i < 600; ++i) {
-    const nlohmann::json shown =
-        call("POST", base + "/execute/sync",
-             {{"script",
-               "return [document.getElementById('answer-status').dataset.state,"
-               " document.getElementById('answer').textContent,"
-               " document.getElementById('theirs-caption').textContent,"
-               " document.getElementById('site-status').textContent];"},
-              {"args", nlohmann::json::array()}});
-    if (shown["value"].is_array()) {
-      state = shown["value"][0].get<std::string>();
-      answer = shown["value"][1].get<std::string>() + " | " + shown["value"][2].get<std::string>() +
-               " | " + shown["value"][3].get<std::string>();
+  // Waits until the page shows an answer (or an error): its state and what it shows (status,
+  // answer, the stored place's caption, the site overview).
+  const auto await_answer = [&]() {
+    std::string shown_state, text;
+    for (int i = 0; i < 600; ++i) {
+      const nlohmann::json shown =
+          call("POST", base + "/execute/sync",
+               {{"script",
+                 "return [document.getElementById('answer-status').dataset.state,"
+                 " document.getElementById('answer-status').textContent + ' | ' +"
+                 " document.getElementById('answer').textContent + ' | ' +"
+                 " document.getElementById('theirs-caption').textContent + ' | ' +"
+                 " document.getElementById('site-status').textContent];"},
+                {"args", nlohmann::json::array()}});
+      if (shown["value"].is_array()) {
+        shown_state = shown["value"][0].get<std::string>();
+        text = shown["value"][1].get<std::string>();
+      }
+      if (shown_state == "done" || shown_state == "error" || (i == 50 && shown_state == "idle")) {
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
     }
-    if (state == "done" || state == "error" || (i == 50 && state == "idle")) break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  }
-  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // pictures and overview load
-  const std::string first_state = state, first_answer = answer;
+    return std::make_pair(shown_state, text);
+  };
+  const auto [state, answer] = await_answer();
 
   // A phone's photo: the same view at 12 megapixels, over the gateway's upload limit (and more
   // than LCM's UDP multicast carries). The page sends a smaller JPEG of it and gets the answer.
@@ -728,24 +734,8 @@ TEST_F(GatewayTest, ThePageInARealBrowserShowsWhereAPhotoWasTaken) {
         {"args", nlohmann::json::array()}});
   call("POST", base + "/element/" + element + "/value",
        {{"text", std::filesystem::canonical(large_photo).string()}});
-  std::string large_state, large_answer;
-  for (int i = 0; i < 600; ++i) {
-    const nlohmann::json shown =
-        call("POST", base + "/execute/sync",
-             {{"script",
-               "return [document.getElementById('answer-status').dataset.state,"
-               " document.getElementById('answer-status').textContent + ' ' +"
-               " document.getElementById('answer').textContent];"},
-              {"args", nlohmann::json::array()}});
-    if (shown["value"].is_array()) {
-      large_state = shown["value"][0].get<std::string>();
-      large_answer = shown["value"][1].get<std::string>();
-    }
-    if (large_state == "done" || large_state == "error") break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  }
-  state = first_state;
-  answer = first_answer;
+  const auto [large_state, large_answer] = await_answer();
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));  // pictures load, for the picture
   const nlohmann::json screenshot = call("GET", base + "/screenshot");
   if (screenshot["value"].is_string()) {
     const std::string artefacts = std::string(PLACEREC_BINARY_DIR) + "/test-artefacts";
