@@ -151,6 +151,14 @@ bool GatewayOptions::Check(std::string* error) const {
     *error = "--query-timeout must be > 0 seconds";
     return false;
   }
+  if (!(connections.header_seconds > 0)) {
+    *error = "--header-timeout must be > 0 seconds";
+    return false;
+  }
+  if (connections.max_per_address < 0) {
+    *error = "--max-connections-per-address must be 0 (no limit) or more";
+    return false;
+  }
   return client.Check(error);
 }
 
@@ -243,6 +251,10 @@ StatusOr<std::unique_ptr<Gateway>> Gateway::Create(const GatewayOptions& options
                                    " with the key " + options.key_file +
                                    " (PEM files that belong together; scripts/make-cert.sh DIR "
                                    "makes a pair)");
+  }
+  gateway->guard_ = std::make_unique<ConnectionGuard>(options.connections);
+  if (Status guarded = gateway->guard_->Install(gateway->http_->ssl_context()); !guarded.ok()) {
+    return guarded;
   }
   return gateway;
 }
@@ -485,6 +497,13 @@ Status Gateway::Serve() {
   // dropped, so that its 413 reaches it (a server closing on an unread body may reset the
   // connection before the client reads the answer). This handler runs before any body is read.
   http.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
+    // The headers are in: the connection now has the time its body and answer need.
+    int64_t claimed = 0;
+    if (!ParseInt64(req.get_header_value("Content-Length"), &claimed) || claimed < 0) claimed = 0;
+    const double upload = static_cast<double>(
+        std::min(claimed, options_.max_upload_bytes * kMaxDiscardedUploadFactor));
+    ConnectionGuard::ExtendCurrent(kAnswerSeconds + upload / kMinUploadBytesPerSecond +
+                                   (req.method == "POST" ? options_.query_timeout_s : 0));
     const auto refuse = [&res](int status, const std::string& why) {
       res.status = status;
       res.set_content(JsonText({{"error", why}}), "application/json");

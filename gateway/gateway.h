@@ -16,6 +16,7 @@
 #include "common/storage/landmark_store.h"
 #include "common/util/status.h"
 #include "gateway/access.h"
+#include "gateway/connection_guard.h"
 #include "gateway/site_watcher.h"
 
 namespace httplib {
@@ -39,6 +40,9 @@ struct GatewayOptions {
   double query_timeout_s = 30;         // waiting for the server's answer
   size_t recent_loop_closures = 20;    // kept for the site overview
   ClientOptions client;                // LCM URL, retries
+  // How long a connection may take to send its headers, and how many one address may hold at
+  // once (gateway/connection_guard.h): a client sending a byte at a time cannot hold the threads.
+  ConnectionGuardOptions connections;
   // The server's map (a file path or a postgresql:// URL), read for the places' stored pictures
   // (GET /v1/places/{id}/thumbnail); empty: the gateway shows none. Never written.
   std::string db;
@@ -99,6 +103,8 @@ class Gateway {
   std::map<std::string, std::unique_ptr<PlacerecClient>> clients_;
   std::unique_ptr<SiteWatcher> watcher_;
   std::unique_ptr<LandmarkStore> map_;  // null without --db
+  // Outlives http_: the connections' SSL objects, freed by the server's threads, call it.
+  std::unique_ptr<ConnectionGuard> guard_;
   std::unique_ptr<httplib::SSLServer> http_;
   std::atomic<int64_t> next_sequence_{0};
   std::atomic<int> bound_port_{0};
@@ -107,9 +113,16 @@ class Gateway {
 // Reads (status, site overview, pictures) a device may make per query of its rate: they cost the
 // server nothing, and the page fetches two pictures per alarm besides polling the overview.
 constexpr double kReadsPerQuery = 10;
-// Threads serving HTTPS requests; at most GatewayOptions::max_waiting_queries of them wait on
-// the server, so the page and the overview stay served.
-constexpr int kHttpThreads = 16;
+// Threads serving HTTPS requests, one per connection; at most
+// GatewayOptions::max_waiting_queries of them wait on the server and one address holds at most
+// ConnectionGuardOptions::max_per_address, so the page and the overview stay served. An idle
+// thread costs a stack's address space, not memory.
+constexpr int kHttpThreads = 64;
+// After its headers, a request has kAnswerSeconds (plus, for a query, the query timeout) to be
+// answered, and its body as many more seconds as it needs at kMinUploadBytesPerSecond (128
+// kbit/s: a 1 MB photo, the page's largest, in 64 s); then the connection is cut.
+constexpr double kAnswerSeconds = 30;
+constexpr double kMinUploadBytesPerSecond = 16 * 1024;
 
 // {"error": message} with `status`.
 HttpReply ErrorReply(int status, const std::string& message);

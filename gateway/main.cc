@@ -66,6 +66,13 @@ int Main(int argc, char** argv) {
   parser.Add("db", &options.db,
              "the server's map (file or postgresql:// URL), read for place pictures (GET "
              "/v1/places/ID/thumbnail); empty: none shown");
+  parser.Add("header-timeout", &options.connections.header_seconds,
+             "seconds a connection has for its TLS handshake and headers; slower ones are cut, so "
+             "that clients sending a byte at a time cannot hold the gateway's threads");
+  parser.Add("max-connections-per-address", &options.connections.max_per_address,
+             "connections one address may hold at once, more are cut (0: no limit; use 0 behind a "
+             "reverse proxy, through which every connection comes from one address, and limit "
+             "there)");
   parser.Add("retry-after", &options.client.retry_after_s,
              "seconds after which an unanswered query is sent again (same request id)");
   if (const std::optional<int> exit = parser.ParseOrExit(argc, argv, 1, "placerec-gateway")) {

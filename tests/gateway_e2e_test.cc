@@ -5,13 +5,20 @@
 // browser (headless Chromium driven through chromedriver's WebDriver protocol) uploads a real
 // frame on the gateway's page and shows the answer. The browser's screenshot is kept as
 // build/test-artefacts/gateway-page.png.
+#include <arpa/inet.h>
+#include <netinet/in.h>
 #include <openssl/evp.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -588,6 +595,104 @@ TEST_F(GatewayTest, QueriesWaitingOnTheServerAreBoundedAndReadsAreServedMeanwhil
   EXPECT_EQ(third->status, 503) << third->body;
   EXPECT_NE(third->body.find("of this device"), std::string::npos) << third->body;
   EXPECT_EQ(statuses, (std::vector<int>{504, 504, 504}));
+}
+
+// Connections that send their TLS handshake a byte a second (a "slowloris"), more of them from
+// one address than the gateway had threads: they held every thread, and nobody else was served
+// while they went on. Now one address holds at most --max-connections-per-address connections
+// (the rest are cut at once), others are served meanwhile, and each slow one is cut once its
+// handshake and headers take longer than --header-timeout.
+TEST_F(GatewayTest, ClientsSendingAByteASecondNeitherHoldTheThreadsNorStayConnected) {
+  constexpr int kSlow = 24;  // more than the gateway's 16 threads of old
+  const ConnectionGuardOptions limits;
+  struct Slow {
+    int fd = -1;
+    double closed_after_s = -1;  // when the gateway closed it, seconds after the first byte
+  };
+  std::vector<Slow> slow(kSlow);
+  for (Slow& s : slow) {
+    s.fd = socket(AF_INET, SOCK_STREAM, 0);
+    ASSERT_GE(s.fd, 0) << std::strerror(errno);
+    sockaddr_in from = {};
+    from.sin_family = AF_INET;
+    inet_pton(AF_INET, "127.0.0.2", &from.sin_addr);  // loopback, another address than ours
+    ASSERT_EQ(bind(s.fd, reinterpret_cast<const sockaddr*>(&from), sizeof(from)), 0)
+        << std::strerror(errno);
+    sockaddr_in to = {};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(kPort);
+    inet_pton(AF_INET, "127.0.0.1", &to.sin_addr);
+    ASSERT_EQ(connect(s.fd, reinterpret_cast<const sockaddr*>(&to), sizeof(to)), 0)
+        << std::strerror(errno);
+    // A TLS record header announcing a 512-byte handshake message; its bytes follow one a second.
+    const unsigned char record[] = {0x16, 0x03, 0x01, 0x02, 0x00};
+    ASSERT_EQ(send(s.fd, record, sizeof(record), MSG_NOSIGNAL),
+              static_cast<ssize_t>(sizeof(record)));
+  }
+  const auto started = std::chrono::steady_clock::now();
+  const auto elapsed_s = [&started] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  };
+  const double give_up_s = limits.header_seconds + 10;
+  std::atomic<bool> stop{false};
+  std::thread dribble([&] {
+    while (!stop && elapsed_s() < give_up_s) {
+      for (Slow& s : slow) {
+        if (s.closed_after_s >= 0) continue;
+        char bytes[256];
+        const ssize_t got = recv(s.fd, bytes, sizeof(bytes), MSG_DONTWAIT);
+        bool closed = got == 0 || (got < 0 && errno != EAGAIN && errno != EWOULDBLOCK);
+        const char zero = 0;
+        if (!closed) closed = send(s.fd, &zero, 1, MSG_NOSIGNAL | MSG_DONTWAIT) < 0;
+        if (closed) s.closed_after_s = elapsed_s();
+      }
+      for (int i = 0; i < 10 && !stop; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      }
+    }
+  });
+
+  // Meanwhile a device is served at once.
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  std::unique_ptr<httplib::SSLClient> https = Https();
+  https->set_connection_timeout(10, 0);
+  https->set_read_timeout(10, 0);
+  const auto asked = std::chrono::steady_clock::now();
+  httplib::Result status = https->Get("/v1/status", Bearer(kToken));
+  const double answered_after_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - asked).count();
+  EXPECT_TRUE(status) << "no answer while slow clients held the gateway: "
+                      << httplib::to_string(status.error());
+  if (status) {
+    EXPECT_EQ(status->status, 200) << status->body;
+  }
+  EXPECT_LT(answered_after_s, 5);
+
+  // Every slow connection is cut: those over the address's limit at once, the others once
+  // their handshake took longer than the header timeout.
+  while (elapsed_s() < give_up_s && std::any_of(slow.begin(), slow.end(), [](const Slow& s) {
+           return s.closed_after_s < 0;
+         })) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  }
+  stop = true;
+  dribble.join();
+  int at_once = 0;
+  for (const Slow& s : slow) {
+    close(s.fd);
+    EXPECT_GE(s.closed_after_s, 0)
+        << "a connection sending a byte a second was still open after " << give_up_s << " s";
+    EXPECT_LT(s.closed_after_s, limits.header_seconds + 3);
+    if (s.closed_after_s >= 0 && s.closed_after_s < limits.header_seconds / 2) ++at_once;
+  }
+  EXPECT_EQ(at_once, kSlow - limits.max_per_address);
+  ASSERT_TRUE(gateway_->running()) << Tail(gateway_->log_path());
+  EXPECT_NE(
+      ReadBytes(gateway_->log_path()).find("connection(s) that sent their request too slowly"),
+      std::string::npos)
+      << Tail(gateway_->log_path());
+  const auto [after, after_body] = Json(Https()->Get("/v1/status", Bearer(kToken)));
+  EXPECT_EQ(after, 200) << after_body.dump();
 }
 
 // A device whose token names its own key (key=phone-4) is signed with it, so the server's keys
