@@ -16,7 +16,7 @@ nlohmann::json ScoreAlarms(const std::vector<ChangeCase>& cases,
   std::map<std::pair<std::string, int64_t>, std::vector<const WatchedAlarm*>> by_frame;
   for (const WatchedAlarm& a : alarms) by_frame[{a.robot, a.sequence}].push_back(&a);
   ChangeTally pasted, removed;
-  int unchanged = 0, false_alarms = 0;
+  int unchanged = 0, false_alarms = 0, not_made = 0;
   std::set<std::pair<std::string, int64_t>> revisits;
   for (const ChangeCase& c : cases) {
     const std::pair<std::string, int64_t> key{c.robot, c.frame};
@@ -27,6 +27,10 @@ nlohmann::json ScoreAlarms(const std::vector<ChangeCase>& cases,
     if (c.kind == ChangeCase::Kind::kUnchanged) {
       ++unchanged;
       false_alarms += raised.empty() ? 0 : 1;
+      continue;
+    }
+    if (c.kind == ChangeCase::Kind::kNotMade) {
+      ++not_made;
       continue;
     }
     double best = 0;
@@ -59,6 +63,7 @@ nlohmann::json ScoreAlarms(const std::vector<ChangeCase>& cases,
   j["unchanged"] = unchanged;
   j["false_alarms"] = false_alarms;
   j["false_alarm_rate"] = ShareOf(false_alarms, unchanged);
+  j["changes_not_made"] = not_made;
   j["alarms"] = alarms.size();
   j["frames_alarmed_elsewhere"] = elsewhere;
   j["min_iou"] = min_iou;

@@ -148,6 +148,7 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   ChangeTally pasted, removed;
   ClassTally classes;  // of the pasted objects found
   int unchanged = 0, unchanged_checked = 0, false_alarms = 0, loop_closures = 0;
+  int pastes_not_made = 0, removals_not_made = 0;  // planned changes that could not be made
   int revisits = 0;
   std::vector<double> change_ms, sift_ms;
   int pictures_hit = 0, pictures_miss = 0, pictures_false = 0;
@@ -240,9 +241,10 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
       written_case.frame = frame.frame;
       written_case.robot = frame.robot;
       written_case.utime = frame.utime;
-      written_case.kind = truth.empty() ? ChangeCase::Kind::kUnchanged
-                          : removal     ? ChangeCase::Kind::kRemoved
-                                        : ChangeCase::Kind::kPasted;
+      written_case.kind = !truth.empty()
+                              ? (removal ? ChangeCase::Kind::kRemoved : ChangeCase::Kind::kPasted)
+                          : changed ? ChangeCase::Kind::kNotMade
+                                    : ChangeCase::Kind::kUnchanged;
       written_case.truth = truth;
       written_case.frame_size = query.size();
       written_case.object_class = pasted_class;
@@ -271,7 +273,9 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
       const ChangeReport& report = answer.change;
       const cv::Size processed = asked.processed_size;
       std::string kind;
-      if (truth.empty()) {
+      if (written_case.kind == ChangeCase::Kind::kNotMade) {
+        ++(removal ? removals_not_made : pastes_not_made);
+      } else if (truth.empty()) {
         ++unchanged;
         unchanged_checked += report.checked ? 1 : 0;
         if (!report.changes.empty()) {
@@ -391,6 +395,10 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   j["unchanged_compared"] = unchanged_checked;
   j["false_alarms"] = false_alarms;
   j["false_alarm_rate"] = ShareOf(false_alarms, unchanged);
+  // Only a compared revisit can raise an alarm: the rate among those is the detector's own.
+  j["false_alarm_rate_compared"] = ShareOf(false_alarms, unchanged_checked);
+  j["pastes_not_made"] = pastes_not_made;
+  j["removals_not_made"] = removals_not_made;
   j["change_ms_median"] = change_ms.empty() ? 0.0 : Percentile(change_ms, 50);
   j["sift_ms_median"] = sift_ms.empty() ? 0.0 : Percentile(sift_ms, 50);
   std::ofstream(eval.out_dir + "/change.json") << j.dump(2) << "\n";

@@ -9,7 +9,7 @@ struct Band {
   const char* name;
   double high;  // upper end (share of the frame); the last band takes everything above
 };
-constexpr Band kBandLimits[ChangeTally::kBands] = {{"1-2%", 0.02}, {"2-5%", 0.05}, {"5-10%", 1.0}};
+constexpr Band kBandLimits[ChangeTally::kBands] = {{"<2%", 0.02}, {"2-5%", 0.05}, {">=5%", 1.0}};
 
 int BandOf(double share) {
   for (int b = 0; b < ChangeTally::kBands; ++b) {

@@ -251,7 +251,8 @@ int ChangeCommand(int argc, char** argv) {
       "most verified points of the place the unchanged frame is matched to). Then the frame is\n"
       "inserted as recorded. Writes OUT/change.json (detection_recall by size band with IoU >= "
       "0.3,\n"
-      "false_alarm_rate on the unchanged revisits, localisation_iou median) and\n"
+      "false_alarm_rate on the unchanged revisits, and on those compared, localisation_iou\n"
+      "median) and\n"
       "OUT/pictures/{hit,miss,false_alarm}_*.png (truth green, alarms red/yellow, stored place\n"
       "right).");
   parser.AddRequired("dataset", &dataset,
@@ -312,13 +313,15 @@ int ChangeCommand(int argc, char** argv) {
   }
   const nlohmann::json& j = *report;
   std::printf(
-      "%s %s: detection_recall %.3f (objects >= 2%%: %.3f), false_alarm_rate %.3f, "
-      "localisation_iou %.2f; removals found %.3f; change %.1f ms vs SIFT %.1f ms -> %s\n",
+      "%s %s: detection_recall %.3f (objects >= 2%%: %.3f), false_alarm_rate %.3f (of the "
+      "compared: %.3f), localisation_iou %.2f; removals found %.3f; change %.1f ms vs SIFT %.1f "
+      "ms -> %s\n",
       j["dataset"].get<std::string>().c_str(), j["run"].get<std::string>().c_str(),
       j["detection_recall"].get<double>(), j["detection_recall_2pct"].get<double>(),
-      j["false_alarm_rate"].get<double>(), j["localisation_iou"].get<double>(),
-      j["removed"]["detection_recall"].get<double>(), j["change_ms_median"].get<double>(),
-      j["sift_ms_median"].get<double>(), (eval.out_dir + "/change.json").c_str());
+      j["false_alarm_rate"].get<double>(), j["false_alarm_rate_compared"].get<double>(),
+      j["localisation_iou"].get<double>(), j["removed"]["detection_recall"].get<double>(),
+      j["change_ms_median"].get<double>(), j["sift_ms_median"].get<double>(),
+      (eval.out_dir + "/change.json").c_str());
   return 0;
 }
 

@@ -168,7 +168,7 @@ constexpr const char* kCaseColumnNames[kCaseColumns] = {
     "frame",  "robot",       "utime_us",     "case",         "x",         "y", "width",
     "height", "frame_width", "frame_height", "object_class", "area_share"};
 constexpr ChangeCase::Kind kCaseKinds[] = {ChangeCase::Kind::kUnchanged, ChangeCase::Kind::kPasted,
-                                           ChangeCase::Kind::kRemoved};
+                                           ChangeCase::Kind::kRemoved, ChangeCase::Kind::kNotMade};
 
 }  // namespace
 
@@ -187,6 +187,8 @@ const char* ChangeCaseKindName(ChangeCase::Kind kind) {
       return "pasted";
     case ChangeCase::Kind::kRemoved:
       return "removed";
+    case ChangeCase::Kind::kNotMade:
+      return "not_made";
   }
   return "?";
 }
@@ -266,7 +268,9 @@ StatusOr<std::vector<ChangeCase>> LoadChangeCases(const std::string& path) {
                                        "' is not a share of the frame in [0, 1]");
       }
     }
-    if (c.kind != ChangeCase::Kind::kUnchanged && (c.truth.empty() || c.frame_size.area() <= 0)) {
+    const bool changed =
+        c.kind == ChangeCase::Kind::kPasted || c.kind == ChangeCase::Kind::kRemoved;
+    if (changed && (c.truth.empty() || c.frame_size.area() <= 0)) {
       return Status::InvalidArgument(table->Where(row.line) +
                                      ": a changed revisit needs its box and frame size");
     }

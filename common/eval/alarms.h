@@ -40,7 +40,11 @@ StatusOr<std::vector<WatchedAlarm>> LoadWatchedAlarms(const std::string& path);
 
 // One revisit of a changed run (DIR/runs/<run>_changed.changes.csv).
 struct ChangeCase {
-  enum class Kind { kUnchanged, kPasted, kRemoved };
+  // kNotMade: a change was planned for this revisit but could not be made (the object did not
+  // fit the frame, no landmark to paint over): the frame is sent unchanged, and counts neither
+  // as a change nor as an unchanged revisit (such frames are mostly ones matched poorly, which
+  // would make the false-alarm rate look lower).
+  enum class Kind { kUnchanged, kPasted, kRemoved, kNotMade };
   int frame = 0;  // the run's frame index: the sequence number placerec-client run sends
   std::string robot;
   int64_t utime = 0;
@@ -58,7 +62,7 @@ struct ChangeCase {
   }
 };
 
-// "unchanged", "pasted", "removed": the case column of a changes file.
+// "unchanged", "pasted", "removed", "not_made": the case column of a changes file.
 const char* ChangeCaseKindName(ChangeCase::Kind kind);
 
 // The header of a changes file, and one revisit as its line (without the newline).
