@@ -23,6 +23,15 @@
 namespace placerec {
 namespace {
 
+// `text` with every byte that is no printable ASCII as '?': text from the network that is
+// printed (a forged alarm's class, an untrusted answer's message) cannot drive the terminal.
+std::string Printable(std::string text) {
+  for (char& c : text) {
+    if (c < 0x20 || c > 0x7e) c = '?';  // char is signed: bytes from 0x80 on are negative
+  }
+  return text;
+}
+
 // Answers LCM may hold for the receive thread; its default of 30 would drop answers to a long
 // burst of frames before they are dispatched.
 constexpr int kLcmAnswerQueue = 4096;
@@ -504,7 +513,7 @@ void PlacerecClient::OnResult(const lcm::ReceiveBuffer* buffer, const std::strin
           "an answer not signed with key '" + key_->id + "' was ignored (" +
           (answer.key_id.empty() ? std::string("unsigned") : "signed as '" + answer.key_id + "'") +
           "; it said: " + WireStatusText(answer.status) +
-          (answer.message.empty() ? "" : ": " + answer.message) + ")";
+          (answer.message.empty() ? "" : ": " + Printable(answer.message)) + ")";
       answered_.notify_all();
     }
     return;
@@ -598,6 +607,12 @@ void PlacerecClient::OnChange(const lcm::ReceiveBuffer* buffer, const std::strin
                  << " that is not a placerec.change_t";
     return;
   }
+  std::string why;
+  if (!IsValidWireRobotId(message.robot, &why) || !IsValidWireRobotId(message.place_robot, &why)) {
+    LOG(WARNING) << "dropped an alarm on " << channel << " naming a robot the server refuses ("
+                 << why << "): not from a placerec server";
+    return;
+  }
   SceneAlarm alarm;
   alarm.robot = message.robot;
   alarm.sequence = message.sequence;
@@ -614,7 +629,7 @@ void PlacerecClient::OnChange(const lcm::ReceiveBuffer* buffer, const std::strin
   alarm.change.y = message.box[1];
   alarm.change.width = message.box[2];
   alarm.change.height = message.box[3];
-  alarm.change.object_class = message.object_class;
+  alarm.change.object_class = Printable(message.object_class);
   alarm.change.confidence = message.confidence;
   alarm.frame_width = message.frame_width;
   alarm.frame_height = message.frame_height;

@@ -230,7 +230,10 @@ class PlacerecClient {
   void SetAnswerCallback(std::function<void(const FrameResult&)> callback);
 
   // Subscribes to PLACEREC_CHANGE and calls `callback` on the receive thread with every
-  // scene-change alarm from then on.
+  // scene-change alarm from then on. Alarms are not signed, so anybody on the LCM network can
+  // send one: those naming a robot id the server would refuse (for the frame or the place) are
+  // dropped, so that a robot id can name a file, and bytes of the class that are no printable
+  // ASCII become '?', so that it can be printed.
   Status WatchAlarms(std::function<void(const SceneAlarm&)> callback);
 
   // Waits for the next heartbeat published after this call.

@@ -4,10 +4,14 @@
 // receives the alarm on PLACEREC_CHANGE, saves both pictures and records it in alarms.csv; the
 // same frame unchanged raises nothing. In a private network namespace
 // (tests/service_harness.h); skips when not root or without ../shared/data.
+#include <chrono>
+#include <filesystem>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <lcm/lcm-cpp.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -15,6 +19,8 @@
 #include "common/eval/alarms.h"
 #include "common/eval/run.h"
 #include "common/util/paths.h"
+#include "placerec/change_t.hpp"
+#include "proto/channels.h"
 #include "tests/service_harness.h"
 
 namespace placerec {
@@ -136,6 +142,78 @@ TEST(ChangeServiceTest, APastedObjectRaisesAnAlarmThatWatchReceives) {
   EXPECT_NEAR((*recorded)[0].confidence, change.confidence, 1e-6);
   EXPECT_EQ((*recorded)[0].frame_size, revisited.size());
   ASSERT_TRUE(testing_service::StopServer(server->get()).ok());
+  testing_service::RemoveTempDir(dir);
+}
+
+// Alarms are not signed: anybody on the LCM network can publish one. A forged alarm naming the
+// robot "../escaped" made `watch --out DIR` write its bytes outside DIR, one naming "x/y" stopped
+// watch (it could not write the file), and control bytes in a class went to the terminal as they
+// came. Alarms naming a robot id the server would refuse are now dropped, control bytes are
+// printed escaped, and watch goes on to the next, real-looking alarm.
+TEST(ChangeServiceTest, AForgedAlarmNeitherWritesOutsideTheFolderNorStopsWatch) {
+  const Status network = testing_service::EnterPrivateNetwork();
+  if (!network.ok()) GTEST_SKIP() << "server/client tests skipped: " << network.message();
+  const std::string dir = testing_service::MakeTempDir("placerec_forged_alarm_");
+  const std::string out = dir + "/watch/alarms";
+  std::filesystem::create_directories(out);
+  StatusOr<std::unique_ptr<ChildProcess>> watch =
+      ChildProcess::Start({BinaryPath("placerec-client"), "watch", "--out", out, "--max-alarms",
+                           "1", "--duration", "30", "--lcm-url", TestLcmUrl()},
+                          dir + "/watch.log");
+  ASSERT_TRUE(watch.ok());
+  lcm::LCM lcm(TestLcmUrl());
+  ASSERT_TRUE(lcm.good());
+  const auto alarm = [](const std::string& robot, const std::string& object_class) {
+    change_t a;
+    a.utime = 1;
+    a.robot = robot;
+    a.sequence = 7;
+    a.request_id = 1;
+    a.frame_utime = 2;
+    a.place_id = 3;
+    a.place_robot = "a";
+    a.place_sequence = 4;
+    a.place_utime = 1;
+    a.change_index = 0;
+    a.num_frame_changes = 1;
+    a.kind = change_t::KIND_APPEARED;
+    a.box[0] = 1;
+    a.box[1] = 2;
+    a.box[2] = 3;
+    a.box[3] = 4;
+    a.object_class = object_class;
+    a.confidence = 0.9f;
+    a.frame_width = 64;
+    a.frame_height = 48;
+    const std::string bytes = "NOT A PICTURE, BUT WRITTEN WHERE THE SENDER CHOSE";
+    a.frame_jpeg.assign(bytes.begin(), bytes.end());
+    a.frame_jpeg_size = static_cast<int32_t>(a.frame_jpeg.size());
+    a.place_jpeg_size = 0;
+    return a;
+  };
+  const std::vector<change_t> forged = {alarm("../escaped", "car"), alarm("x/y", "car"),
+                                        alarm("b", "\x1b]0;owned\x07\x1b[2J")};
+  // Until watch has subscribed (it prints nothing before the first alarm): the forged ones, then
+  // an alarm of a valid robot, again and again; watch stops at its first alarm taken.
+  for (int i = 0; i < 100 && (*watch)->running(); ++i) {
+    for (const change_t& a : forged) lcm.publish(std::string(kChangeChannel), &a);
+    change_t real = alarm("ok", "car");
+    lcm.publish(std::string(kChangeChannel), &real);
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  StatusOr<int> code = (*watch)->Wait(30);
+  ASSERT_TRUE(code.ok()) << code.status().ToString();
+  const std::string log = testing_service::ReadTextFile(dir + "/watch.log");
+  EXPECT_EQ(*code, 0) << log;
+  EXPECT_FALSE(std::filesystem::exists(dir + "/watch/escaped_7_frame.jpg"));
+  EXPECT_FALSE(std::filesystem::exists(out + "/x"));
+  EXPECT_EQ(log.find('\x1b'), std::string::npos) << log;
+  // The first alarm watch took is either the valid robot's or "b"'s with its class escaped.
+  const bool took_ok = log.find("ok #7 at place 3") != std::string::npos;
+  const bool took_b = log.find("b #7 at place 3") != std::string::npos;
+  EXPECT_TRUE(took_ok || took_b) << log;
+  EXPECT_TRUE(std::filesystem::exists(out + (took_ok ? "/ok_7_frame.jpg" : "/b_7_frame.jpg")))
+      << log;
   testing_service::RemoveTempDir(dir);
 }
 
