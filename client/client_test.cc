@@ -1,14 +1,17 @@
 #include "client/client.h"
 
+#include <chrono>
 #include <cstdio>
 #include <ctime>
 #include <fstream>
+#include <limits>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "client/fleet.h"
 #include "client/run_feeder.h"
 
 namespace placerec {
@@ -165,6 +168,60 @@ TEST(ClientTest, TheEndOfAWaitWithoutResendingIsIdle) {
   EXPECT_EQ(result.code, AnswerCode::kTimeout);
   // A busy loop spends much of the last 0.4 s on a core; an idle wait next to nothing.
   EXPECT_LT(cpu_s, 0.1) << "the wait kept a core busy";
+}
+
+// A frame's timeout runs from its publication. The fleet's collector waited a whole timeout for
+// each frame in turn, so with no server 10 frames of a 1 s run took 10 timeouts (20 s) instead
+// of about one, and an answer later than the timeout counted as ok.
+TEST(FleetTest, NoServerEndsOneTimeoutAfterTheLastFrame) {
+  const std::string image = TempPath("fleet.png");
+  ASSERT_TRUE(cv::imwrite(image, TestImage()));
+  placerec::Run run;
+  run.name = "one";
+  run.frames.push_back({0, "r", image, 1000000});
+  ClientOptions client_options;
+  client_options.lcm_url = "memq://";  // nothing answers
+  client_options.retry_after_s = 0;
+  StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(client_options);
+  ASSERT_TRUE(client.ok()) << client.status().ToString();
+  FleetOptions options;
+  options.robots = 1;
+  options.rate_hz = 10;
+  options.duration_s = 1;
+  options.timeout_s = 2;
+  options.progress = false;
+  const auto started = std::chrono::steady_clock::now();
+  StatusOr<FleetReport> report = RunFleet(client->get(), run, options);
+  const double took_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_EQ(report->frames, 10);
+  EXPECT_EQ(report->summary["timed_out"].get<int>(), 10);
+  EXPECT_EQ(report->summary["answered_ok_per_second"].get<double>(), 0.0);
+  EXPECT_LT(took_s, 5.0) << "10 frames of 1 s with a 2 s timeout";
+  std::remove(image.c_str());
+}
+
+// Options a fleet cannot run with: a duration of more frames than an int holds sent one frame,
+// and a long prefix was cut to 31 bytes, so that every robot had the same id.
+TEST(FleetTest, OptionsThatCannotWorkAreRefused) {
+  FleetOptions options;
+  std::string error;
+  ASSERT_TRUE(options.Check(&error)) << error;
+  EXPECT_EQ(FleetRobotId("fleet", 7), "fleet007");
+  EXPECT_EQ(FleetRobotId("fleet", 1234), "fleet1234");
+  options.duration_s = 1e10;
+  EXPECT_FALSE(options.Check(&error));
+  options.duration_s = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(options.Check(&error));
+  options.duration_s = 60;
+  options.robot_prefix = "site_alpha_building_7_floor_2_lift_lobby_east_";
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("--robot-prefix"), std::string::npos) << error;
+  options.robot_prefix = "site/a";
+  EXPECT_FALSE(options.Check(&error));
+  options.robot_prefix = "site_alpha_building_7_floor_2_";
+  EXPECT_TRUE(options.Check(&error)) << error;
 }
 
 }  // namespace

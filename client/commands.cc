@@ -476,7 +476,10 @@ int FleetCommand(int argc, const char* const* argv, const std::string& data_defa
     std::fprintf(stderr, "placerec-client fleet: cannot create or write in %s\n", out.c_str());
     return kExitFailed;
   }
-  std::ofstream(out + "/fleet.json") << report->summary.dump(2) << "\n";
+  if (!(std::ofstream(out + "/fleet.json") << report->summary.dump(2) << "\n")) {
+    std::fprintf(stderr, "placerec-client fleet: cannot write %s/fleet.json\n", out.c_str());
+    return kExitFailed;
+  }
   // Every place a server acknowledged storing: each must be in the map, whatever happens to a
   // server afterwards.
   std::ofstream acknowledged(out + "/acknowledged.csv");
@@ -492,14 +495,17 @@ int FleetCommand(int argc, const char* const* argv, const std::string& data_defa
   }
   const nlohmann::json& s = report->summary;
   std::printf(
-      "fleet of %d robots at %.2f Hz (%.1f frames/s offered) for %.0f s: %d frames, %d ok, %d "
-      "overloaded, %d timed out; %.2f answered ok per second; latency p50 %.0f ms, p90 %.0f ms, "
-      "p99 %.0f ms\n",
+      "fleet of %d robots at %.2f Hz (%.1f frames/s offered) for %.0f s: %d frames sent, %d not "
+      "sent, %d ok, %d overloaded, %d timed out; %.2f answered ok per second; latency p50 %.0f "
+      "ms, p90 %.0f ms, p99 %.0f ms\n",
       fleet.robots, fleet.rate_hz, s["offered_frames_per_second"].get<double>(), fleet.duration_s,
-      report->frames, s["ok"].get<int>(), s["overloaded"].get<int>(), s["timed_out"].get<int>(),
-      s["answered_ok_per_second"].get<double>(), s["latency_ms"]["p50"].get<double>(),
-      s["latency_ms"]["p90"].get<double>(), s["latency_ms"]["p99"].get<double>());
-  return s["ok"].get<int>() == report->frames ? kExitOk : kExitFailed;
+      report->frames, s["not_sent"].get<int>(), s["ok"].get<int>(), s["overloaded"].get<int>(),
+      s["timed_out"].get<int>(), s["answered_ok_per_second"].get<double>(),
+      s["latency_ms"]["p50"].get<double>(), s["latency_ms"]["p90"].get<double>(),
+      s["latency_ms"]["p99"].get<double>());
+  // Every frame offered must have been sent and answered ok.
+  return s["ok"].get<int>() == report->frames && s["not_sent"].get<int>() == 0 ? kExitOk
+                                                                               : kExitFailed;
 }
 
 }  // namespace placerec

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstdio>
 #include <deque>
@@ -12,6 +13,7 @@
 #include <thread>
 
 #include "common/eval/stats.h"
+#include "proto/channels.h"
 
 namespace placerec {
 
@@ -24,8 +26,17 @@ bool FleetOptions::Check(std::string* error) const {
     *error = "--rate must be in (0, 100] frames per second per robot";
     return false;
   }
-  if (!(duration_s > 0)) {
-    *error = "--duration must be > 0 seconds";
+  if (!(duration_s > 0) || !std::isfinite(duration_s) ||
+      duration_s * rate_hz > kMaxFleetFramesPerRobot) {
+    *error = "--duration must be > 0 seconds, and at most " +
+             std::to_string(static_cast<int64_t>(kMaxFleetFramesPerRobot)) +
+             " frames per robot at --rate";
+    return false;
+  }
+  const std::string last_id = FleetRobotId(robot_prefix, std::max(0, robots - 1));
+  if (std::string why; !IsValidWireRobotId(last_id, &why)) {
+    *error = "--robot-prefix '" + robot_prefix + "' makes robot ids like '" + last_id +
+             "' that the server refuses: " + why;
     return false;
   }
   if (!(query_share >= 0 && query_share <= 1)) {
@@ -37,6 +48,12 @@ bool FleetOptions::Check(std::string* error) const {
     return false;
   }
   return true;
+}
+
+std::string FleetRobotId(const std::string& prefix, int robot) {
+  std::string number = std::to_string(robot);
+  if (number.size() < 3) number.insert(0, 3 - number.size(), '0');
+  return prefix + number;
 }
 
 StatusOr<FleetReport> RunFleet(PlacerecClient* client, const Run& run,
@@ -57,6 +74,8 @@ StatusOr<FleetReport> RunFleet(PlacerecClient* client, const Run& run,
   const auto period = std::chrono::duration_cast<Clock::duration>(
       std::chrono::duration<double>(1.0 / options.rate_hz));
   const int per_robot = std::max(1, static_cast<int>(options.duration_s * options.rate_hz));
+  // When each ok answer arrived, seconds after the start (its publication plus its latency).
+  std::vector<double> ok_arrivals_s;
 
   std::mutex mutex;
   FleetReport report;
@@ -68,9 +87,7 @@ StatusOr<FleetReport> RunFleet(PlacerecClient* client, const Run& run,
     auto queue_mutex = std::make_shared<std::mutex>();
     auto queued = std::make_shared<std::condition_variable>();
     auto done = std::make_shared<bool>(false);
-    char id[32];
-    std::snprintf(id, sizeof(id), "%s%03d", options.robot_prefix.c_str(), r);
-    const std::string robot = id;
+    const std::string robot = FleetRobotId(options.robot_prefix, r);
     threads.emplace_back([&, r, robot, queue, queue_mutex, queued, done] {
       const size_t offset = run.frames.size() * static_cast<size_t>(r) / options.robots;
       // Spread the robots' clocks over one period, as independent cameras are.
@@ -115,9 +132,17 @@ StatusOr<FleetReport> RunFleet(PlacerecClient* client, const Run& run,
           pending = queue->front();
           queue->pop_front();
         }
-        FrameResult result = client->Wait(pending, options.timeout_s);
+        // The timeout runs from the frame's publication: waiting for the frames before it must
+        // not add to it (with no server, N frames took N timeouts one after another, and late
+        // answers counted as ok).
+        const double waited = std::chrono::duration<double>(Clock::now() - pending.sent).count();
+        FrameResult result = client->Wait(pending, std::max(0.0, options.timeout_s - waited));
         ++answered;
         std::lock_guard lock(mutex);
+        if (result.ok()) {
+          ok_arrivals_s.push_back(std::chrono::duration<double>(pending.sent - start).count() +
+                                  result.latency_ms / 1000);
+        }
         report.results.push_back(std::move(result));
       }
     });
@@ -136,6 +161,10 @@ StatusOr<FleetReport> RunFleet(PlacerecClient* client, const Run& run,
   progress.join();
   if (options.progress) std::fprintf(stderr, "\n");
   const double elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
+  // Answered ok per second over the time up to the last ok answer: the wait for frames that
+  // never get one (up to a whole timeout) is no time the server served in.
+  const double serving_s =
+      ok_arrivals_s.empty() ? 0.0 : *std::max_element(ok_arrivals_s.begin(), ok_arrivals_s.end());
 
   report.frames = published;
   std::map<std::string, int> by_code;
@@ -169,7 +198,8 @@ StatusOr<FleetReport> RunFleet(PlacerecClient* client, const Run& run,
       {"overloaded", overloaded},
       {"timed_out", timed_out},
       {"loop_closures", loop_closures},
-      {"answered_ok_per_second", elapsed_s > 0 ? ok / elapsed_s : 0.0},
+      {"answered_ok_per_second", serving_s > 0 ? ok / serving_s : 0.0},
+      {"serving_s", serving_s},
       {"latency_ms",
        {{"p50", Percentile(latency_ms, 50)},
         {"p90", Percentile(latency_ms, 90)},

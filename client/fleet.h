@@ -16,16 +16,22 @@
 namespace placerec {
 
 struct FleetOptions {
-  int robots = 4;            // simulated robots, ids fleet000, fleet001, ...
-  double rate_hz = 1.0;      // frames per second per robot
-  double duration_s = 60;    // sending time; answers are awaited after it
-  double query_share = 0.0;  // share of frames sent query-only (the rest are inserted)
-  std::string robot_prefix = "fleet";
-  double timeout_s = 60;  // per frame, from its publication
-  bool progress = true;   // a progress line on stderr
+  int robots = 4;                      // simulated robots, ids fleet000, fleet001, ...
+  double rate_hz = 1.0;                // frames per second per robot
+  double duration_s = 60;              // sending time; answers are awaited after it
+  double query_share = 0.0;            // share of frames sent query-only (the rest are inserted)
+  std::string robot_prefix = "fleet";  // with the robot's number, a valid robot id
+  double timeout_s = 60;               // per frame, from its publication
+  bool progress = true;                // a progress line on stderr
 
   bool Check(std::string* error) const;
 };
+
+// Frames one robot may be asked to send (--duration times --rate).
+constexpr double kMaxFleetFramesPerRobot = 1e7;
+
+// Robot `robot`'s id: the prefix and the number, at least three digits (fleet007).
+std::string FleetRobotId(const std::string& prefix, int robot);
 
 struct FleetReport {
   int frames = 0;  // published
