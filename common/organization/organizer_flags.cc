@@ -24,14 +24,15 @@ void AddPerceptualOrganizationFlags(FlagParser* parser, OrganizationOptions* po)
               "a part sharing this much of its boundary with a neighbour is enclosed by it");
   parser->Add("po-max-subset", &po->max_subset,
               "Algorithm 1: neighbours tested together (1, 2; §3.5)");
-  parser->Add("po-max-rounds", &po->max_rounds, "Algorithm 2: at most this many rounds (§3.5)");
+  parser->Add("po-max-rounds", &po->max_rounds,
+              "Algorithm 2: at most this many rounds (§3.5; the seed: 2)");
   parser->Add("po-round-colour-merge", &po->round_colour_merge_distance,
               "Algorithm 2: similar-colour merge between rounds (Delta E; 0: none)");
   parser->Add("po-background-merge-colour", &po->background_merge_colour_distance,
               "the final background merge joins only regions closer than this in CIE Lab "
-              "(Delta E; 0: any two of one class)");
+              "(Delta E; 0: any two of one class, as the seed)");
   parser->Add("po-merge-background", &po->merge_background,
-              "merge adjacent background regions of one class at the end (§3.7)");
+              "merge adjacent background regions of one class at the end (§3.7; the seed: true)");
 }
 
 }  // namespace
@@ -39,7 +40,7 @@ void AddPerceptualOrganizationFlags(FlagParser* parser, OrganizationOptions* po)
 void AddBackgroundDecisionFlags(FlagParser* parser, SceneOrganizerOptions* options) {
   parser->Add("background-threshold", &options->background_threshold,
               "a region is background when its best background classifier's score exceeds "
-              "this (0: the boosted decision)");
+              "this (0: the boosted decision, as the seed)");
   parser->Add("one-per-class", &options->one_per_class,
               "a region is background only when its best background classifier also beats "
               "every structured class's (seed §6.2.1; models with structured classifiers)");
@@ -50,7 +51,7 @@ void AddOrganizerFlags(FlagParser* parser, SceneOrganizerOptions* options) {
               "trained textons and classifiers (default: PLACEREC_MODELS or models/)");
   AddSuperpixelFlags(parser, &options->superpixels, "po-", "initial partition");
   parser->Add("texton-stride", &options->texton_stride,
-              "textons on every N-th pixel in x and y (1: every pixel)");
+              "textons on every N-th pixel in x and y (1: every pixel, as the seed)");
   AddBackgroundDecisionFlags(parser, options);
   parser->Add("background-smoothing", &options->background_smoothing,
               "weight of the neighbours' mean classifier scores in each superpixel's decision "

@@ -118,9 +118,9 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add("sift-sigma", &a.features.sigma, "SIFT first-octave Gaussian sigma");
   p->Add("sift-min-keypoints-per-mp", &a.features.min_keypoints_per_megapixel,
          "frames with fewer keypoints per megapixel run again at the low contrast threshold "
-         "(0: never)");
+         "(0: never, as in the seed)");
   p->Add("sift-low-contrast-threshold", &a.features.low_contrast_threshold,
-         "contrast threshold of the retry on plain frames");
+         "contrast threshold of the retry on plain frames (not in the seed)");
   AddSuperpixelFlags(p, &a.superpixels, "", "--segmentation superpixels (objects; k 1200)");
   p->Add("h-min-intensity", &a.colour.min_intensity,
          "colour invariant: ignore pixels darker than this (eq. 5.6 D, 0..1)");
@@ -153,15 +153,17 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add("landmark-exhaustive", &o->landmarks.matching.exhaustive_verification,
          "verify voted object pairs with the exact ratio test over all rows (landmarks)");
   p->Add("query-objects", &o->query_objects,
-         "objects looked up in the map: all | landmarks (seed §5.7)");
+         "objects looked up in the map: all | landmarks (the seed, §5.7)");
   p->Add("max-query-descriptors", &o->max_query_descriptors,
          "look up at most this many descriptors per frame, strongest first (0: all)");
   p->Add("query-unassigned", &o->query_unassigned_keypoints,
-         "also look up keypoints outside every object (place-level matching only)");
+         "also look up keypoints outside every object (place-level matching only; the seed: "
+         "false)");
   p->Add("min-descriptors-per-place", &o->min_descriptors_per_place,
          "plain places top up their landmarks' tracked descriptors to this many (0: tracked only)");
   p->Add("store-tracked-only", &o->store_tracked_descriptors_only,
-         "store only the landmark descriptors that matched into previous frames");
+         "store only the landmark descriptors that matched into previous frames (the seed "
+         "stores all of a new landmark's: false)");
   p->Add("index-search", &o->index.search,
          "verification: flann (approximate nearest neighbours vote, from the index "
          "--descriptor-search builds) | exhaustive (every candidate, §5.6 literally)");
@@ -230,12 +232,13 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
          "a frame sharing this fraction of its compared keypoints with the robot's last distinct "
          "frame shows nothing new: answered, not stored (1 stores every frame; not in the seed)");
   p->Add("geometric-verification", &o->loop.geometric_verification,
-         "score places by fundamental-matrix RANSAC inliers");
+         "score places by fundamental-matrix RANSAC inliers (the seed counts matched "
+         "landmarks, §5.7: false)");
   p->Add("orientation-tolerance", &o->loop.orientation_tolerance,
          "keep matches whose orientation change is this close to the place's usual one "
-         "(degrees; 0 keeps all)");
+         "(degrees; 0 keeps all, as the seed)");
   p->Add("max-inliers-per-landmark", &o->loop.max_inliers_per_landmark,
-         "a place scores at most this many inliers per landmark (0: no cap)");
+         "a place scores at most this many inliers per landmark (0: no cap; not in the seed)");
   p->Add("max-inliers-per-cell", &o->loop.max_inliers_per_cell,
          "a place scores at most this many inliers per grid cell of the query frame (0: no cap)");
   p->Add("inlier-cell-size", &o->loop.inlier_cell_size, "grid cell size for that cap (pixels)");
