@@ -1,11 +1,13 @@
 #include "client/client.h"
 
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <ctime>
 #include <fstream>
 #include <limits>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -222,6 +224,43 @@ TEST(FleetTest, OptionsThatCannotWorkAreRefused) {
   EXPECT_FALSE(options.Check(&error));
   options.robot_prefix = "site_alpha_building_7_floor_2_";
   EXPECT_TRUE(options.Check(&error)) << error;
+}
+
+// Ctrl-C in a fleet run lost everything: nothing stopped it, and the process died without its
+// report. A stop now ends the sending at once; the report covers the frames sent.
+TEST(FleetTest, AStopEndsTheSendingAndTheReportSaysSo) {
+  const std::string image = TempPath("fleet_stop.png");
+  ASSERT_TRUE(cv::imwrite(image, TestImage()));
+  placerec::Run run;
+  run.name = "one";
+  run.frames.push_back({0, "r", image, 1000000});
+  ClientOptions client_options;
+  client_options.lcm_url = "memq://";
+  client_options.retry_after_s = 0;
+  StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(client_options);
+  ASSERT_TRUE(client.ok()) << client.status().ToString();
+  std::atomic<bool> stop{false};
+  FleetOptions options;
+  options.robots = 2;
+  options.rate_hz = 0.05;  // one frame each 20 s: the stop comes while the robots wait
+  options.duration_s = 100;
+  options.timeout_s = 0.5;
+  options.progress = false;
+  options.stop = &stop;
+  std::thread stopper([&stop] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    stop = true;
+  });
+  const auto started = std::chrono::steady_clock::now();
+  StatusOr<FleetReport> report = RunFleet(client->get(), run, options);
+  const double took_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  stopper.join();
+  ASSERT_TRUE(report.ok()) << report.status().ToString();
+  EXPECT_LT(took_s, 3.0);
+  EXPECT_TRUE(report->summary["interrupted"].get<bool>());
+  EXPECT_LE(report->frames, 2);  // each robot's first frame at most
+  std::remove(image.c_str());
 }
 
 }  // namespace

@@ -1,7 +1,11 @@
 #include "client/commands.h"
 
+#include <unistd.h>
+
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <mutex>
@@ -20,6 +24,27 @@
 
 namespace placerec {
 namespace {
+
+// Set by the first SIGINT or SIGTERM of run and fleet: they stop sending, await the frames in
+// flight and write their report; a second signal ends the process (the default action).
+std::atomic<bool> g_interrupted{false};
+static_assert(std::atomic<bool>::is_always_lock_free, "set from a signal handler");
+
+void OnInterrupt(int) {
+  g_interrupted = true;
+  static const char kMessage[] =
+      "\ninterrupted: no further frame is sent; waiting for the answers of the frames sent, then "
+      "writing the report (interrupt again to quit without it)\n";
+  (void)!write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
+}
+
+void StopOnInterrupt() {
+  struct sigaction action = {};
+  action.sa_handler = OnInterrupt;
+  action.sa_flags = SA_RESETHAND;  // the second signal takes the default action
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+}
 
 int64_t NowUtime() {
   return std::chrono::duration_cast<std::chrono::microseconds>(
@@ -147,7 +172,8 @@ const char kClientUsage[] =
     "  watch           print scene-change alarms as they arrive and save their pictures\n\n"
     "'placerec-client COMMAND --help' lists the options of a command. Exit codes: 0 when every\n"
     "request got an answer with status ok, 1 when one timed out or carried an error, 2 for bad\n"
-    "arguments.";
+    "arguments, 130 when run or fleet was interrupted (Ctrl-C: the frames sent are awaited and\n"
+    "the report of them written; a second Ctrl-C quits at once).";
 
 int SendCommand(int argc, const char* const* argv) {
   std::vector<std::string> images;
@@ -379,6 +405,8 @@ int RunCommand(int argc, const char* const* argv, const std::string& data_defaul
   }
   StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "run");
   if (!client.ok()) return ConnectExitCode(client.status());
+  feed.stop = &g_interrupted;
+  StopOnInterrupt();
   StatusOr<FeedReport> report = FeedRun(client->get(), *run, feed);
   if (!report.ok()) {
     std::fprintf(stderr, "placerec-client run: %s\n", report.status().ToString().c_str());
@@ -408,6 +436,7 @@ int RunCommand(int argc, const char* const* argv, const std::string& data_defaul
       s["latency"]["median_ms"].get<double>(), s["latency"]["p90_ms"].get<double>(),
       s["server_time"]["median_ms"].get<double>(), s["frames_per_second"].get<double>(),
       s["wall_seconds"].get<double>(), out.c_str());
+  if (g_interrupted) return kExitInterrupted;
   if (!report->all_ok()) {
     for (const FrameResult& r : report->results) {
       if (!r.ok() && r.message != "not sent") {
@@ -467,6 +496,8 @@ int FleetCommand(int argc, const char* const* argv, const std::string& data_defa
   }
   StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "fleet");
   if (!client.ok()) return ConnectExitCode(client.status());
+  fleet.stop = &g_interrupted;
+  StopOnInterrupt();
   StatusOr<FleetReport> report = RunFleet(client->get(), *run, fleet);
   if (!report.ok()) {
     std::fprintf(stderr, "placerec-client fleet: %s\n", report.status().ToString().c_str());
@@ -503,6 +534,7 @@ int FleetCommand(int argc, const char* const* argv, const std::string& data_defa
       s["timed_out"].get<int>(), s["answered_ok_per_second"].get<double>(),
       s["latency_ms"]["p50"].get<double>(), s["latency_ms"]["p90"].get<double>(),
       s["latency_ms"]["p99"].get<double>());
+  if (g_interrupted) return kExitInterrupted;
   // Every frame offered must have been sent and answered ok.
   return s["ok"].get<int>() == report->frames && s["not_sent"].get<int>() == 0 ? kExitOk
                                                                                : kExitFailed;

@@ -9,6 +9,8 @@ namespace placerec {
 constexpr int kExitOk = 0;      // every request got an answer with status ok
 constexpr int kExitFailed = 1;  // an answer timed out or carried an error, or I/O failed
 constexpr int kExitUsage = 2;   // bad arguments
+// run and fleet stopped by SIGINT or SIGTERM, after writing the report of the frames sent.
+constexpr int kExitInterrupted = 130;
 
 extern const char kClientUsage[];
 

@@ -4,6 +4,7 @@
 // by: answers per second, latency percentiles, "overloaded" answers and timeouts.
 #pragma once
 
+#include <atomic>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,9 @@ struct FleetOptions {
   std::string robot_prefix = "fleet";  // with the robot's number, a valid robot id
   double timeout_s = 60;               // per frame, from its publication
   bool progress = true;                // a progress line on stderr
+  // When set (Ctrl-C): no further frame is sent, the frames sent are awaited, and the report
+  // covers them ("interrupted" in fleet.json).
+  const std::atomic<bool>* stop = nullptr;
 
   bool Check(std::string* error) const;
 };

@@ -149,7 +149,7 @@ class Sender {
       while (!stop && static_cast<int>(in_flight.size()) >= options_.window) {
         Collect(&in_flight, &stop);
       }
-      if (stop) break;
+      if (stop || (options_.stop != nullptr && *options_.stop)) break;
       StatusOr<EncodedImage> image = EncodeImageFile(run_.frames[f].image);
       if (!image.ok()) {
         std::lock_guard lock(mutex_);
@@ -261,6 +261,7 @@ nlohmann::json SummaryJson(const Run& run, int frames, const FeedOptions& option
   s["wall_seconds"] = wall_s;
   s["frames_per_second"] = wall_s > 0 ? report.ok / wall_s : 0.0;
   s["window"] = options.window;
+  s["interrupted"] = options.stop != nullptr && options.stop->load();
   s["robots_concurrently"] = options.robots_concurrently;
   if (t.last_map != nullptr) {
     s["map"] = {{"places", t.last_map->map_places},

@@ -4,6 +4,7 @@
 // from the answers (best match's sequence and score, -1 when there is none) equals placerec-eval's.
 #pragma once
 
+#include <atomic>
 #include <string>
 #include <vector>
 
@@ -29,6 +30,9 @@ struct FeedOptions {
   double timeout_s = 60;            // per frame, from its publication
   bool print_loop_closures = true;  // one stdout line per loop closure as it arrives
   bool progress = true;             // a progress line on stderr
+  // When set (Ctrl-C): no further frame is sent, the frames in flight are awaited, and the
+  // report covers what was sent ("interrupted" in summary.json; the rest count as not sent).
+  const std::atomic<bool>* stop = nullptr;
 
   bool Check(std::string* error) const;
 };
