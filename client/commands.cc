@@ -158,6 +158,11 @@ StatusOr<Run> LoadNamedRun(const std::string& dataset, const std::string& run_na
   return LoadRun(*dir, run_name);
 }
 
+// A dataset or run that is not there is a bad argument (2); one that cannot be read, a failure.
+int RunLoadExitCode(const Status& status) {
+  return status.code() == StatusCode::kNotFound ? kExitUsage : kExitFailed;
+}
+
 }  // namespace
 
 const char kClientUsage[] =
@@ -401,7 +406,7 @@ int RunCommand(int argc, const char* const* argv, const std::string& data_defaul
   StatusOr<Run> run = LoadNamedRun(dataset, run_name, data_default);
   if (!run.ok()) {
     std::fprintf(stderr, "placerec-client run: %s\n", run.status().ToString().c_str());
-    return kExitFailed;
+    return RunLoadExitCode(run.status());
   }
   StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "run");
   if (!client.ok()) return ConnectExitCode(client.status());
@@ -492,7 +497,7 @@ int FleetCommand(int argc, const char* const* argv, const std::string& data_defa
   StatusOr<Run> run = LoadNamedRun(dataset, run_name, data_default);
   if (!run.ok()) {
     std::fprintf(stderr, "placerec-client fleet: %s\n", run.status().ToString().c_str());
-    return kExitFailed;
+    return RunLoadExitCode(run.status());
   }
   StatusOr<std::unique_ptr<PlacerecClient>> client = ConnectOrReport(options, "fleet");
   if (!client.ok()) return ConnectExitCode(client.status());
