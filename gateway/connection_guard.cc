@@ -6,6 +6,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <utility>
 
 #include "common/util/logging.h"
@@ -26,7 +27,8 @@ thread_local Ticket t_current;
 constexpr auto kWatchInterval = std::chrono::milliseconds(250);
 constexpr auto kLogInterval = std::chrono::seconds(60);
 
-// The peer's address as text ("" when the socket has none).
+// The peer's address as text ("" when the socket has none); an IPv6 peer's /64 prefix (an IPv4
+// peer seen through IPv6, ::ffff:a.b.c.d, stays whole).
 std::string PeerAddress(int fd) {
   sockaddr_storage peer = {};
   socklen_t length = sizeof(peer);
@@ -36,7 +38,9 @@ std::string PeerAddress(int fd) {
   if (peer.ss_family == AF_INET) {
     address = &reinterpret_cast<const sockaddr_in*>(&peer)->sin_addr;
   } else if (peer.ss_family == AF_INET6) {
-    address = &reinterpret_cast<const sockaddr_in6*>(&peer)->sin6_addr;
+    auto* in6 = &reinterpret_cast<sockaddr_in6*>(&peer)->sin6_addr;
+    if (!IN6_IS_ADDR_V4MAPPED(in6)) std::fill(in6->s6_addr + 8, in6->s6_addr + 16, 0);
+    address = in6;
   } else {
     return "";
   }
@@ -50,8 +54,8 @@ bool ConnectionGuardOptions::Check(std::string* error) const {
     *error = "header_seconds must be positive";
     return false;
   }
-  if (max_per_address < 0) {
-    *error = "max_per_address must be 0 (no limit) or more";
+  if (max_per_address < 0 || max_pending < 0) {
+    *error = "max_per_address and max_pending must be 0 (no limit) or more";
     return false;
   }
   return true;
@@ -127,11 +131,24 @@ void ConnectionGuard::Register(SSL* ssl) {
   std::lock_guard<std::mutex> lock(mutex_);
   ticket->id = next_id_++;
   int held = 0;
+  int pending = 0;
   for (const auto& [id, other] : connections_) {
-    if (!other.cut && other.address == connection.address) ++held;
+    if (other.cut) continue;
+    if (other.address == connection.address) ++held;
+    if (!other.headers_done) ++pending;
   }
   Connection& added = connections_[ticket->id] = std::move(connection);
-  if (options_.max_per_address > 0 && held >= options_.max_per_address) Cut(&added);
+  if (options_.max_per_address > 0 && held >= options_.max_per_address) {
+    Cut(&added);
+  } else if (options_.max_pending > 0 && pending >= options_.max_pending) {
+    // The oldest connection still in its handshake or headers makes room (ids grow with time).
+    for (auto& [id, other] : connections_) {
+      if (!other.cut && !other.headers_done) {
+        Cut(&other);
+        break;
+      }
+    }
+  }
   if (SSL_set_ex_data(ssl, SslIndex(), ticket) != 1) {
     // Without its ticket the connection would never be forgotten: refuse it instead.
     Cut(&added);
@@ -160,6 +177,7 @@ void ConnectionGuard::Extend(uint64_t id, double seconds) {
   std::lock_guard<std::mutex> lock(mutex_);
   const auto it = connections_.find(id);
   if (it == connections_.end() || it->second.cut) return;
+  it->second.headers_done = true;
   it->second.deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
                                            std::chrono::duration<double>(seconds));
 }
@@ -190,10 +208,11 @@ void ConnectionGuard::Watch() {
     if (cut_ > cut_logged_ && (cut_logged_ == 0 || now - logged_at_ >= kLogInterval)) {
       LOG(WARNING) << "placerec-gateway: cut " << cut_ - cut_logged_
                    << " connection(s) that sent their request too slowly (over "
-                   << options_.header_seconds << " s for the handshake and headers) or came from "
+                   << options_.header_seconds << " s for the handshake and headers), came from "
                    << "an address that held " << options_.max_per_address
                    << " connections already (behind a reverse proxy, every connection comes from "
-                   << "its address: --max-connections-per-address 0, and limit there)";
+                   << "its address: --max-connections-per-address 0, and limit there), or were "
+                   << "the oldest of " << options_.max_pending << " still in their headers";
       cut_logged_ = cut_;
       logged_at_ = now;
     }

@@ -4,9 +4,10 @@
 // a time, on as many connections as there are threads, stops the gateway for everybody (a
 // "slowloris"). The guard cuts (shuts down) a connection that has not sent its headers within
 // ConnectionGuardOptions::header_seconds of its handshake's start, or that outlives the time its
-// request was given after them (ExtendCurrent), and cuts at once a connection of an address that
-// already holds max_per_address. It works through the OpenSSL context, the only per-connection hook
-// the library offers: a connection is registered when its TLS handshake starts (in the thread
+// request was given after them (ExtendCurrent); cuts at once a connection of an address that
+// already holds max_per_address; and cuts the oldest connection still in its handshake or headers
+// when more than max_pending are. It works through the OpenSSL context, the only per-connection
+// hook the library offers: a connection is registered when its TLS handshake starts (in the thread
 // that serves it) and forgotten when its SSL object is freed.
 #pragma once
 
@@ -30,8 +31,13 @@ struct ConnectionGuardOptions {
   double header_seconds = 20;
   // Connections one address may hold at once; more are cut at once; 0: no limit (behind a
   // reverse proxy, whose address every connection has). A browser opens up to six to one host,
-  // and several phones may share one address behind a carrier's NAT.
+  // and several phones may share one address behind a carrier's NAT. An IPv6 address counts by
+  // its /64 prefix, which one host or one home network has whole.
   int max_per_address = 16;
+  // Connections still in their handshake or headers at once; a new one beyond cuts the oldest
+  // of them (0: no limit). Quick clients pass this phase in milliseconds, so those that linger
+  // in it, from however many addresses, cannot hold every thread.
+  int max_pending = 32;
 
   bool Check(std::string* error) const;
 };
@@ -61,6 +67,7 @@ class ConnectionGuard {
     int fd = -1;  // our own duplicate of the socket: its number stays ours until Forget
     std::string address;
     Clock::time_point deadline;
+    bool headers_done = false;  // Extend was called: past the handshake and headers
     bool cut = false;
   };
   // The ex data slots (one per process): the guard of a context, the ticket of an SSL object

@@ -21,6 +21,8 @@ namespace {
 // A device's body over --max-upload-bytes but at most this many times it is read and dropped
 // before its 413 (so that the answer reaches it); a larger one is refused unread.
 constexpr int64_t kMaxDiscardedUploadFactor = 4;
+// A body without a valid token is read (to answer 401 after it) only up to this many bytes.
+constexpr int64_t kMaxAnonymousBodyBytes = 64 * 1024;
 
 int64_t NowUnix() {
   return std::chrono::duration_cast<std::chrono::seconds>(
@@ -490,20 +492,18 @@ Status Gateway::Serve() {
   // A body must say its length, so that --max-upload-bytes holds before anything is read: the
   // library reads a chunked body whole, whatever its size, before any handler runs. So any
   // Transfer-Encoding (whatever its case, also beside a Content-Length) is refused unread.
-  // A body over --max-upload-bytes is refused before it is read (the library reads and discards
-  // such a body whole before its 413, at whatever rate and length anybody sends it): without a
-  // valid token at once (401), from a device at once when it claims more than
-  // kMaxDiscardedUploadFactor times the limit (413); a device's body up to that is read and
-  // dropped, so that its 413 reaches it (a server closing on an unread body may reset the
-  // connection before the client reads the answer). This handler runs before any body is read.
+  // A body without a valid token is read only when small (kMaxAnonymousBodyBytes, so that the
+  // handler's 401 reaches the client: a server closing on an unread body may reset the
+  // connection before the client reads the answer), within kAnswerSeconds; a larger one is
+  // refused unread (401). A device's body over --max-upload-bytes is refused at once when it
+  // claims more than kMaxDiscardedUploadFactor times the limit (413); up to that it is read and
+  // dropped before the library's 413. Only a device's body gets the time its length needs
+  // (ConnectionGuard): anybody else's claimed length bought a slow sender minutes.
+  // This handler runs before any body is read.
   http.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
-    // The headers are in: the connection now has the time its body and answer need.
-    int64_t claimed = 0;
-    if (!ParseInt64(req.get_header_value("Content-Length"), &claimed) || claimed < 0) claimed = 0;
-    const double upload = static_cast<double>(
-        std::min(claimed, options_.max_upload_bytes * kMaxDiscardedUploadFactor));
-    ConnectionGuard::ExtendCurrent(kAnswerSeconds + upload / kMinUploadBytesPerSecond +
-                                   (req.method == "POST" ? options_.query_timeout_s : 0));
+    // The headers are in: the connection has kAnswerSeconds to finish, unless a device's body
+    // needs more (below).
+    ConnectionGuard::ExtendCurrent(kAnswerSeconds);
     const auto refuse = [&res](int status, const std::string& why) {
       res.status = status;
       res.set_content(JsonText({{"error", why}}), "application/json");
@@ -526,18 +526,22 @@ Status Gateway::Serve() {
     if (!ParseInt64(req.get_header_value("Content-Length"), &length) || length < 0) {
       return refuse(400, "the Content-Length header is no number of bytes");
     }
-    if (length <= options_.max_upload_bytes) return httplib::Server::HandlerResponse::Unhandled;
     const std::string token = BearerToken(req.get_header_value("Authorization"));
-    if (token.empty()) {
-      return refuse(401, "send the device's token as 'Authorization: Bearer TOKEN'");
-    }
-    if (StatusOr<DeviceToken> who = tokens_.Authenticate(token, NowUnix()); !who.ok()) {
-      return refuse(401, who.status().message());
+    const StatusOr<DeviceToken> who =
+        token.empty() ? StatusOr<DeviceToken>(Status::InvalidArgument(
+                            "send the device's token as 'Authorization: Bearer TOKEN'"))
+                      : tokens_.Authenticate(token, NowUnix());
+    if (!who.ok()) {
+      if (length > kMaxAnonymousBodyBytes) return refuse(401, who.status().message());
+      return httplib::Server::HandlerResponse::Unhandled;  // the handler answers 401
     }
     if (length / kMaxDiscardedUploadFactor > options_.max_upload_bytes) {
       return refuse(413, "the photo has " + std::to_string(length) + " bytes; the limit is " +
                              std::to_string(options_.max_upload_bytes) + " (send a smaller JPEG)");
     }
+    ConnectionGuard::ExtendCurrent(kAnswerSeconds +
+                                   static_cast<double>(length) / kMinUploadBytesPerSecond +
+                                   options_.query_timeout_s);
     return httplib::Server::HandlerResponse::Unhandled;
   });
   // Every error, including the library's own (404, 405, 413 ...), is a JSON body. The library

@@ -597,25 +597,33 @@ TEST_F(GatewayTest, QueriesWaitingOnTheServerAreBoundedAndReadsAreServedMeanwhil
   EXPECT_EQ(statuses, (std::vector<int>{504, 504, 504}));
 }
 
-// Connections that send their TLS handshake a byte a second (a "slowloris"), more of them from
-// one address than the gateway had threads: they held every thread, and nobody else was served
-// while they went on. Now one address holds at most --max-connections-per-address connections
-// (the rest are cut at once), others are served meanwhile, and each slow one is cut once its
-// handshake and headers take longer than --header-timeout.
+// Connections that send their TLS handshake a byte a second (a "slowloris"), from four addresses,
+// more than the gateway has threads: they held every thread, and nobody else was served while
+// they went on. Now one address holds at most --max-connections-per-address connections (the
+// rest are cut at once), a new connection cuts the oldest of those still in their headers beyond
+// half the threads, others are served meanwhile, and each slow one is cut once its handshake and
+// headers take longer than --header-timeout.
 TEST_F(GatewayTest, ClientsSendingAByteASecondNeitherHoldTheThreadsNorStayConnected) {
-  constexpr int kSlow = 24;  // more than the gateway's 16 threads of old
   const ConnectionGuardOptions limits;
+  // 24 from 127.0.0.2 (more than one address may hold), 16 from each of .3, .4 and .5.
+  std::vector<std::string> from_addresses(24, "127.0.0.2");
+  for (const char* address : {"127.0.0.3", "127.0.0.4", "127.0.0.5"}) {
+    from_addresses.insert(from_addresses.end(), 16, address);
+  }
+  const int kSlow = static_cast<int>(from_addresses.size());
   struct Slow {
     int fd = -1;
     double closed_after_s = -1;  // when the gateway closed it, seconds after the first byte
   };
   std::vector<Slow> slow(kSlow);
-  for (Slow& s : slow) {
+  for (int i = 0; i < kSlow; ++i) {
+    Slow& s = slow[i];
     s.fd = socket(AF_INET, SOCK_STREAM, 0);
     ASSERT_GE(s.fd, 0) << std::strerror(errno);
     sockaddr_in from = {};
     from.sin_family = AF_INET;
-    inet_pton(AF_INET, "127.0.0.2", &from.sin_addr);  // loopback, another address than ours
+    // Loopback addresses other than ours.
+    inet_pton(AF_INET, from_addresses[i].c_str(), &from.sin_addr);
     ASSERT_EQ(bind(s.fd, reinterpret_cast<const sockaddr*>(&from), sizeof(from)), 0)
         << std::strerror(errno);
     sockaddr_in to = {};
@@ -685,7 +693,8 @@ TEST_F(GatewayTest, ClientsSendingAByteASecondNeitherHoldTheThreadsNorStayConnec
     EXPECT_LT(s.closed_after_s, limits.header_seconds + 3);
     if (s.closed_after_s >= 0 && s.closed_after_s < limits.header_seconds / 2) ++at_once;
   }
-  EXPECT_EQ(at_once, kSlow - limits.max_per_address);
+  // At least those over one address's limit and those beyond the pending limit.
+  EXPECT_GE(at_once, kSlow - limits.max_pending) << "of " << kSlow;
   ASSERT_TRUE(gateway_->running()) << Tail(gateway_->log_path());
   EXPECT_NE(
       ReadBytes(gateway_->log_path()).find("connection(s) that sent their request too slowly"),
@@ -693,6 +702,36 @@ TEST_F(GatewayTest, ClientsSendingAByteASecondNeitherHoldTheThreadsNorStayConnec
       << Tail(gateway_->log_path());
   const auto [after, after_body] = Json(Https()->Get("/v1/status", Bearer(kToken)));
   EXPECT_EQ(after, 200) << after_body.dump();
+}
+
+// A POST's claimed length bought its sender time before its token was checked: anybody could
+// claim a megabyte and send it a byte a second, holding a thread for minutes. A body without a
+// valid token is now refused unread beyond 64 KiB, and answered at once.
+TEST_F(GatewayTest, AnAnonymousBodyIsRefusedBeforeItIsRead) {
+  std::signal(SIGPIPE, SIG_IGN);  // writing on after the refusal is a broken pipe
+  std::unique_ptr<httplib::SSLClient> https = Https();
+  https->set_read_timeout(30, 0);
+  size_t offered = 0;
+  const auto started = std::chrono::steady_clock::now();
+  httplib::Result slow = https->Post(
+      "/v1/query", httplib::Headers{}, 1000000,  // under --max-upload-bytes (2,000,000)
+      [&](size_t, size_t, httplib::DataSink& sink) {
+        if (offered >= 20) return false;  // 20 bytes in 20 s, then give up
+        std::this_thread::sleep_for(std::chrono::seconds(1));
+        ++offered;
+        return sink.write("x", 1);
+      },
+      "image/jpeg");
+  const double took_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  EXPECT_LT(took_s, 5) << offered << " bytes read";
+  if (slow) {  // the refusal may also arrive as a closed connection mid-upload
+    EXPECT_EQ(slow->status, 401) << slow->body;
+  }
+  // A small body without a token is read and refused with the reason.
+  const auto [small, small_body] = Json(Https()->Post("/v1/query", "hello", "image/jpeg"));
+  EXPECT_EQ(small, 401) << small_body.dump();
+  EXPECT_NE(small_body["error"].get<std::string>().find("Bearer"), std::string::npos);
 }
 
 // A device whose token names its own key (key=phone-4) is signed with it, so the server's keys
