@@ -177,8 +177,8 @@ const char kClientUsage[] =
     "  watch           print scene-change alarms as they arrive and save their pictures\n\n"
     "'placerec-client COMMAND --help' lists the options of a command. Exit codes: 0 when every\n"
     "request got an answer with status ok, 1 when one timed out or carried an error, 2 for bad\n"
-    "arguments, 130 when run or fleet was interrupted (Ctrl-C: the frames sent are awaited and\n"
-    "the report of them written; a second Ctrl-C quits at once).";
+    "arguments, 130 when run or fleet was interrupted before every frame was sent (Ctrl-C: the\n"
+    "frames sent are awaited and the report of them written; a second Ctrl-C quits at once).";
 
 int SendCommand(int argc, const char* const* argv) {
   std::vector<std::string> images;
@@ -441,7 +441,9 @@ int RunCommand(int argc, const char* const* argv, const std::string& data_defaul
       s["latency"]["median_ms"].get<double>(), s["latency"]["p90_ms"].get<double>(),
       s["server_time"]["median_ms"].get<double>(), s["frames_per_second"].get<double>(),
       s["wall_seconds"].get<double>(), out.c_str());
-  if (g_interrupted) return kExitInterrupted;
+  // Interrupted before every frame was sent (after that, a signal changes nothing: the answers
+  // are awaited as always).
+  if (s.value("interrupted", false)) return kExitInterrupted;
   if (!report->all_ok()) {
     for (const FrameResult& r : report->results) {
       if (!r.ok() && r.message != "not sent") {
@@ -539,7 +541,7 @@ int FleetCommand(int argc, const char* const* argv, const std::string& data_defa
       s["timed_out"].get<int>(), s["answered_ok_per_second"].get<double>(),
       s["latency_ms"]["p50"].get<double>(), s["latency_ms"]["p90"].get<double>(),
       s["latency_ms"]["p99"].get<double>());
-  if (g_interrupted) return kExitInterrupted;
+  if (s.value("interrupted", false)) return kExitInterrupted;
   // Every frame offered must have been sent and answered ok.
   return s["ok"].get<int>() == report->frames && s["not_sent"].get<int>() == 0 ? kExitOk
                                                                                : kExitFailed;

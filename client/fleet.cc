@@ -80,6 +80,7 @@ StatusOr<FleetReport> RunFleet(PlacerecClient* client, const Run& run,
   std::mutex mutex;
   FleetReport report;
   std::atomic<int> published{0}, answered{0}, not_sent{0};
+  std::atomic<bool> cut_short{false};  // a stop kept a frame from being sent
   std::vector<std::thread> threads;
   for (int r = 0; r < options.robots; ++r) {
     // One thread publishes on the robot's clock; another collects its answers in order.
@@ -94,14 +95,17 @@ StatusOr<FleetReport> RunFleet(PlacerecClient* client, const Run& run,
       const Clock::time_point first = start + period * r / options.robots;
       int64_t sequence = 0;
       const auto stopped = [&options] { return options.stop != nullptr && *options.stop; };
-      for (int k = 0; k < per_robot && !stopped(); ++k) {
+      for (int k = 0; k < per_robot; ++k) {
         // In slices, so that a stop is seen within a tenth of a second at any rate.
         const Clock::time_point due = first + period * k;
         while (!stopped() && Clock::now() < due) {
           std::this_thread::sleep_until(
               std::min(due, Clock::now() + std::chrono::milliseconds(100)));
         }
-        if (stopped()) break;
+        if (stopped()) {
+          cut_short = true;  // frame k and those after it are not sent
+          break;
+        }
         const size_t f = (offset + static_cast<size_t>(k)) % run.frames.size();
         OutgoingFrame frame;
         frame.robot = robot;
@@ -196,7 +200,7 @@ StatusOr<FleetReport> RunFleet(PlacerecClient* client, const Run& run,
       {"rate_hz_per_robot", options.rate_hz},
       {"offered_frames_per_second", options.robots * options.rate_hz},
       {"duration_s", options.duration_s},
-      {"interrupted", options.stop != nullptr && options.stop->load()},
+      {"interrupted", cut_short.load()},
       {"elapsed_s", elapsed_s},
       {"query_share", options.query_share},
       {"frames", report.frames},

@@ -86,6 +86,7 @@ class Sender {
   }
 
   int loop_closures() const { return loop_closures_; }
+  bool cut_short() const { return cut_short_; }
   const Status& failure() const { return failure_; }
 
  private:
@@ -149,7 +150,11 @@ class Sender {
       while (!stop && static_cast<int>(in_flight.size()) >= options_.window) {
         Collect(&in_flight, &stop);
       }
-      if (stop || (options_.stop != nullptr && *options_.stop)) break;
+      if (stop) break;
+      if (options_.stop != nullptr && *options_.stop) {
+        cut_short_ = true;  // frame f and those after it are not sent
+        break;
+      }
       StatusOr<EncodedImage> image = EncodeImageFile(run_.frames[f].image);
       if (!image.ok()) {
         std::lock_guard lock(mutex_);
@@ -187,6 +192,7 @@ class Sender {
   std::mutex mutex_;  // guards report_->results, the counters and the terminal
   int answered_ = 0;
   int loop_closures_ = 0;
+  std::atomic<bool> cut_short_{false};  // a stop kept a frame from being sent
   Status failure_;
   ProgressLine progress_;
   Timer wall_;
@@ -246,7 +252,7 @@ AnswerTally TallyAnswers(const Run& scored, int frames, FeedReport* report) {
 // What summary.json holds.
 nlohmann::json SummaryJson(const Run& run, int frames, const FeedOptions& options,
                            const FeedReport& report, const AnswerTally& t, int loop_closures,
-                           double wall_s) {
+                           double wall_s, bool cut_short) {
   nlohmann::json s = ScoreSummary(run, frames, report.score);
   s["loop_closures"] = loop_closures;
   s["decision"] = DecisionSummary(t.tp, t.fp, report.score.revisit_frames);
@@ -261,7 +267,7 @@ nlohmann::json SummaryJson(const Run& run, int frames, const FeedOptions& option
   s["wall_seconds"] = wall_s;
   s["frames_per_second"] = wall_s > 0 ? report.ok / wall_s : 0.0;
   s["window"] = options.window;
-  s["interrupted"] = options.stop != nullptr && options.stop->load();
+  s["interrupted"] = cut_short;
   s["robots_concurrently"] = options.robots_concurrently;
   if (t.last_map != nullptr) {
     s["map"] = {{"places", t.last_map->map_places},
@@ -308,7 +314,8 @@ StatusOr<FeedReport> FeedRun(PlacerecClient* client, const Run& run, const FeedO
   StatusOr<RunScore> score = ScoreAnswers(scored, report.answers);
   if (!score.ok()) return score.status();
   report.score = *score;
-  report.summary = SummaryJson(run, frames, options, report, tally, sender.loop_closures(), wall_s);
+  report.summary = SummaryJson(run, frames, options, report, tally, sender.loop_closures(), wall_s,
+                               sender.cut_short());
   return report;
 }
 

@@ -252,7 +252,7 @@ StatusOr<std::vector<ChangeCase>> LoadChangeCases(const std::string& path) {
     }
     if (!known) {
       return Status::InvalidArgument(table->Where(row.line) + ": case '" + field(kCaseKind) +
-                                     "' is none of unchanged, pasted, removed");
+                                     "' is none of unchanged, pasted, removed, not_made");
     }
     c.truth = cv::Rect(static_cast<int>(n[kCaseX]), static_cast<int>(n[kCaseY]),
                        static_cast<int>(n[kCaseWidth]), static_cast<int>(n[kCaseHeight]));
