@@ -255,6 +255,29 @@ TEST(ObjectClassifierTest, OnePerClassTellsClassesApartAndRoundTrips) {
   EXPECT_FALSE(damaged.ok());
   EXPECT_NE(damaged.status().message().find("not finite"), std::string::npos)
       << damaged.status().message();
+
+  // A split on the variable just past the last: OpenCV's reader lets it through, and the
+  // classifier then read past each sample (a segmentation fault in `placerec-eval classify`).
+  ASSERT_TRUE(classifier->Save(dir).ok());
+  {
+    const std::string file = dir + "/objects_1.yml.gz";
+    const std::string text = dir + "/damaged.yml";
+    cv::Algorithm::load<cv::ml::Boost>(file)->save(text);
+    std::ifstream in(text);
+    const std::string yaml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string past = std::regex_replace(
+        yaml, std::regex("var:[ ]*[0-9]+"), "var: " + std::to_string(classifier->columns(1).size()),
+        std::regex_constants::format_first_only);
+    ASSERT_NE(past, yaml);
+    std::ofstream(text, std::ios::trunc) << past;
+    const cv::Ptr<cv::ml::Boost> reread = cv::Algorithm::load<cv::ml::Boost>(text);
+    ASSERT_FALSE(reread.empty());
+    reread->save(file);
+  }
+  const StatusOr<ObjectClassifier> past_last = ObjectClassifier::Load(dir);
+  EXPECT_FALSE(past_last.ok());
+  EXPECT_NE(past_last.status().message().find("splits on variables"), std::string::npos)
+      << past_last.status().message();
   std::filesystem::remove_all(dir);
 }
 

@@ -252,9 +252,10 @@ StatusOr<ObjectClassifier> ObjectClassifier::Load(const std::string& directory) 
         return Status::InvalidArgument(file + ": not a classifier of " +
                                        std::to_string(classifier.columns_[c].size()) + " features");
       }
-      if (!BoostedForest::Finite(*boost)) {
-        return Status::InvalidArgument(file + ": values that are not finite numbers (a damaged " +
-                                       "model); restore models/ or retrain");
+      if (!BoostedForest::Intact(*boost)) {
+        return Status::InvalidArgument(
+            file + ": values that are not finite numbers or splits on variables it does not have " +
+            "(a damaged model); restore models/ or retrain");
       }
       classifier.boosts_.push_back(boost);
     }

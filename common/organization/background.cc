@@ -44,9 +44,10 @@ StatusOr<cv::Ptr<cv::ml::Boost>> LoadBoost(const std::string& file, int features
     return Status::InvalidArgument(file + ": trees deeper than " +
                                    std::to_string(BoostedForest::kMaxDepth));
   }
-  if (!BoostedForest::Finite(*boost)) {
-    return Status::InvalidArgument(file + ": values that are not finite numbers (a damaged " +
-                                   "model); restore models/ or retrain");
+  if (!BoostedForest::Intact(*boost)) {
+    return Status::InvalidArgument(
+        file + ": values that are not finite numbers or splits on variables it does not have (a " +
+        "damaged model); restore models/ or retrain");
   }
   return boost;
 }

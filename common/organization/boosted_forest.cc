@@ -23,12 +23,13 @@ int BoostedForest::Depth(const cv::ml::Boost& boost) {
   return depth;
 }
 
-bool BoostedForest::Finite(const cv::ml::Boost& boost) {
+bool BoostedForest::Intact(const cv::ml::Boost& boost) {
   for (const cv::ml::DTrees::Node& node : boost.getNodes()) {
     if (!std::isfinite(node.value)) return false;
   }
+  const int var_count = boost.getVarCount();
   for (const cv::ml::DTrees::Split& split : boost.getSplits()) {
-    if (!std::isfinite(split.c)) return false;
+    if (!std::isfinite(split.c) || split.varIdx < 0 || split.varIdx >= var_count) return false;
   }
   return true;
 }

@@ -23,9 +23,11 @@ class BoostedForest {
   static constexpr int kMaxTrainingDepth = 10;
   // The depth of the deepest tree of a trained `boost`.
   static int Depth(const cv::ml::Boost& boost);
-  // Whether every leaf value and split threshold of `boost` is a finite number. A damaged model
-  // file can hold NaN, which then wins or loses every comparison: loaders refuse it.
-  static bool Finite(const cv::ml::Boost& boost);
+  // Whether every leaf value and split threshold of `boost` is a finite number and every split
+  // tests one of its getVarCount() variables. A damaged model file can hold NaN, which then wins
+  // or loses every comparison, or a split on a variable past the last (OpenCV's reader lets the
+  // one just past through), which reads past the sample: loaders refuse both.
+  static bool Intact(const cv::ml::Boost& boost);
 
   BoostedForest() = default;
   // Flattens a trained `boost` whose variables are all ordered (TrainGentleBoost trains so;

@@ -182,10 +182,11 @@ StatusOr<BoundaryModel> BoundaryModel::Load(const std::string& directory) {
     cv::Ptr<cv::ml::Boost> boost = cv::ml::Boost::create();
     boost->read(fs["boost"]);
     if (!boost->isTrained() || boost->getVarCount() != kBoundaryFeatures ||
-        BoostedForest::Depth(*boost) > BoostedForest::kMaxDepth || !BoostedForest::Finite(*boost)) {
+        BoostedForest::Depth(*boost) > BoostedForest::kMaxDepth || !BoostedForest::Intact(*boost)) {
       return Status::InvalidArgument(path +
                                      " is not a trained boundary classifier (or holds values "
-                                     "that are not finite numbers)");
+                                     "that are not finite numbers or splits on variables it "
+                                     "does not have)");
     }
     model.boost_ = boost;
     model.forest_ = BoostedForest(*boost);

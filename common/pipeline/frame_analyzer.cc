@@ -51,10 +51,18 @@ StatusOr<std::unique_ptr<Segmenter>> MakeSegmenter(const AnalyzerOptions& option
   }
   StatusOr<SceneOrganizer> organizer = SceneOrganizer::Create(options.organization);
   if (!organizer.ok()) {
+    // The command that trains the file the message names (models/README.md).
+    const std::string& message = organizer.status().message();
+    const char* command = message.find("grouping") != std::string::npos   ? "grouping"
+                          : message.find("boundary") != std::string::npos ? "boundary"
+                                                                          : "background";
     return Status(organizer.status().code(),
-                  "Perceptual Organization segmentation: " + organizer.status().message() +
-                      " (train the models with placerec-train background, point --models-dir "
-                      "or PLACEREC_MODELS at them, or use --segmentation superpixels)");
+                  "Perceptual Organization segmentation: " + message +
+                      " (restore the shipped models (git checkout models) or train it with "
+                      "placerec-train " +
+                      command +
+                      ", point --models-dir or PLACEREC_MODELS at good models, or use "
+                      "--segmentation superpixels)");
   }
   segmenter = std::make_unique<OrganizationSegmenter>(std::move(*organizer));
   return segmenter;
