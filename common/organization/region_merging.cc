@@ -457,9 +457,13 @@ int RegionMergeModel::feature_size() const {
 Status RegionMergeModel::Save(const std::string& directory) const {
   if (empty()) return Status::InvalidArgument("no grouping model to save");
   const std::string path = directory + "/" + kFileName;
+  // Written aside and moved into place whole: training writes into the models folder a server
+  // loads, and a file cut short there stops the server (the temporary name keeps the .gz
+  // ending: FileStorage compresses by the name).
+  const std::string temporary = directory + "/.writing." + kFileName;
   try {
-    cv::FileStorage fs(path, cv::FileStorage::WRITE);
-    if (!fs.isOpened()) return Status::IoError("cannot write " + path);
+    cv::FileStorage fs(temporary, cv::FileStorage::WRITE);
+    if (!fs.isOpened()) return Status::IoError("cannot write " + temporary);
     fs << "format_version" << kFormatVersion;
     fs << "features" << feature_size();
     fs << "members" << members();
@@ -468,9 +472,13 @@ Status RegionMergeModel::Save(const std::string& directory) const {
       members_[i]->write(fs);
       fs << "}";
     }
+    fs.release();
   } catch (const cv::Exception& e) {
-    return Status::IoError("cannot write " + path + ": " + e.what());
+    return Status::IoError("cannot write " + temporary + ": " + e.what());
   }
+  std::error_code ec;
+  std::filesystem::rename(temporary, path, ec);
+  if (ec) return Status::IoError("cannot move " + temporary + " to " + path + ": " + ec.message());
   return Status::Ok();
 }
 
@@ -507,12 +515,13 @@ StatusOr<RegionMergeModel> RegionMergeModel::Load(const std::string& directory) 
       boost->read(fs[version == 1 ? std::string("boost") : "member_" + std::to_string(i)]);
       if (!boost->isTrained() || boost->getVarCount() < 1 || boost->getVarCount() > features ||
           BoostedForest::Depth(*boost) > BoostedForest::kMaxDepth ||
-          !BoostedForest::Finite(*boost)) {
-        return Status::InvalidArgument(path + ": member " + std::to_string(i) +
-                                       " is not a trained grouping classifier (or has trees "
-                                       "deeper than " +
-                                       std::to_string(BoostedForest::kMaxDepth) +
-                                       ", or values that are not finite numbers)");
+          !BoostedForest::Intact(*boost)) {
+        return Status::InvalidArgument(
+            path + ": member " + std::to_string(i) +
+            " is not a trained grouping classifier (or has trees "
+            "deeper than " +
+            std::to_string(BoostedForest::kMaxDepth) +
+            ", or values that are not finite numbers or splits on variables it does not have)");
       }
       model.AddMember(boost);
     }

@@ -14,6 +14,7 @@
 #include <opencv2/core/persistence.hpp>
 
 #include "common/organization/filter_bank.h"
+#include "common/util/logging.h"
 #include "common/util/paths.h"
 #include "common/util/progress.h"
 #include "common/util/timer.h"
@@ -852,6 +853,18 @@ StatusOr<nlohmann::json> TrainBackgroundModels(const BackgroundTrainingConfig& c
     }
   }
   fs::remove_all(staged.out, ec);
+  if (manifest.ok()) {
+    // Models trained on these classifiers' scores (grouping) or beside them (boundary) were not
+    // replaced: a grouping model's semantic features read the old classes.
+    for (const char* later : {"grouping.yml.gz", "boundary.yml.gz"}) {
+      if (fs::exists(fs::path(config.out) / later, ec)) {
+        LOG(WARNING) << config.out << "/" << later
+                     << " was trained with the background classifiers just replaced: retrain it "
+                        "(placerec-train boundary, then grouping, --out "
+                     << config.out << "; models/README.md)";
+      }
+    }
+  }
   return manifest;
 }
 

@@ -396,6 +396,12 @@ StatusOr<nlohmann::json> TrainObjectModels(const ObjectTrainingConfig& config) {
                              ec.message());
     }
   }
+  // The variants of an earlier run that this one did not train (without --ablation): left
+  // beside the new manifest they were loaded as if they belonged to it.
+  for (const ObjectModelVariant& variant : ObjectModelVariants()) {
+    if (manifest["variants"].contains(variant.name)) continue;
+    fs::remove_all(fs::path(config.out) / variant.name, ec);
+  }
   return manifest;
 }
 
