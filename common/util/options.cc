@@ -37,7 +37,18 @@ Status FlagParser::Parse(int argc, const char* const* argv, int first, bool* hel
   std::vector<std::string> args(argv + first, argv + argc);
   po::variables_map vm;
   try {
-    po::store(po::command_line_parser(args).options(options_).positional(positional_).run(), vm);
+    const po::parsed_options parsed =
+        po::command_line_parser(args).options(options_).positional(positional_).run();
+    for (const po::option& option : parsed.options) {
+      if (unsigned_flags_.count(option.string_key) == 0) continue;
+      for (const std::string& value : option.value) {
+        if (!value.empty() && value.front() == '-') {
+          return Status::InvalidArgument("--" + option.string_key + " must not be negative, not " +
+                                         value + " (see --help)");
+        }
+      }
+    }
+    po::store(parsed, vm);
     if (vm.count("help")) {
       *help_requested = true;
       return Status::Ok();

@@ -4,6 +4,7 @@
 
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <type_traits>
 #include <vector>
@@ -27,6 +28,9 @@ class FlagParser {
   // Adds `--name` bound to *field; `help` should give units and the seed section.
   template <typename T>
   void Add(const std::string& name, T* field, const std::string& help) {
+    if constexpr (std::is_integral_v<T> && std::is_unsigned_v<T> && !std::is_same_v<T, bool>) {
+      unsigned_flags_.insert(name);  // the parser reads "-1" as 2^64 - 1: Parse refuses it
+    }
     if constexpr (std::is_floating_point_v<T>) {
       // Shown as the shortest text that reads back as the value (0.3, not 0.29999999999999999).
       options_.add_options()(
@@ -72,6 +76,7 @@ class FlagParser {
   boost::program_options::options_description options_;
   boost::program_options::positional_options_description positional_;
   std::string positional_name_;
+  std::set<std::string> unsigned_flags_;  // flags of unsigned fields: no negative values
 };
 
 // The invocation as a shell would take it back: the program's file name (no directory) and

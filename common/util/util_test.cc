@@ -227,6 +227,29 @@ TEST(FlagParserTest, BindsFieldsAndKeepsDefaults) {
   EXPECT_NE(parser.Help().find("--ratio"), std::string::npos);
 }
 
+// An unsigned field took "-1" as 2^64 - 1 (a training manifest recorded --seed -1 as
+// 18446744073709551615): negative values of unsigned flags are refused.
+TEST(FlagParserTest, UnsignedFlagsRefuseNegativeValues) {
+  uint64_t seed = 7;
+  int offset = 0;
+  FlagParser parser("test");
+  parser.Add("seed", &seed, "seed");
+  parser.Add("offset", &offset, "offset");
+  bool help = false;
+  const char* negative[] = {"prog", "--seed", "-1"};
+  const Status refused = parser.Parse(3, negative, 1, &help);
+  EXPECT_FALSE(refused.ok());
+  EXPECT_NE(refused.message().find("--seed must not be negative"), std::string::npos)
+      << refused.message();
+  EXPECT_EQ(seed, 7u);
+  const char* joined[] = {"prog", "--seed=-5"};
+  EXPECT_FALSE(parser.Parse(2, joined, 1, &help).ok());
+  const char* fine[] = {"prog", "--seed", "12", "--offset", "-3"};
+  ASSERT_TRUE(parser.Parse(5, fine, 1, &help).ok());
+  EXPECT_EQ(seed, 12u);
+  EXPECT_EQ(offset, -3);
+}
+
 // --help shows a floating-point default as the shortest text that reads back as it.
 TEST(FlagParserTest, HelpShowsShortDefaults) {
   double iou = 0.3, area = 0.004, third = 1.0 / 3.0;
