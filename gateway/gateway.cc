@@ -210,26 +210,9 @@ StatusOr<std::unique_ptr<Gateway>> Gateway::Create(const GatewayOptions& options
     }
   }
   std::unique_ptr<Gateway> gateway(new Gateway(options, std::move(*tokens)));
-  for (const std::string& key_id : gateway->tokens_.KeyIds()) {
-    ClientOptions client_options = options.client;
-    if (!key_id.empty()) {
-      if (options.client.key_file.empty()) {
-        return Status::InvalidArgument(options.tokens_file + " names key '" + key_id +
-                                       "' for a device: give --key-file with that key");
-      }
-      client_options.key_id = key_id;
-    }
-    StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(client_options);
-    if (!client.ok()) {
-      return Status(
-          client.status().code(),
-          (key_id.empty() ? "the gateway's key" : "the key of a device, '" + key_id + "'") +
-              std::string(": ") + client.status().message());
-    }
-    gateway->clients_[key_id] = std::move(*client);
-  }
+  PLACEREC_RETURN_IF_ERROR(gateway->ConnectClients(*gateway->tokens_));
   StatusOr<std::unique_ptr<SiteWatcher>> watcher = SiteWatcher::Start(
-      options.client.lcm_url, options.recent_loop_closures, gateway->tokens_.Devices());
+      options.client.lcm_url, options.recent_loop_closures, gateway->tokens_->Devices());
   if (!watcher.ok()) return watcher.status();
   gateway->watcher_ = std::move(*watcher);
   if (!options.db.empty()) {
@@ -261,9 +244,77 @@ StatusOr<std::unique_ptr<Gateway>> Gateway::Create(const GatewayOptions& options
   return gateway;
 }
 
+Status Gateway::ConnectClients(const TokenTable& tokens) {
+  std::map<std::string, std::unique_ptr<PlacerecClient>> added;
+  for (const std::string& key_id : tokens.KeyIds()) {
+    {
+      std::lock_guard lock(clients_mutex_);
+      if (clients_.count(key_id) > 0) continue;
+    }
+    ClientOptions client_options = options_.client;
+    if (!key_id.empty()) {
+      if (options_.client.key_file.empty()) {
+        return Status::InvalidArgument(options_.tokens_file + " names key '" + key_id +
+                                       "' for a device: give --key-file with that key");
+      }
+      client_options.key_id = key_id;
+    }
+    StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(client_options);
+    if (!client.ok()) {
+      return Status(
+          client.status().code(),
+          (key_id.empty() ? "the gateway's key" : "the key of a device, '" + key_id + "'") +
+              std::string(": ") + client.status().message());
+    }
+    added[key_id] = std::move(*client);
+  }
+  std::lock_guard lock(clients_mutex_);
+  for (auto& [key_id, client] : added) clients_.emplace(key_id, std::move(client));
+  return Status::Ok();
+}
+
+PlacerecClient& Gateway::ClientFor(const std::string& key_id) {
+  std::lock_guard lock(clients_mutex_);
+  return *clients_.at(key_id);
+}
+
+Status Gateway::ReloadTokens() {
+  std::lock_guard lock(tokens_mutex_);
+  StatusOr<TokenTable> tokens = TokenTable::Load(options_.tokens_file);
+  if (!tokens.ok()) return tokens.status();
+  if (tokens->size() == 0) {
+    return Status::InvalidArgument(options_.tokens_file +
+                                   " lists no device: nobody could use the gateway");
+  }
+  PLACEREC_RETURN_IF_ERROR(ConnectClients(*tokens));
+  // Hidden before any of them can ask: a device's answers never show in the overview.
+  watcher_->HideRobots(tokens->Devices());
+  const std::set<std::string> before = tokens_->Devices();
+  const std::set<std::string> after = tokens->Devices();
+  int added = 0;
+  for (const std::string& device : after) added += before.count(device) == 0 ? 1 : 0;
+  int removed = 0;
+  for (const std::string& device : before) removed += after.count(device) == 0 ? 1 : 0;
+  tokens_ = std::make_shared<const TokenTable>(std::move(*tokens));
+  LOG(INFO) << "read " << options_.tokens_file << " again: " << tokens_->size() << " tokens of "
+            << after.size() << " devices (" << added << " added, " << removed << " removed)";
+  return Status::Ok();
+}
+
+std::shared_ptr<const TokenTable> Gateway::Tokens() {
+  if (token_reload_requested_.exchange(false)) {
+    if (const Status reloaded = ReloadTokens(); !reloaded.ok()) {
+      LOG(ERROR) << "SIGHUP: the tokens file was not read again, the tokens in force stay: "
+                 << reloaded.ToString();
+    }
+  }
+  std::lock_guard lock(tokens_mutex_);
+  return tokens_;
+}
+
 Gateway::Gateway(const GatewayOptions& options, TokenTable tokens)
     : options_(options),
-      tokens_(std::move(tokens)),
+      tokens_(std::make_shared<const TokenTable>(std::move(tokens))),
       query_limiter_(options.requests_per_minute, options.burst),
       read_limiter_(options.requests_per_minute * kReadsPerQuery, options.burst * kReadsPerQuery) {}
 
@@ -276,7 +327,7 @@ bool Gateway::Admit(const std::string& authorization, bool query, DeviceToken* d
     *refusal = ErrorReply(401, "send the device's token as 'Authorization: Bearer TOKEN'");
     return false;
   }
-  StatusOr<DeviceToken> who = tokens_.Authenticate(token, NowUnix());
+  StatusOr<DeviceToken> who = Tokens()->Authenticate(token, NowUnix());
   if (!who.ok()) {
     *refusal = ErrorReply(401, who.status().message());
     return false;
@@ -350,7 +401,7 @@ HttpReply Gateway::Query(const std::string& authorization, const std::string& im
   frame.sequence = next_sequence_++;
   frame.utime = NowMicros();
   frame.insert = false;  // the gateway never changes the map
-  PlacerecClient& client = *clients_.at(device.key_id);
+  PlacerecClient& client = ClientFor(device.key_id);
   StatusOr<PendingFrame> pending = client.Publish(frame);
   if (!pending.ok())
     return ErrorReply(502, "cannot reach the server: " + pending.status().message());
@@ -530,7 +581,7 @@ Status Gateway::Serve() {
     const StatusOr<DeviceToken> who =
         token.empty() ? StatusOr<DeviceToken>(Status::InvalidArgument(
                             "send the device's token as 'Authorization: Bearer TOKEN'"))
-                      : tokens_.Authenticate(token, NowUnix());
+                      : Tokens()->Authenticate(token, NowUnix());
     if (!who.ok()) {
       if (length > kMaxAnonymousBodyBytes) return refuse(401, who.status().message());
       return httplib::Server::HandlerResponse::Unhandled;  // the handler answers 401

@@ -78,6 +78,14 @@ class Gateway {
   HttpReply AlarmPicture(const std::string& authorization, const std::string& alarm_id,
                          const std::string& which);
 
+  // Reads the tokens file again before the next request (SIGHUP; async-signal-safe).
+  void RequestTokenReload() { token_reload_requested_ = true; }
+  // Reads the tokens file again now: devices added, removed or changed there are served so from
+  // the next request on (a device's key named for the first time gets its own LCM client). A
+  // file that cannot be used changes nothing, and the error says why. Devices are hidden from
+  // the site overview from the moment they are listed, and stay hidden after their removal.
+  Status ReloadTokens();
+
   // Listens and serves until Stop(); an error when it cannot listen.
   Status Serve();
   void Stop();
@@ -88,9 +96,17 @@ class Gateway {
   // The device of a valid token within its rate (of queries, or of reads); otherwise *refusal
   // is the answer to send.
   bool Admit(const std::string& authorization, bool query, DeviceToken* device, HttpReply* refusal);
+  // The tokens in force, read again first when a reload was requested.
+  std::shared_ptr<const TokenTable> Tokens();
+  // Connects a client for every key id of `tokens` that has none yet; on an error none is added.
+  Status ConnectClients(const TokenTable& tokens);
+  // The client that signs with `key_id` (one of the tokens' key ids).
+  PlacerecClient& ClientFor(const std::string& key_id);
 
   GatewayOptions options_;
-  TokenTable tokens_;
+  std::mutex tokens_mutex_;  // guards tokens_ (the pointer) and serialises reloads
+  std::shared_ptr<const TokenTable> tokens_;
+  std::atomic<bool> token_reload_requested_{false};
   RateLimiter query_limiter_;
   RateLimiter read_limiter_;
   std::atomic<int> waiting_queries_{0};
@@ -99,7 +115,9 @@ class Gateway {
   std::mutex waiting_mutex_;
   std::map<std::string, int> waiting_by_device_;
   // One LCM client per key the devices' queries are signed with (DeviceToken::key_id; "" is the
-  // gateway's own key, ClientOptions::key_id).
+  // gateway's own key, ClientOptions::key_id). Reloads only add to it (a query may be using a
+  // client of a device just removed); clients_mutex_ guards the map, not the clients.
+  std::mutex clients_mutex_;
   std::map<std::string, std::unique_ptr<PlacerecClient>> clients_;
   std::unique_ptr<SiteWatcher> watcher_;
   std::unique_ptr<LandmarkStore> map_;  // null without --db

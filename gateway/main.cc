@@ -18,6 +18,10 @@ void OnStopSignal(int) {
   if (g_gateway != nullptr) g_gateway->Stop();
 }
 
+void OnReloadSignal(int) {
+  if (g_gateway != nullptr) g_gateway->RequestTokenReload();
+}
+
 constexpr char kUsage[] =
     "placerec-gateway --cert CERT.pem --key KEY.pem --tokens FILE --key-file KEYS [options]\n\n"
     "\"Where am I?\" over HTTPS for devices without LCM, and a web page for people in the field\n"
@@ -33,8 +37,9 @@ constexpr char kUsage[] =
     "per\n"
     "line: TOKEN DEVICE [key=KEY_ID] [expires=YYYY-MM-DDTHH:MM:SSZ]. DEVICE names the device's\n"
     "frames like a robot id; KEY_ID, a query key of --key-file, signs its queries (default: the\n"
-    "gateway's --key-id), so the server's keys file can revoke that device alone. The tokens\n"
-    "file is read at start (restart the gateway to change it; SIGHUP is ignored).\n"
+    "gateway's --key-id), so the server's keys file can revoke that device alone. SIGHUP reads\n"
+    "the tokens file again before the next request (devices added, removed or changed; a file\n"
+    "that cannot be used changes nothing and the log says why).\n"
     "scripts/make-cert.sh DIR makes a self-signed certificate for tests and demos.";
 
 int Main(int argc, char** argv) {
@@ -93,9 +98,10 @@ int Main(int argc, char** argv) {
   action.sa_handler = OnStopSignal;
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
-  // The tokens file is read at start only (the gateway keeps no state: restart it to change
-  // tokens); a SIGHUP, which reloads the server's keys, must not stop it.
-  signal(SIGHUP, SIG_IGN);
+  struct sigaction reload = {};
+  reload.sa_handler = OnReloadSignal;
+  sigemptyset(&reload.sa_mask);
+  sigaction(SIGHUP, &reload, nullptr);
   const Status served = (*gateway)->Serve();
   g_gateway = nullptr;
   if (!served.ok()) {

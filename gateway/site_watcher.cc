@@ -1,5 +1,6 @@
 #include "gateway/site_watcher.h"
 
+#include <algorithm>
 #include <chrono>
 
 #include <lcm/lcm-cpp.hpp>
@@ -67,8 +68,9 @@ void SiteWatcher::OnChange(const lcm::ReceiveBuffer* buffer, const std::string&)
 
 void SiteWatcher::Hear(const result_t& answer) {
   std::string why;
-  if (!IsValidWireRobotId(answer.robot, &why) || hidden_robots_.count(answer.robot) > 0) return;
+  if (!IsValidWireRobotId(answer.robot, &why)) return;
   std::lock_guard lock(mutex_);
+  if (hidden_robots_.count(answer.robot) > 0) return;
   if (robots_.contains(answer.robot)) {
     robots_[answer.robot] = robots_[answer.robot].get<int64_t>() + 1;
   } else if (robots_.size() < kMaxRobots) {
@@ -108,8 +110,9 @@ void SiteWatcher::Hear(const status_t& s) {
 
 void SiteWatcher::Hear(const change_t& c) {
   std::string why;
-  if (!IsValidWireRobotId(c.robot, &why) || hidden_robots_.count(c.robot) > 0) return;
+  if (!IsValidWireRobotId(c.robot, &why)) return;
   std::lock_guard lock(mutex_);
+  if (hidden_robots_.count(c.robot) > 0) return;
   Alarm alarm;
   alarm.id = next_alarm_id_++;
   const std::string pictures = "/v1/alarms/" + std::to_string(alarm.id);
@@ -133,6 +136,22 @@ void SiteWatcher::Hear(const change_t& c) {
   alarm.place_jpeg = c.place_jpeg;
   alarms_.push_front(std::move(alarm));
   while (alarms_.size() > keep_) alarms_.pop_back();
+}
+
+void SiteWatcher::HideRobots(const std::set<std::string>& robots) {
+  std::lock_guard lock(mutex_);
+  for (const std::string& robot : robots) {
+    hidden_robots_.insert(robot);
+    robots_.erase(robot);
+  }
+  const auto hidden = [&](const nlohmann::json& entry) {
+    return robots.count(entry["robot"].get<std::string>()) > 0;
+  };
+  loop_closures_.erase(std::remove_if(loop_closures_.begin(), loop_closures_.end(), hidden),
+                       loop_closures_.end());
+  alarms_.erase(std::remove_if(alarms_.begin(), alarms_.end(),
+                               [&](const Alarm& alarm) { return hidden(alarm.summary); }),
+                alarms_.end());
 }
 
 bool SiteWatcher::AlarmPicture(int64_t id, bool place, std::vector<uint8_t>* jpeg) const {

@@ -49,6 +49,9 @@ class SiteWatcher {
   bool AlarmPicture(int64_t id, bool place, std::vector<uint8_t>* jpeg) const;
   // The last heartbeat as JSON; null when none was heard yet.
   nlohmann::json LastStatus() const;
+  // Hides `robots` too from now on (devices added to the gateway's tokens file), and forgets
+  // what was kept of them.
+  void HideRobots(const std::set<std::string>& robots);
 
   // What the watcher does with each message heard (public for tests). Anybody on the LCM network
   // can publish, so messages from a robot id the server would refuse are ignored, and at most
@@ -75,8 +78,8 @@ class SiteWatcher {
 
   std::unique_ptr<lcm::LCM> lcm_;
   size_t keep_;
-  const std::set<std::string> hidden_robots_;
   mutable std::mutex mutex_;
+  std::set<std::string> hidden_robots_;  // guarded by mutex_
   nlohmann::json status_;
   std::deque<nlohmann::json> loop_closures_;          // newest first
   nlohmann::json robots_ = nlohmann::json::object();  // robot -> frames heard

@@ -84,6 +84,32 @@ TEST(SiteWatcherTest, TheGatewaysDevicesAreNotShown) {
   EXPECT_EQ(overview["alarms"][0]["robot"], "right");
 }
 
+// A device added to the gateway's tokens file while it runs (SIGHUP) is hidden from then on,
+// and what was kept of it before (an id heard as a robot's) is forgotten.
+TEST(SiteWatcherTest, RobotsHiddenLaterAreForgotten) {
+  std::unique_ptr<SiteWatcher> watcher = StartWatcher();
+  ASSERT_NE(watcher, nullptr);
+  result_t asked = Answer("phone-ben");
+  asked.loop_closure = true;
+  asked.num_matches = 1;
+  asked.matches.resize(1);
+  asked.matches[0].robot = "left";
+  watcher->Hear(asked);
+  watcher->Hear(Alarm("phone-ben"));
+  result_t patrol = asked;
+  patrol.robot = "right";
+  watcher->Hear(patrol);
+  ASSERT_EQ(watcher->Overview()["robots"].size(), 2u);
+  watcher->HideRobots({"phone-ben"});
+  watcher->Hear(asked);
+  watcher->Hear(Alarm("phone-ben"));
+  const nlohmann::json overview = watcher->Overview();
+  EXPECT_EQ(JsonText(overview).find("phone-ben"), std::string::npos) << JsonText(overview);
+  ASSERT_EQ(overview["robots"].size(), 1u) << JsonText(overview);
+  ASSERT_EQ(overview["loop_closures"].size(), 1u) << JsonText(overview);
+  EXPECT_EQ(overview["loop_closures"][0]["robot"], "right");
+}
+
 // Text that is no UTF-8 (a decoded URL path) is printed with replacement characters instead of
 // an exception.
 TEST(SiteWatcherTest, JsonTextReplacesBytesThatAreNoUtf8) {

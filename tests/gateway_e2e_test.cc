@@ -21,6 +21,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <string>
 #include <thread>
@@ -762,6 +763,74 @@ TEST_F(GatewayTest, ADeviceWithItsOwnKeyCanBeRevokedAtTheServerAlone) {
   const auto [other, other_body] =
       Json(Https()->Post("/v1/query", Bearer(kToken), photo, "image/jpeg"));
   EXPECT_EQ(other, 200) << other_body.dump();
+}
+
+// Devices are added and removed with a SIGHUP, without a restart; a tokens file that cannot be
+// used keeps the tokens in force. (The gateway ignored SIGHUP until 2026-12-07.)
+TEST_F(GatewayTest, SighupReadsTheTokensFileAgain) {
+  constexpr char kNewToken[] = "field-device-token-0005";
+  constexpr char kUnknownKeyToken[] = "field-device-token-0006";
+  const std::string log = dir_ + "/gateway-" + std::to_string(kPort) + ".log";
+  // 401 for a token refused; 200, or 503 before the gateway heard the server's heartbeat.
+  const auto status_of = [&](const std::string& token) {
+    return Json(Https()->Get("/v1/status", Bearer(token))).first;
+  };
+  // The signal arrives on its own time: the next requests see the reload.
+  const auto wait_for = [&](const std::function<bool()>& done) {
+    for (int attempt = 0; attempt < 50; ++attempt) {
+      if (done()) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    return false;
+  };
+  const auto log_count = [&](const std::string& text) {
+    const std::string all = testing_service::ReadTextFile(log);
+    int n = 0;
+    for (size_t at = all.find(text); at != std::string::npos; at = all.find(text, at + 1)) ++n;
+    return n;
+  };
+  ASSERT_EQ(status_of(kNewToken), 401);
+  ASSERT_NE(status_of(kOtherToken), 401);
+
+  std::ofstream(dir_ + "/tokens", std::ios::trunc) << kToken << " phone-1\n"
+                                                   << kNewToken << " phone-5\n";
+  gateway_->Signal(SIGHUP);
+  ASSERT_TRUE(wait_for([&] { return status_of(kNewToken) != 401; })) << Tail(log);
+  EXPECT_EQ(status_of(kOtherToken), 401) << "a removed device is refused";
+  EXPECT_NE(status_of(kToken), 401);
+  const std::string photo = ReadBytes(run_.frames[kMapped].image);
+  const auto [asked, answer] =
+      Json(Https()->Post("/v1/query", Bearer(kNewToken), photo, "image/jpeg"));
+  ASSERT_EQ(asked, 200) << answer.dump() << Tail(log);
+  EXPECT_EQ(answer["device"], "phone-5");
+  // The new device's answer is heard on LCM like any other, but where it was never shows.
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  const auto [site_status, site] = Json(Https()->Get("/v1/site", Bearer(kToken)));
+  ASSERT_EQ(site_status, 200);
+  EXPECT_EQ(site.dump().find("phone-5"), std::string::npos) << site.dump();
+
+  // Files that cannot be used change nothing: a token too short, then a key the gateway's keys
+  // file does not have.
+  const int refused = log_count("the tokens in force stay");
+  std::ofstream(dir_ + "/tokens", std::ios::trunc) << "short phone-6\n";
+  gateway_->Signal(SIGHUP);
+  ASSERT_TRUE(wait_for([&] {
+    status_of(kToken);
+    return log_count("the tokens in force stay") > refused;
+  })) << Tail(log);
+  EXPECT_NE(status_of(kNewToken), 401);
+  EXPECT_EQ(status_of(kOtherToken), 401);
+  std::ofstream(dir_ + "/tokens", std::ios::trunc) << kNewToken << " phone-5\n"
+                                                   << kUnknownKeyToken << " phone-6 key=nobody\n";
+  gateway_->Signal(SIGHUP);
+  ASSERT_TRUE(wait_for([&] {
+    status_of(kToken);
+    return log_count("the tokens in force stay") > refused + 1;
+  })) << Tail(log);
+  EXPECT_EQ(status_of(kUnknownKeyToken), 401);
+  EXPECT_NE(status_of(kToken), 401) << "the tokens in force stay";
+  EXPECT_NE(testing_service::ReadTextFile(log).find("nobody"), std::string::npos) << Tail(log);
+  EXPECT_TRUE(gateway_->running());
 }
 
 // Decodes base64 (the WebDriver screenshot) with OpenSSL.
