@@ -16,6 +16,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <map>
 #include <memory>
 #include <random>
@@ -445,6 +446,9 @@ const cv::Mat& DescriptorPool() {
   return pool;
 }
 
+// Descriptors of each synthetic landmark object (the mean stored on the Gardens Point runs).
+constexpr int kSyntheticRows = 24;
+
 struct SyntheticMap {
   std::unique_ptr<PlaceMap> map;
   MapLookup query;
@@ -457,6 +461,17 @@ struct SyntheticMap {
   // how close the runner-up is, which is what makes recall@1 hard.
   double recall_at_1_within_5pct = 0;
   double exact_ratio_median = 0;
+  // Each stored descriptor is a noisy copy of a pool row (its source); a query descriptor's
+  // nearest source is the one whose closest copy is nearest. The map holds many copies of each
+  // source, all at nearly the same distance, which makes recall@1 a draw among near-ties that
+  // no real map has; these two count the source instead: the index's nearest is a copy of the
+  // exact nearest source, over every sampled row (recall_source) and over the rows whose
+  // nearest source passes the matcher's ratio test against the second nearest source
+  // (recall_distinctive; distinctive_share of the rows): the matches recognition keeps.
+  std::vector<int32_t> sources;  // pool row of every stored descriptor, slot by slot
+  double recall_source = 0;
+  double recall_distinctive = 0;
+  double distinctive_share = 0;
 };
 
 // Recall of the map's descriptor index against an exact scan of every stored descriptor, on
@@ -473,14 +488,24 @@ void MeasureRecall(SyntheticMap* synthetic, int step) {
   NeighbourLists approximate;
   index.descriptor_index().Search(sample, k, &approximate);
   std::vector<std::vector<int>> exact(sample.rows);
+  // Per sampled row: the exact nearest source, and whether it passes the ratio test against
+  // the second nearest source.
+  const int sources = DescriptorPool().rows;
+  const double ratio = RecognizerOptions().index.matching.ratio;
+  std::vector<int> nearest_source(sample.rows, -1);
+  std::vector<char> distinctive(sample.rows, 0);
   cv::parallel_for_(cv::Range(0, sample.rows), [&](const cv::Range& range) {
+    std::vector<int> by_source(static_cast<size_t>(sources));
     for (int r = range.start; r < range.end; ++r) {
       std::vector<int> best;  // the k smallest distances, a max-heap
+      std::fill(by_source.begin(), by_source.end(), std::numeric_limits<int>::max());
       const uint8_t* q = sample.ptr<uint8_t>(r);
       for (size_t slot = 0; slot < index.num_landmarks(); ++slot) {
         const cv::Mat& d = index.landmark(static_cast<int32_t>(slot)).descriptors;
+        const int32_t* source = synthetic->sources.data() + slot * kSyntheticRows;
         for (int t = 0; t < d.rows; ++t) {
           const int dist = SquaredDistance(q, d.ptr<uint8_t>(t));
+          by_source[source[t]] = std::min(by_source[source[t]], dist);
           if (static_cast<int>(best.size()) < k) {
             best.push_back(dist);
             std::push_heap(best.begin(), best.end());
@@ -493,6 +518,12 @@ void MeasureRecall(SyntheticMap* synthetic, int step) {
       }
       std::sort_heap(best.begin(), best.end());
       exact[r] = std::move(best);
+      const auto first = std::min_element(by_source.begin(), by_source.end());
+      const int d1 = *first;
+      *first = std::numeric_limits<int>::max();
+      const int d2 = *std::min_element(by_source.begin(), by_source.end());
+      nearest_source[r] = static_cast<int>(first - by_source.begin());
+      distinctive[r] = d1 < ratio * ratio * d2 ? 1 : 0;
     }
   });
   int64_t hits_1 = 0;
@@ -500,8 +531,20 @@ void MeasureRecall(SyntheticMap* synthetic, int step) {
   std::vector<double> ratios;
   int64_t hits_k = 0;
   int64_t total_k = 0;
+  int64_t hits_source = 0;
+  int64_t hits_distinctive = 0;
+  int64_t distinctive_rows = 0;
   for (int r = 0; r < sample.rows; ++r) {
     const std::vector<DescriptorIndex::Neighbour>& found = approximate[r];
+    const bool source_found =
+        !found.empty() &&
+        synthetic->sources[static_cast<size_t>(found.front().owner) * kSyntheticRows +
+                           static_cast<size_t>(found.front().row)] == nearest_source[r];
+    hits_source += source_found ? 1 : 0;
+    if (distinctive[r] != 0) {
+      ++distinctive_rows;
+      hits_distinctive += source_found ? 1 : 0;
+    }
     if (!found.empty() && !exact[r].empty() &&
         static_cast<int>(found.front().distance) == exact[r].front()) {
       ++hits_1;
@@ -535,6 +578,10 @@ void MeasureRecall(SyntheticMap* synthetic, int step) {
   synthetic->recall_at_1 = static_cast<double>(hits_1) / std::max(1, sample.rows);
   synthetic->recall_at_k = static_cast<double>(hits_k) / std::max<int64_t>(1, total_k);
   synthetic->recall_at_1_within_5pct = static_cast<double>(hits_near) / std::max(1, sample.rows);
+  synthetic->recall_source = static_cast<double>(hits_source) / std::max(1, sample.rows);
+  synthetic->recall_distinctive =
+      static_cast<double>(hits_distinctive) / std::max<int64_t>(1, distinctive_rows);
+  synthetic->distinctive_share = static_cast<double>(distinctive_rows) / std::max(1, sample.rows);
   if (!ratios.empty()) {
     std::nth_element(ratios.begin(), ratios.begin() + ratios.size() / 2, ratios.end());
     synthetic->exact_ratio_median = ratios[ratios.size() / 2];
@@ -554,6 +601,10 @@ RecognizerOptions BenchRecognizerOptions() {
   } else if (method != nullptr && std::string(method) == "hnsw") {
     options.index.flann.method = DescriptorSearch::kHnsw;
   }
+  // PLACEREC_BENCH_CHECKS: the k-d tree's leaf checks (the server's --flann-checks).
+  if (const char* checks = std::getenv("PLACEREC_BENCH_CHECKS")) {
+    options.index.flann.checks = std::max(1, std::atoi(checks));
+  }
   return options;
 }
 
@@ -562,8 +613,10 @@ RecognizerOptions BenchRecognizerOptions() {
 // and one or two dominant colours; one place per second of one robot's route (the shared runs'
 // rate), so that the vote window (LandmarkIndexOptions::vote_window_seconds) spans a few places
 // as on a real route. The same count always gives the same map.
-void FillSyntheticMap(int landmarks, PlaceMap* map) {
-  const int per_landmark = 24;
+// `sources`, when given, receives the pool row each stored descriptor was drawn from, in the
+// order they are inserted (landmark slot by slot).
+void FillSyntheticMap(int landmarks, PlaceMap* map, std::vector<int32_t>* sources = nullptr) {
+  const int per_landmark = kSyntheticRows;
   const cv::Mat& pool = DescriptorPool();
   std::mt19937 rng(42);
   std::uniform_int_distribution<int> pick(0, pool.rows - 1);
@@ -584,7 +637,9 @@ void FillSyntheticMap(int landmarks, PlaceMap* map) {
       if (rng() % 4 == 0) landmark.colour.peaks.push_back(hue(rng));
       landmark.descriptors.create(per_landmark, kDescriptorSize, CV_8U);
       for (int r = 0; r < per_landmark; ++r) {
-        const uint8_t* source = pool.ptr<uint8_t>(pick(rng));
+        const int drawn = pick(rng);
+        if (sources != nullptr) sources->push_back(drawn);
+        const uint8_t* source = pool.ptr<uint8_t>(drawn);
         uint8_t* row = landmark.descriptors.ptr<uint8_t>(r);
         for (int c = 0; c < kDescriptorSize; ++c) {
           row[c] = cv::saturate_cast<uint8_t>(source[c] + noise(rng));
@@ -630,13 +685,27 @@ SyntheticMap& MapOf(int landmarks) {
       OpenSqliteStore(":memory:", SqliteStoreOptions());
   StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
   const auto build_start = std::chrono::steady_clock::now();
-  FillSyntheticMap(landmarks, map->get());
+  std::vector<int32_t> sources;
+  FillSyntheticMap(landmarks, map->get(), &sources);
   SyntheticMap& entry = maps[landmarks];
+  entry.sources = std::move(sources);
+  // The index's slots are the landmarks in the order inserted, each with its kSyntheticRows
+  // descriptors: what `sources` is read by.
+  const LandmarkIndex& index = (*map)->index();
+  CHECK_EQ(entry.sources.size(), index.num_landmarks() * kSyntheticRows);
+  for (const size_t slot : {size_t{0}, index.num_landmarks() - 1}) {
+    const cv::Mat& stored = index.landmark(static_cast<int32_t>(slot)).descriptors;
+    const cv::Mat drawn = DescriptorPool().row(entry.sources[slot * kSyntheticRows]);
+    CHECK_LE(cv::norm(stored.row(0), drawn, cv::NORM_INF), 8.0) << "slot " << slot;
+  }
   entry.build_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - build_start).count();
   entry.map = std::move(*map);
   entry.query = BenchQuery();
-  MeasureRecall(&entry, 6);
+  // PLACEREC_BENCH_RECALL_STEP: every how many query rows recall is measured on (default 6; 1
+  // for every row, which the distinctive rows, few in this bench, need).
+  const char* step = std::getenv("PLACEREC_BENCH_RECALL_STEP");
+  MeasureRecall(&entry, step != nullptr ? std::max(1, std::atoi(step)) : 6);
   return entry;
 }
 
@@ -780,6 +849,9 @@ void RetrievalOn(int landmarks, benchmark::State& state) {
   state.counters["recall_at_k"] = synthetic.recall_at_k;
   state.counters["recall_at_1_5pct"] = synthetic.recall_at_1_within_5pct;
   state.counters["exact_d1_d2"] = synthetic.exact_ratio_median;
+  state.counters["recall_source"] = synthetic.recall_source;
+  state.counters["recall_distinct"] = synthetic.recall_distinctive;
+  state.counters["distinct_share"] = synthetic.distinctive_share;
   state.counters["build_s"] = synthetic.build_seconds;
 }
 void BM_Retrieval(benchmark::State& state) { RetrievalOn(static_cast<int>(state.range(0)), state); }
