@@ -1,20 +1,24 @@
 // The server's record of recent frames per robot (issue 23 item 7): a client that gets no answer
 // sends the same frame again with the same request id; the server must not process it twice (an
 // insert would then be refused as out of order, or stored twice). A frame is known by its
-// robot, request id, sequence, capture time and insert flag. A frame still queued or running is
-// "in flight" (the duplicate is dropped: the answer is on its way, and also to the network the
-// duplicate came on when that is another); a processed one keeps its answer, which a duplicate
-// gets again. Each robot keeps its last `per_robot` frames; robots
-// beyond `max_robots` are not recorded (their duplicates are processed again). Thread-safe.
+// robot, request id, sequence, capture time, insert flag, the key that signed it and its image
+// (a digest: a sender that reuses a request id for another image gets that image answered, not
+// the earlier one's answer); a resend signed again is the same frame. A frame still queued or
+// running is "in flight" (the duplicate is dropped: the answer is on its way, and also to the
+// network the duplicate came on when that is another); a processed one keeps its answer, which a
+// duplicate gets again. Each robot keeps its last `per_robot` frames; robots beyond `max_robots`
+// are not recorded (their duplicates are processed again). Thread-safe.
 #pragma once
 
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -46,8 +50,9 @@ class AnswerRecord {
       robot = frames_.emplace(frame.robot, std::deque<Entry>()).first;
     }
     std::deque<Entry>& entries = robot->second;
+    const Key key = Key::Of(frame);
     for (Entry& entry : entries) {
-      if (!entry.key.Matches(frame)) continue;
+      if (!(entry.key == key)) continue;
       if (!entry.answer) {
         if (network != entry.network &&
             std::find(entry.also.begin(), entry.also.end(), network) == entry.also.end()) {
@@ -58,7 +63,7 @@ class AnswerRecord {
       *answer = *entry.answer;
       return Seen::kAnswered;
     }
-    entries.push_back(Entry{Key::Of(frame), std::nullopt, network, {}});
+    entries.push_back(Entry{key, std::nullopt, network, {}});
     // Drop the oldest answered entries beyond the bound; frames in flight always stay.
     for (auto it = entries.begin(); entries.size() > per_robot_ && it != entries.end();) {
       it = it->answer ? entries.erase(it) : std::next(it);
@@ -103,8 +108,9 @@ class AnswerRecord {
     if (robot == frames_.end()) return {};
     std::vector<size_t> also;
     std::deque<Entry>& entries = robot->second;
+    const Key key = Key::Of(frame);
     for (auto it = entries.begin(); it != entries.end(); ++it) {
-      if (it->key.Matches(frame)) {
+      if (it->key == key) {
         also = std::move(it->also);
         entries.erase(it);
         break;
@@ -120,13 +126,25 @@ class AnswerRecord {
     int64_t sequence = 0;
     int64_t utime = 0;
     bool insert = false;
+    // A digest of the image (encoding, size, bytes) and of the signing key's id; not of the
+    // signature, counter and signing time, which a resend signed again changes.
+    size_t content = 0;
     static Key Of(const frame_t& frame) {
-      return Key{frame.request_id, frame.sequence, frame.utime, frame.insert != 0};
-    }
-    bool Matches(const frame_t& frame) const {
       // LCM keeps a boolean's byte as sent: any byte but 0 is an insert (as the server reads it).
-      return request_id == frame.request_id && sequence == frame.sequence && utime == frame.utime &&
-             insert == (frame.insert != 0);
+      return Key{frame.request_id, frame.sequence, frame.utime, frame.insert != 0, Digest(frame)};
+    }
+    static size_t Digest(const frame_t& frame) {
+      const std::hash<std::string_view> hash;
+      size_t digest = hash(
+          std::string_view(reinterpret_cast<const char*>(frame.data.data()), frame.data.size()));
+      const std::string shape = std::to_string(frame.encoding) + " " + std::to_string(frame.width) +
+                                " " + std::to_string(frame.height) + " " + frame.key_id;
+      digest ^= hash(shape) + 0x9e3779b97f4a7c15ULL + (digest << 6) + (digest >> 2);
+      return digest;
+    }
+    bool operator==(const Key& other) const {
+      return request_id == other.request_id && sequence == other.sequence && utime == other.utime &&
+             insert == other.insert && content == other.content;
     }
   };
   struct Entry {
@@ -139,8 +157,9 @@ class AnswerRecord {
   Entry* Find(const frame_t& frame) {
     const auto robot = frames_.find(frame.robot);
     if (robot == frames_.end()) return nullptr;
+    const Key key = Key::Of(frame);
     for (Entry& entry : robot->second) {
-      if (entry.key.Matches(frame)) return &entry;
+      if (entry.key == key) return &entry;
     }
     return nullptr;
   }

@@ -11,7 +11,7 @@ namespace placerec {
 namespace {
 
 frame_t Frame(const std::string& robot, int64_t request_id, int64_t sequence) {
-  frame_t frame;
+  frame_t frame{};
   frame.robot = robot;
   frame.request_id = request_id;
   frame.sequence = sequence;
@@ -47,6 +47,36 @@ TEST(AnswerRecordTest, InFlightThenAnsweredAndOnlyTheSameFrameMatches) {
   EXPECT_EQ(record.Begin(other, &answer), AnswerRecord::Seen::kNew);
   other = frame;
   other.insert = false;
+  EXPECT_EQ(record.Begin(other, &answer), AnswerRecord::Seen::kNew);
+}
+
+// A sender that reuses robot, request id, sequence and capture time for another image (a phone
+// asking every query as sequence 0 with request id 0) gets that image answered: it got the first
+// image's answer again, in a few milliseconds. A resend signed again (new counter, signing time
+// and signature, the same image) is still the same frame; another signing key is another frame.
+TEST(AnswerRecordTest, AnotherImageOrKeyIsAnotherFrameAndAResignedCopyIsTheSame) {
+  AnswerRecord record;
+  result_t answer;
+  frame_t frame = Frame("phone", 0, 0);
+  frame.insert = false;
+  frame.key_id = "phone";
+  frame.data = {1, 2, 3, 4};
+  frame.size = 4;
+  EXPECT_EQ(record.Begin(frame, &answer), AnswerRecord::Seen::kNew);
+  record.Finish(frame, Answer(42));
+  frame_t resigned = frame;
+  resigned.auth_counter += 1;
+  resigned.auth_utime += 1000;
+  resigned.signature[0] ^= 1;
+  EXPECT_EQ(record.Begin(resigned, &answer), AnswerRecord::Seen::kAnswered);
+  frame_t other = frame;
+  other.data = {1, 2, 3, 5};
+  EXPECT_EQ(record.Begin(other, &answer), AnswerRecord::Seen::kNew);
+  other = frame;
+  other.key_id = "robots";
+  EXPECT_EQ(record.Begin(other, &answer), AnswerRecord::Seen::kNew);
+  other = frame;
+  other.encoding = 1;
   EXPECT_EQ(record.Begin(other, &answer), AnswerRecord::Seen::kNew);
 }
 

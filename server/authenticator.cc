@@ -116,12 +116,14 @@ Authenticator::Verdict Authenticator::Check(const frame_t& frame, int64_t now_ut
   const int64_t window_us = static_cast<int64_t>(options_.window_s * 1e6);
   // Compared without a difference that could overflow: auth_utime may be any 64-bit value.
   if (frame.auth_utime < now_utime - window_us || frame.auth_utime > now_utime + window_us) {
-    const double off_s =
-        (static_cast<double>(now_utime) - static_cast<double>(frame.auth_utime)) / 1e6;
+    // Positive: signed ahead of the server's clock (the sender's clock is fast).
+    const double ahead_s =
+        (static_cast<double>(frame.auth_utime) - static_cast<double>(now_utime)) / 1e6;
     char off[32];
-    std::snprintf(off, sizeof(off), "%.0f", off_s);
-    verdict.message = "the frame was signed " + std::string(off) +
-                      " s from the server's clock, outside its window of " +
+    std::snprintf(off, sizeof(off), "%.0f", std::abs(ahead_s));
+    verdict.message = "the frame's signing time is " + std::string(off) + " s " +
+                      (ahead_s > 0 ? "ahead of" : "behind") +
+                      " the server's clock, outside its window of " +
                       std::to_string(window_us / 1000000) +
                       " s: a replay, or the clocks differ; synchronise the clocks (NTP) and send "
                       "it again";
@@ -143,10 +145,16 @@ Authenticator::Verdict Authenticator::Check(const frame_t& frame, int64_t now_ut
   const auto used = state.counters.find(frame.auth_counter);
   if (frame.auth_counter <= state.floor || used != state.counters.end()) {
     verdict.replayed = used != state.counters.end() && used->second.signature == signature;
-    verdict.message = "replayed frame: key '" + key->id + "' already used counter " +
-                      std::to_string(frame.auth_counter) +
-                      "; every frame needs a new, increasing counter (send it again signed "
-                      "anew; placerec's client does this itself)";
+    verdict.message =
+        used != state.counters.end()
+            ? "replayed frame: key '" + key->id + "' already used counter " +
+                  std::to_string(frame.auth_counter)
+            : "counter " + std::to_string(frame.auth_counter) + " of key '" + key->id +
+                  "' is not above " + std::to_string(state.floor) +
+                  ", the highest counter the server no longer remembers (it may be a replay)";
+    verdict.message +=
+        "; every frame needs a new, increasing counter (send it again signed anew, e.g. with "
+        "the signing time in microseconds as its counter; placerec's client does this itself)";
     return verdict;
   }
   if (frame.insert && !key->may_insert) {

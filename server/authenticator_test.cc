@@ -135,7 +135,13 @@ TEST_F(AuthenticatorTest, RefusesReplaysAndFramesOutsideTheWindow) {
   EXPECT_FALSE(v.replayed);
   EXPECT_TRUE(v.key.has_value());  // the sender is known: its refusal is signed
   EXPECT_NE(v.message.find("window"), std::string::npos) << v.message;
-  EXPECT_FALSE(auth_->Check(Signed(robot_, 21, now + 31 * kSecond), now).ok);
+  // The message says which way the sender's clock is off (it said -31 s for a clock ahead).
+  EXPECT_NE(v.message.find("signing time is 31 s behind the server's clock"), std::string::npos)
+      << v.message;
+  v = auth_->Check(Signed(robot_, 21, now + 31 * kSecond), now);
+  EXPECT_FALSE(v.ok);
+  EXPECT_NE(v.message.find("signing time is 31 s ahead of the server's clock"), std::string::npos)
+      << v.message;
   // Times at the ends of the 64-bit range (a signed frame may carry any): refused, no overflow.
   for (const int64_t extreme :
        {std::numeric_limits<int64_t>::min(), std::numeric_limits<int64_t>::max()}) {
@@ -152,6 +158,12 @@ TEST_F(AuthenticatorTest, RefusesReplaysAndFramesOutsideTheWindow) {
   EXPECT_TRUE(auth_->Check(Signed(robot_, 30, later), later).ok);
   EXPECT_FALSE(auth_->Check(Signed(robot_, 9, later), later).ok);
   EXPECT_FALSE(auth_->Check(Signed(robot_, 12, later), later).ok);
+  // A counter never used but below the forgotten ones is not called "already used".
+  v = auth_->Check(Signed(robot_, 5, later), later);
+  EXPECT_FALSE(v.ok);
+  EXPECT_EQ(v.message.find("already used"), std::string::npos) << v.message;
+  EXPECT_NE(v.message.find("counter 5 of key"), std::string::npos) << v.message;
+  EXPECT_NE(v.message.find("no longer remembers"), std::string::npos) << v.message;
 }
 
 TEST_F(AuthenticatorTest, PermissionsDecideInsertAndQuery) {
