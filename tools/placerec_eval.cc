@@ -208,17 +208,17 @@ int AnalyzeCommand(int argc, char** argv) {
     // As the server refuses frames of more pixels (--max-image-pixels): the pipeline at full
     // size on a 10000 x 8000 photo took 4 minutes and 19 GB.
     const int64_t pixels = int64_t{image->cols} * image->rows;
-    const int64_t processed_width = options.analyzer.max_image_width > 0
-                                        ? std::min(image->cols, options.analyzer.max_image_width)
-                                        : image->cols;
+    const int cap = ProcessedWidthCap(image->size(), options.analyzer.max_image_width);
+    const int64_t processed_width = cap > 0 ? std::min(image->cols, cap) : image->cols;
     const int64_t processed_pixels =
         pixels * processed_width * processed_width / (int64_t{image->cols} * image->cols);
     if (processed_pixels > DecodeOptions().max_pixels) {
-      std::fprintf(stderr,
-                   "placerec-eval analyze: %s is %dx%d, more than the %lld pixels the server "
-                   "takes; give --max-image-width (e.g. 1280) to analyze it scaled down\n",
-                   path.c_str(), image->cols, image->rows,
-                   static_cast<long long>(DecodeOptions().max_pixels));
+      std::fprintf(
+          stderr,
+          "placerec-eval analyze: %s is %dx%d, more than the %lld pixels the server "
+          "takes; give --max-image-width (e.g. the default, 960) to analyze it scaled down\n",
+          path.c_str(), image->cols, image->rows,
+          static_cast<long long>(DecodeOptions().max_pixels));
       return 2;
     }
     const FrameObservation observation = analyzer.Analyze(*image);

@@ -102,7 +102,9 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
          "as objects)");
   AddOrganizerFlags(p, &a.organization);
   p->Add("max-image-width", &a.max_image_width,
-         "frames wider than this are scaled down before SIFT (pixels; 0 keeps the size)");
+         "frames wider than this, or of more pixels than its square, are scaled down before "
+         "SIFT (pixels; 0 keeps the size, as the seed did; 960, the widest frames the defaults "
+         "were chosen on, processes an HD camera's frames or a phone's photos as those)");
   p->Add("small-frame-width", &a.small_frame_width,
          "frames narrower than this (pixels) are scaled up to upscaled-width before SIFT and "
          "segmentation, so that small cameras give objects of enough keypoints (0: keep the "

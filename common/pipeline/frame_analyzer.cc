@@ -68,6 +68,14 @@ StatusOr<std::unique_ptr<Segmenter>> MakeSegmenter(const AnalyzerOptions& option
   return segmenter;
 }
 
+int ProcessedWidthCap(cv::Size size, int max_image_width) {
+  if (max_image_width <= 0 || size.width <= 0 || size.height <= 0) return 0;
+  // The width whose frame holds max_image_width^2 pixels at the frame's aspect ratio.
+  const double budget = static_cast<double>(max_image_width) * max_image_width;
+  const int affordable = static_cast<int>(std::floor(std::sqrt(budget * size.width / size.height)));
+  return std::max(1, std::min(max_image_width, affordable));
+}
+
 FrameAnalyzer::FrameAnalyzer(const AnalyzerOptions& options, std::unique_ptr<Segmenter> segmenter)
     : options_(options), segmenter_(std::move(segmenter)) {
   if (!segmenter_) {
@@ -98,7 +106,7 @@ FrameObservation FrameAnalyzer::Analyze(const cv::Mat& bgr) const {
   std::optional<ScopedStage> stage(std::in_place, "resize");
   const cv::Mat frame =
       FitWidth(bgr, bgr.cols < options_.small_frame_width ? options_.upscaled_width : 0,
-               options_.max_image_width, &observation.scale);
+               ProcessedWidthCap(bgr.size(), options_.max_image_width), &observation.scale);
   observation.processed_size = frame.size();
   // Pictures `width` wide, at most twice as tall (a tall, narrow frame gets a narrower one).
   const auto scaled_to = [&frame](int width) {

@@ -70,8 +70,11 @@ enum class SegmentationMethod {
 };
 
 struct AnalyzerOptions {
-  // Frames wider than this are scaled down (pixels) before SIFT; 0 keeps the frame's size.
-  int max_image_width = 0;
+  // Frames wider than this, or of more pixels than its square, are scaled down (pixels) before
+  // SIFT (ProcessedWidthCap); 0 keeps the frame's size, as the seed, which ran on its camera's
+  // frames. 960: the widest frames the defaults were chosen on (Gardens Point), so that an HD
+  // camera or a phone's photo is processed as those frames were, at their cost.
+  int max_image_width = 960;
   // Frames narrower than small_frame_width (a cheap camera's 160 or 320 px) are scaled up
   // (bicubic) to upscaled_width before SIFT and segmentation: they then yield keypoints at the
   // scales the seed's thresholds assume (objects of more than 8 keypoints, seed §5.3;
@@ -144,6 +147,11 @@ struct FrameObservation {
 // The segmenter `options.segmentation` names; kOrganization loads the trained models
 // (options.organization.models_dir) and fails with a message saying what is missing.
 StatusOr<std::unique_ptr<Segmenter>> MakeSegmenter(const AnalyzerOptions& options);
+
+// The widest a frame of `size` is processed under `max_image_width` (0: no bound): at most
+// max_image_width wide and max_image_width^2 pixels, so that a portrait or tall frame costs no
+// more than a square one at the cap.
+int ProcessedWidthCap(cv::Size size, int max_image_width);
 
 class FrameAnalyzer {
  public:

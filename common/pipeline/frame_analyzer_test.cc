@@ -65,6 +65,37 @@ TEST(FrameAnalyzerTest, SmallFramesAreScaledUp) {
   EXPECT_GT(upscaled.objects.size(), kept.objects.size());
 }
 
+// A phone's photo or an HD camera's frame is processed at most 960 px wide and 960^2 pixels by
+// default (it was processed at full size: a 4032 x 3024 photo took 20 s and 2.9 GB); a portrait
+// photo is bounded by the pixels; the boxes the server sends are scaled back by `scale`.
+TEST(FrameAnalyzerTest, LargeFramesAreScaledDownByDefault) {
+  const AnalyzerOptions defaults;
+  ASSERT_EQ(defaults.max_image_width, 960);
+  AnalyzerOptions options = SyntheticAnalyzerOptions();
+  options.max_image_width = defaults.max_image_width;
+  const cv::Mat world = World(1);
+  const FrameObservation hd = FrameAnalyzer(options).Analyze(ResizeToWidth(View(world, 300), 1920));
+  EXPECT_EQ(hd.original_size.width, 1920);
+  EXPECT_EQ(hd.processed_size.width, 960);
+  EXPECT_NEAR(hd.scale, 0.5, 1e-9);
+  cv::Mat portrait;
+  cv::resize(View(world, 300), portrait, cv::Size(1512, 2016));
+  const FrameObservation tall = FrameAnalyzer(options).Analyze(portrait);
+  EXPECT_LE(tall.processed_size.area(), 960 * 960);
+  EXPECT_GT(tall.processed_size.area(), 950 * 950);
+  EXPECT_LT(tall.processed_size.width, 960);
+  EXPECT_NEAR(static_cast<double>(tall.processed_size.height) / tall.processed_size.width,
+              2016.0 / 1512.0, 0.01);
+  // 0 keeps the frame's size.
+  options.max_image_width = 0;
+  const FrameObservation kept =
+      FrameAnalyzer(options).Analyze(ResizeToWidth(View(world, 300), 1280));
+  EXPECT_EQ(kept.processed_size.width, 1280);
+  EXPECT_EQ(ProcessedWidthCap(cv::Size(1280, 720), 0), 0);
+  EXPECT_EQ(ProcessedWidthCap(cv::Size(1920, 1080), 960), 960);
+  EXPECT_EQ(ProcessedWidthCap(cv::Size(960, 8000), 960), 332);
+}
+
 // A tall, narrow frame within the decoder's limits (16 x 1024 px, a few hundred bytes as PNG) was
 // scaled up to 640 x 40,960 (79 s and 6 GB for one frame); its pictures were as tall. The scale
 // up now stops at 2 x 640^2 pixels, and the pictures at twice their width in height.
