@@ -175,6 +175,32 @@ HttpReply ErrorReply(int status, const std::string& message) {
   return reply;
 }
 
+namespace {
+
+// Warns of every key the gateway signs with (its own, --key-id or the file's first, and the
+// devices' own keys that the tokens file names) that may insert: a query key is enough.
+void WarnOfInsertKeys(const GatewayOptions& options, const TokenTable& tokens) {
+  if (options.client.key_file.empty()) return;
+  std::string warning;
+  StatusOr<std::vector<SigningKey>> keys = ReadKeysFile(options.client.key_file, &warning);
+  if (!keys.ok() || keys->empty()) return;
+  std::set<std::string> ids = {options.client.key_id.empty() ? keys->front().id
+                                                             : options.client.key_id};
+  for (const std::string& key_id : tokens.KeyIds()) {
+    if (!key_id.empty()) ids.insert(key_id);
+  }
+  for (const std::string& id : ids) {
+    const SigningKey* key = FindKey(*keys, id);
+    if (key != nullptr && key->may_insert) {
+      LOG(WARNING) << "key '" << id << "' of " << options.client.key_file
+                   << " may insert: the gateway only queries, so a query-only key is enough "
+                      "and limits what a stolen key can do";
+    }
+  }
+}
+
+}  // namespace
+
 StatusOr<std::unique_ptr<Gateway>> Gateway::Create(const GatewayOptions& options) {
   std::string error;
   if (!options.Check(&error)) return Status::InvalidArgument(error);
@@ -188,29 +214,12 @@ StatusOr<std::unique_ptr<Gateway>> Gateway::Create(const GatewayOptions& options
     LOG(WARNING) << "no --key-file: the gateway's queries go unsigned, and only a placerec-server "
                     "started with --auth off answers them; give it a query key "
                     "(scripts/make-key.sh gateway query) that the server's --keys file has";
-  } else {
-    std::string warning;
-    StatusOr<std::vector<SigningKey>> keys = ReadKeysFile(options.client.key_file, &warning);
-    if (keys.ok() && !keys->empty()) {
-      // Every key the gateway signs with: its own (--key-id, or the file's first) and the
-      // devices' own keys that the tokens file names.
-      std::set<std::string> ids = {options.client.key_id.empty() ? keys->front().id
-                                                                 : options.client.key_id};
-      for (const std::string& key_id : tokens->KeyIds()) {
-        if (!key_id.empty()) ids.insert(key_id);
-      }
-      for (const std::string& id : ids) {
-        const SigningKey* key = FindKey(*keys, id);
-        if (key != nullptr && key->may_insert) {
-          LOG(WARNING) << "key '" << id << "' of " << options.client.key_file
-                       << " may insert: the gateway only queries, so a query-only key is enough "
-                          "and limits what a stolen key can do";
-        }
-      }
-    }
   }
+  WarnOfInsertKeys(options, *tokens);
   std::unique_ptr<Gateway> gateway(new Gateway(options, std::move(*tokens)));
-  PLACEREC_RETURN_IF_ERROR(gateway->ConnectClients(*gateway->tokens_));
+  StatusOr<Gateway::Clients> clients = gateway->ConnectClients(*gateway->tokens_);
+  if (!clients.ok()) return clients.status();
+  gateway->clients_ = std::move(*clients);
   StatusOr<std::unique_ptr<SiteWatcher>> watcher = SiteWatcher::Start(
       options.client.lcm_url, options.recent_loop_closures, gateway->tokens_->Devices());
   if (!watcher.ok()) return watcher.status();
@@ -244,13 +253,9 @@ StatusOr<std::unique_ptr<Gateway>> Gateway::Create(const GatewayOptions& options
   return gateway;
 }
 
-Status Gateway::ConnectClients(const TokenTable& tokens) {
-  std::map<std::string, std::unique_ptr<PlacerecClient>> added;
+StatusOr<Gateway::Clients> Gateway::ConnectClients(const TokenTable& tokens) const {
+  Clients clients;
   for (const std::string& key_id : tokens.KeyIds()) {
-    {
-      std::lock_guard lock(clients_mutex_);
-      if (clients_.count(key_id) > 0) continue;
-    }
     ClientOptions client_options = options_.client;
     if (!key_id.empty()) {
       if (options_.client.key_file.empty()) {
@@ -266,37 +271,48 @@ Status Gateway::ConnectClients(const TokenTable& tokens) {
           (key_id.empty() ? "the gateway's key" : "the key of a device, '" + key_id + "'") +
               std::string(": ") + client.status().message());
     }
-    added[key_id] = std::move(*client);
+    clients[key_id] = std::move(*client);
   }
-  std::lock_guard lock(clients_mutex_);
-  for (auto& [key_id, client] : added) clients_.emplace(key_id, std::move(client));
-  return Status::Ok();
+  return clients;
 }
 
-PlacerecClient& Gateway::ClientFor(const std::string& key_id) {
-  std::lock_guard lock(clients_mutex_);
-  return *clients_.at(key_id);
+std::shared_ptr<PlacerecClient> Gateway::ClientFor(const std::string& key_id) {
+  std::lock_guard lock(tokens_mutex_);
+  const auto found = clients_.find(key_id);
+  return found != clients_.end() ? found->second : nullptr;
 }
 
 Status Gateway::ReloadTokens() {
-  std::lock_guard lock(tokens_mutex_);
+  // Reading the files and connecting the clients happen outside tokens_mutex_, which every
+  // request takes: requests go on with the tokens in force meanwhile.
+  std::lock_guard reloading(reload_mutex_);
   StatusOr<TokenTable> tokens = TokenTable::Load(options_.tokens_file);
   if (!tokens.ok()) return tokens.status();
   if (tokens->size() == 0) {
     return Status::InvalidArgument(options_.tokens_file +
                                    " lists no device: nobody could use the gateway");
   }
-  PLACEREC_RETURN_IF_ERROR(ConnectClients(*tokens));
+  // Every key's client anew: a secret changed in --key-file under the same id is read again.
+  StatusOr<Clients> clients = ConnectClients(*tokens);
+  if (!clients.ok()) return clients.status();
+  WarnOfInsertKeys(options_, *tokens);
   // Hidden before any of them can ask: a device's answers never show in the overview.
   watcher_->HideRobots(tokens->Devices());
-  const std::set<std::string> before = tokens_->Devices();
-  const std::set<std::string> after = tokens->Devices();
+  auto table = std::make_shared<const TokenTable>(std::move(*tokens));
+  std::shared_ptr<const TokenTable> before_table;
+  {
+    std::lock_guard lock(tokens_mutex_);
+    before_table = std::move(tokens_);
+    tokens_ = table;
+    clients_.swap(*clients);  // the old clients go when their last query is answered
+  }
+  const std::set<std::string> before = before_table->Devices();
+  const std::set<std::string> after = table->Devices();
   int added = 0;
   for (const std::string& device : after) added += before.count(device) == 0 ? 1 : 0;
   int removed = 0;
   for (const std::string& device : before) removed += after.count(device) == 0 ? 1 : 0;
-  tokens_ = std::make_shared<const TokenTable>(std::move(*tokens));
-  LOG(INFO) << "read " << options_.tokens_file << " again: " << tokens_->size() << " tokens of "
+  LOG(INFO) << "read " << options_.tokens_file << " again: " << table->size() << " tokens of "
             << after.size() << " devices (" << added << " added, " << removed << " removed)";
   return Status::Ok();
 }
@@ -401,11 +417,16 @@ HttpReply Gateway::Query(const std::string& authorization, const std::string& im
   frame.sequence = next_sequence_++;
   frame.utime = NowMicros();
   frame.insert = false;  // the gateway never changes the map
-  PlacerecClient& client = ClientFor(device.key_id);
-  StatusOr<PendingFrame> pending = client.Publish(frame);
+  const std::shared_ptr<PlacerecClient> client = ClientFor(device.key_id);
+  if (client == nullptr) {
+    return ErrorReply(401,
+                      "the gateway's tokens were just read again and no longer name this "
+                      "device's key; ask the gateway's operator");
+  }
+  StatusOr<PendingFrame> pending = client->Publish(frame);
   if (!pending.ok())
     return ErrorReply(502, "cannot reach the server: " + pending.status().message());
-  const FrameResult result = client.Wait(*pending, options_.query_timeout_s);
+  const FrameResult result = client->Wait(*pending, options_.query_timeout_s);
   if (!result.ok()) {
     // An answer the client ignored (not signed with the key the query was signed with, e.g. the
     // server does not know that key) says why the device got none.

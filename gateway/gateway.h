@@ -81,9 +81,10 @@ class Gateway {
   // Reads the tokens file again before the next request (SIGHUP; async-signal-safe).
   void RequestTokenReload() { token_reload_requested_ = true; }
   // Reads the tokens file again now: devices added, removed or changed there are served so from
-  // the next request on (a device's key named for the first time gets its own LCM client). A
-  // file that cannot be used changes nothing, and the error says why. Devices are hidden from
-  // the site overview from the moment they are listed, and stay hidden after their removal.
+  // the next request on, and every key's client is made anew (reading --key-file again: a
+  // changed secret is used). A file that cannot be used changes nothing, and the error says why.
+  // Devices are hidden from the site overview from the moment they are listed, and stay hidden
+  // after their removal.
   Status ReloadTokens();
 
   // Listens and serves until Stop(); an error when it cannot listen.
@@ -98,14 +99,20 @@ class Gateway {
   bool Admit(const std::string& authorization, bool query, DeviceToken* device, HttpReply* refusal);
   // The tokens in force, read again first when a reload was requested.
   std::shared_ptr<const TokenTable> Tokens();
-  // Connects a client for every key id of `tokens` that has none yet; on an error none is added.
-  Status ConnectClients(const TokenTable& tokens);
-  // The client that signs with `key_id` (one of the tokens' key ids).
-  PlacerecClient& ClientFor(const std::string& key_id);
+  // One LCM client per key the devices' queries are signed with (DeviceToken::key_id; "" is the
+  // gateway's own key, ClientOptions::key_id).
+  using Clients = std::map<std::string, std::shared_ptr<PlacerecClient>>;
+  // A client for every key id of `tokens`, each reading --key-file anew.
+  StatusOr<Clients> ConnectClients(const TokenTable& tokens) const;
+  // The client that signs with `key_id`; null when the tokens in force name no such key (they
+  // were read again since the request's token was checked).
+  std::shared_ptr<PlacerecClient> ClientFor(const std::string& key_id);
 
   GatewayOptions options_;
-  std::mutex tokens_mutex_;  // guards tokens_ (the pointer) and serialises reloads
+  std::mutex reload_mutex_;  // serialises reloads
+  std::mutex tokens_mutex_;  // guards tokens_ and clients_ (the pointers, held briefly)
   std::shared_ptr<const TokenTable> tokens_;
+  Clients clients_;  // a query keeps its client alive while a reload replaces the map
   std::atomic<bool> token_reload_requested_{false};
   RateLimiter query_limiter_;
   RateLimiter read_limiter_;
@@ -114,11 +121,6 @@ class Gateway {
   // one), so that one device cannot take every slot.
   std::mutex waiting_mutex_;
   std::map<std::string, int> waiting_by_device_;
-  // One LCM client per key the devices' queries are signed with (DeviceToken::key_id; "" is the
-  // gateway's own key, ClientOptions::key_id). Reloads only add to it (a query may be using a
-  // client of a device just removed); clients_mutex_ guards the map, not the clients.
-  std::mutex clients_mutex_;
-  std::map<std::string, std::unique_ptr<PlacerecClient>> clients_;
   std::unique_ptr<SiteWatcher> watcher_;
   std::unique_ptr<LandmarkStore> map_;  // null without --db
   // Outlives http_: the connections' SSL objects, freed by the server's threads, call it.

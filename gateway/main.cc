@@ -38,8 +38,8 @@ constexpr char kUsage[] =
     "line: TOKEN DEVICE [key=KEY_ID] [expires=YYYY-MM-DDTHH:MM:SSZ]. DEVICE names the device's\n"
     "frames like a robot id; KEY_ID, a query key of --key-file, signs its queries (default: the\n"
     "gateway's --key-id), so the server's keys file can revoke that device alone. SIGHUP reads\n"
-    "the tokens file again before the next request (devices added, removed or changed; a file\n"
-    "that cannot be used changes nothing and the log says why).\n"
+    "the tokens file and --key-file again at the next request (devices added, removed or\n"
+    "changed, secrets changed; files that cannot be used change nothing, the log says why).\n"
     "scripts/make-cert.sh DIR makes a self-signed certificate for tests and demos.";
 
 int Main(int argc, char** argv) {

@@ -43,6 +43,7 @@ class AnswerRecord {
   // recorded as in flight. A copy of a frame in flight that came on another network is noted:
   // Finish and Forget name that network too.
   Seen Begin(const frame_t& frame, result_t* answer, size_t network = 0) {
+    const Key key = Key::Of(frame);  // hashes the image: outside the lock
     std::lock_guard lock(mutex_);
     auto robot = frames_.find(frame.robot);
     if (robot == frames_.end()) {
@@ -50,7 +51,6 @@ class AnswerRecord {
       robot = frames_.emplace(frame.robot, std::deque<Entry>()).first;
     }
     std::deque<Entry>& entries = robot->second;
-    const Key key = Key::Of(frame);
     for (Entry& entry : entries) {
       if (!(entry.key == key)) continue;
       if (!entry.answer) {
@@ -74,8 +74,9 @@ class AnswerRecord {
   // `frame` (recorded by Begin) was processed: keep its answer for duplicates. Returns the
   // other networks copies of it came on while in flight, which are owed the answer too.
   std::vector<size_t> Finish(const frame_t& frame, const result_t& answer) {
+    const Key key = Key::Of(frame);
     std::lock_guard lock(mutex_);
-    Entry* entry = Find(frame);
+    Entry* entry = Find(frame.robot, key);
     if (entry == nullptr) return {};
     entry->answer = answer;
     return entry->also;
@@ -87,8 +88,9 @@ class AnswerRecord {
   // kAnswered, *answer is to be sent there now. kNew: nothing to do (the frame's own network, a
   // network already served, or a frame no longer recorded).
   Seen CopyOnNetwork(const frame_t& frame, size_t network, result_t* answer) {
+    const Key key = Key::Of(frame);
     std::lock_guard lock(mutex_);
-    Entry* entry = Find(frame);
+    Entry* entry = Find(frame.robot, key);
     if (entry == nullptr || network == entry->network ||
         std::find(entry->also.begin(), entry->also.end(), network) != entry->also.end()) {
       return Seen::kNew;
@@ -103,12 +105,12 @@ class AnswerRecord {
   // it is processed when it comes again. Returns the other networks copies of it came on, which
   // are owed the refusal too.
   std::vector<size_t> Forget(const frame_t& frame) {
+    const Key key = Key::Of(frame);
     std::lock_guard lock(mutex_);
     const auto robot = frames_.find(frame.robot);
     if (robot == frames_.end()) return {};
     std::vector<size_t> also;
     std::deque<Entry>& entries = robot->second;
-    const Key key = Key::Of(frame);
     for (auto it = entries.begin(); it != entries.end(); ++it) {
       if (it->key == key) {
         also = std::move(it->also);
@@ -154,10 +156,9 @@ class AnswerRecord {
     std::vector<size_t> also;        // other networks copies came on (answered there too)
   };
 
-  Entry* Find(const frame_t& frame) {
-    const auto robot = frames_.find(frame.robot);
+  Entry* Find(const std::string& robot_id, const Key& key) {
+    const auto robot = frames_.find(robot_id);
     if (robot == frames_.end()) return nullptr;
-    const Key key = Key::Of(frame);
     for (Entry& entry : robot->second) {
       if (entry.key == key) return &entry;
     }

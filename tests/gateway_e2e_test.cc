@@ -833,6 +833,37 @@ TEST_F(GatewayTest, SighupReadsTheTokensFileAgain) {
   EXPECT_TRUE(gateway_->running());
 }
 
+// A device's secret changed under the same key id, in the server's keys and the gateway's
+// --key-file, is used after a SIGHUP to each: the gateway's clients are made anew (they were
+// kept, so the device stayed refused until the gateway restarted).
+TEST_F(GatewayTest, ASecretChangedUnderTheSameKeyIdIsUsedAfterSighup) {
+  const std::string photo = ReadBytes(run_.frames[kMapped].image);
+  const auto query = [&] {
+    return Json(Https()->Post("/v1/query", Bearer(kOwnKeyToken), photo, "image/jpeg"));
+  };
+  ASSERT_EQ(query().first, 200) << Tail(server_->log_path());
+  const std::string fresh = testing_service::ReadTextFile(
+      testing_service::WriteTestKeys(dir_ + "/fresh-keys", {{"phone-4", "query"}}));
+  const std::string line = fresh.substr(fresh.find("phone-4 "));
+  for (const std::string& file : {keys_, dir_ + "/gateway-keys"}) {
+    std::string text = testing_service::ReadTextFile(file);
+    const size_t at = text.find("phone-4 ");
+    ASSERT_NE(at, std::string::npos) << text;
+    text.replace(at, text.find('\n', at) + 1 - at, line);
+    std::ofstream(file, std::ios::trunc) << text;
+  }
+  server_->Signal(SIGHUP);
+  int status = 200;
+  for (int attempt = 0; attempt < 20 && status == 200; ++attempt) status = query().first;
+  ASSERT_NE(status, 200) << "the server still takes the old secret";
+  gateway_->Signal(SIGHUP);
+  for (int attempt = 0; attempt < 20 && status != 200; ++attempt) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    status = query().first;
+  }
+  EXPECT_EQ(status, 200) << Tail(dir_ + "/gateway-" + std::to_string(kPort) + ".log");
+}
+
 // Decodes base64 (the WebDriver screenshot) with OpenSSL.
 std::string DecodeBase64(const std::string& text) {
   std::string out(text.size() / 4 * 3 + 3, '\0');

@@ -70,10 +70,11 @@ StatusOr<std::unique_ptr<Segmenter>> MakeSegmenter(const AnalyzerOptions& option
 
 int ProcessedWidthCap(cv::Size size, int max_image_width) {
   if (max_image_width <= 0 || size.width <= 0 || size.height <= 0) return 0;
-  // The width whose frame holds max_image_width^2 pixels at the frame's aspect ratio.
+  // The width whose frame holds max_image_width^2 pixels at the frame's aspect ratio, bounded
+  // in double: for a cap near INT_MAX it exceeds every int.
   const double budget = static_cast<double>(max_image_width) * max_image_width;
-  const int affordable = static_cast<int>(std::floor(std::sqrt(budget * size.width / size.height)));
-  return std::max(1, std::min(max_image_width, affordable));
+  const double affordable = std::floor(std::sqrt(budget * size.width / size.height));
+  return static_cast<int>(std::max(1.0, std::min<double>(max_image_width, affordable)));
 }
 
 FrameAnalyzer::FrameAnalyzer(const AnalyzerOptions& options, std::unique_ptr<Segmenter> segmenter)

@@ -1,5 +1,6 @@
 // Tests of the frame analyzer (frame_analyzer.h): the segmenter it is given or makes, and the
 // objects it finds on a synthetic street.
+#include <limits>
 #include <memory>
 
 #include <gtest/gtest.h>
@@ -94,6 +95,10 @@ TEST(FrameAnalyzerTest, LargeFramesAreScaledDownByDefault) {
   EXPECT_EQ(ProcessedWidthCap(cv::Size(1280, 720), 0), 0);
   EXPECT_EQ(ProcessedWidthCap(cv::Size(1920, 1080), 960), 960);
   EXPECT_EQ(ProcessedWidthCap(cv::Size(960, 8000), 960), 332);
+  // A cap beyond any frame keeps the frame's size (its square overflowed an int: frames went to
+  // one pixel wide).
+  EXPECT_EQ(ProcessedWidthCap(cv::Size(1310, 1191), std::numeric_limits<int>::max()),
+            std::numeric_limits<int>::max());
 }
 
 // A tall, narrow frame within the decoder's limits (16 x 1024 px, a few hundred bytes as PNG) was
