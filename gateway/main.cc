@@ -1,5 +1,6 @@
 // placerec-gateway: HTTPS in front of placerec-server for field devices (gateway/gateway.h).
 // Exit codes: 0 after a clean stop (SIGINT, SIGTERM), 1 when it cannot start, 2 for bad flags.
+#include <atomic>
 #include <csignal>
 #include <cstdio>
 #include <optional>
@@ -12,14 +13,15 @@
 namespace placerec {
 namespace {
 
-Gateway* g_gateway = nullptr;
+// Set once the gateway serves; read by the signal handlers (a lock-free atomic is safe there).
+std::atomic<Gateway*> g_gateway{nullptr};
 
 void OnStopSignal(int) {
-  if (g_gateway != nullptr) g_gateway->Stop();
+  if (Gateway* gateway = g_gateway.load(); gateway != nullptr) gateway->Stop();
 }
 
 void OnReloadSignal(int) {
-  if (g_gateway != nullptr) g_gateway->RequestTokenReload();
+  if (Gateway* gateway = g_gateway.load(); gateway != nullptr) gateway->RequestTokenReload();
 }
 
 constexpr char kUsage[] =
@@ -43,6 +45,9 @@ constexpr char kUsage[] =
     "scripts/make-cert.sh DIR makes a self-signed certificate for tests and demos.";
 
 int Main(int argc, char** argv) {
+  // A SIGHUP while the gateway starts (one meant for the server's keys, say) must not stop it;
+  // its handler is installed once the gateway serves.
+  signal(SIGHUP, SIG_IGN);
   GatewayOptions options;
   FlagParser parser(kUsage);
   parser.Add("cert", &options.cert_file, "PEM certificate of the HTTPS server");
