@@ -109,10 +109,11 @@ function showAnswer(answer) {
   showThumbnail(best);
 }
 
-// A phone's photo (3-12 MB at 12 megapixels) goes as a JPEG of at most this many pixels on its
-// long side: the gateway hands it to the server over LCM, whose UDP multicast loses frames of
-// megabytes, and the robots' frames the map was built from are far smaller anyway.
-const kMaxPhotoSide = 1280;
+// A phone's photo (3-12 MB at 12 megapixels) goes as a JPEG the size the server processes it
+// at: at most this wide and this squared in pixels (the server's --max-image-width default).
+// The gateway hands it to the server over LCM, whose UDP multicast loses frames of megabytes,
+// and pixels beyond it would only be scaled away.
+const kMaxPhotoWidth = 960;
 
 // The photo to send: `file` itself when it is small, else a smaller JPEG of it (the browser turns
 // it upright by its EXIF orientation); `file` too when the browser cannot decode it (the gateway
@@ -120,7 +121,8 @@ const kMaxPhotoSide = 1280;
 async function shrink(file) {
   try {
     const bitmap = await createImageBitmap(file);
-    const scale = Math.min(1, kMaxPhotoSide / Math.max(bitmap.width, bitmap.height));
+    const scale = Math.min(1, kMaxPhotoWidth / bitmap.width,
+                           kMaxPhotoWidth / Math.sqrt(bitmap.width * bitmap.height));
     if (scale === 1 && file.size <= 1000000) {
       bitmap.close();
       return file;
