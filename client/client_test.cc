@@ -172,19 +172,30 @@ TEST(ClientTest, TheEndOfAWaitWithoutResendingIsIdle) {
   EXPECT_LT(cpu_s, 0.1) << "the wait kept a core busy";
 }
 
+// A run of one frame, `image`, for the fleet to replay.
+placerec::Run OneFrameRun(const std::string& image) {
+  placerec::Run run;
+  run.name = "one";
+  run.frames.push_back({0, "r", image, 1000000});
+  return run;
+}
+
+// A client on LCM's in-process queue, where nothing answers, that never resends.
+StatusOr<std::unique_ptr<PlacerecClient>> ClientWithoutServer() {
+  ClientOptions options;
+  options.lcm_url = "memq://";
+  options.retry_after_s = 0;
+  return PlacerecClient::Connect(options);
+}
+
 // A frame's timeout runs from its publication. The fleet's collector waited a whole timeout for
 // each frame in turn, so with no server 10 frames of a 1 s run took 10 timeouts (20 s) instead
 // of about one, and an answer later than the timeout counted as ok.
 TEST(FleetTest, NoServerEndsOneTimeoutAfterTheLastFrame) {
   const std::string image = TempPath("fleet.png");
   ASSERT_TRUE(cv::imwrite(image, TestImage()));
-  placerec::Run run;
-  run.name = "one";
-  run.frames.push_back({0, "r", image, 1000000});
-  ClientOptions client_options;
-  client_options.lcm_url = "memq://";  // nothing answers
-  client_options.retry_after_s = 0;
-  StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(client_options);
+  const placerec::Run run = OneFrameRun(image);
+  StatusOr<std::unique_ptr<PlacerecClient>> client = ClientWithoutServer();
   ASSERT_TRUE(client.ok()) << client.status().ToString();
   FleetOptions options;
   options.robots = 1;
@@ -231,13 +242,8 @@ TEST(FleetTest, OptionsThatCannotWorkAreRefused) {
 TEST(FleetTest, AStopEndsTheSendingAndTheReportSaysSo) {
   const std::string image = TempPath("fleet_stop.png");
   ASSERT_TRUE(cv::imwrite(image, TestImage()));
-  placerec::Run run;
-  run.name = "one";
-  run.frames.push_back({0, "r", image, 1000000});
-  ClientOptions client_options;
-  client_options.lcm_url = "memq://";
-  client_options.retry_after_s = 0;
-  StatusOr<std::unique_ptr<PlacerecClient>> client = PlacerecClient::Connect(client_options);
+  const placerec::Run run = OneFrameRun(image);
+  StatusOr<std::unique_ptr<PlacerecClient>> client = ClientWithoutServer();
   ASSERT_TRUE(client.ok()) << client.status().ToString();
   std::atomic<bool> stop{false};
   FleetOptions options;

@@ -177,6 +177,15 @@ HttpReply ErrorReply(int status, const std::string& message) {
 
 namespace {
 
+// The tokens file at `path`; an error also when it lists no device.
+StatusOr<TokenTable> LoadTokens(const std::string& path) {
+  StatusOr<TokenTable> tokens = TokenTable::Load(path);
+  if (tokens.ok() && tokens->size() == 0) {
+    return Status::InvalidArgument(path + " lists no device: nobody could use the gateway");
+  }
+  return tokens;
+}
+
 // Warns of every key the gateway signs with (its own, --key-id or the file's first, and the
 // devices' own keys that the tokens file names) that may insert: a query key is enough.
 void WarnOfInsertKeys(const GatewayOptions& options, const TokenTable& tokens) {
@@ -204,12 +213,8 @@ void WarnOfInsertKeys(const GatewayOptions& options, const TokenTable& tokens) {
 StatusOr<std::unique_ptr<Gateway>> Gateway::Create(const GatewayOptions& options) {
   std::string error;
   if (!options.Check(&error)) return Status::InvalidArgument(error);
-  StatusOr<TokenTable> tokens = TokenTable::Load(options.tokens_file);
+  StatusOr<TokenTable> tokens = LoadTokens(options.tokens_file);
   if (!tokens.ok()) return tokens.status();
-  if (tokens->size() == 0) {
-    return Status::InvalidArgument(options.tokens_file +
-                                   " lists no device: nobody could use the gateway");
-  }
   if (options.client.key_file.empty()) {
     LOG(WARNING) << "no --key-file: the gateway's queries go unsigned, and only a placerec-server "
                     "started with --auth off answers them; give it a query key "
@@ -286,12 +291,8 @@ Status Gateway::ReloadTokens() {
   // Reading the files and connecting the clients happen outside tokens_mutex_, which every
   // request takes: requests go on with the tokens in force meanwhile.
   std::lock_guard reloading(reload_mutex_);
-  StatusOr<TokenTable> tokens = TokenTable::Load(options_.tokens_file);
+  StatusOr<TokenTable> tokens = LoadTokens(options_.tokens_file);
   if (!tokens.ok()) return tokens.status();
-  if (tokens->size() == 0) {
-    return Status::InvalidArgument(options_.tokens_file +
-                                   " lists no device: nobody could use the gateway");
-  }
   // Every key's client anew: a secret changed in --key-file under the same id is read again.
   StatusOr<Clients> clients = ConnectClients(*tokens);
   if (!clients.ok()) return clients.status();

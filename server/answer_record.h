@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <initializer_list>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -139,9 +140,11 @@ class AnswerRecord {
       const std::hash<std::string_view> hash;
       size_t digest = hash(
           std::string_view(reinterpret_cast<const char*>(frame.data.data()), frame.data.size()));
-      const std::string shape = std::to_string(frame.encoding) + " " + std::to_string(frame.width) +
-                                " " + std::to_string(frame.height) + " " + frame.key_id;
-      digest ^= hash(shape) + 0x9e3779b97f4a7c15ULL + (digest << 6) + (digest >> 2);
+      for (const size_t part :
+           {static_cast<size_t>(frame.encoding), static_cast<size_t>(frame.width),
+            static_cast<size_t>(frame.height), hash(frame.key_id)}) {
+        digest ^= part + 0x9e3779b97f4a7c15ULL + (digest << 6) + (digest >> 2);
+      }
       return digest;
     }
     bool operator==(const Key& other) const {

@@ -52,7 +52,7 @@ TEST(AnswerRecordTest, InFlightThenAnsweredAndOnlyTheSameFrameMatches) {
 
 // A sender that reuses robot, request id, sequence and capture time for another image (a phone
 // asking every query as sequence 0 with request id 0) gets that image answered: it got the first
-// image's answer again, in a few milliseconds. A resend signed again (new counter, signing time
+// image's answer again. A resend signed again (new counter, signing time
 // and signature, the same image) is still the same frame; another signing key is another frame.
 TEST(AnswerRecordTest, AnotherImageOrKeyIsAnotherFrameAndAResignedCopyIsTheSame) {
   AnswerRecord record;

@@ -67,7 +67,7 @@ TEST(FrameAnalyzerTest, SmallFramesAreScaledUp) {
 }
 
 // A phone's photo or an HD camera's frame is processed at most 960 px wide and 960^2 pixels by
-// default (it was processed at full size: a 4032 x 3024 photo took 20 s and 2.9 GB); a portrait
+// default (it was processed at full size, at many times the cost: docs/results.md); a portrait
 // photo is bounded by the pixels; the boxes the server sends are scaled back by `scale`.
 TEST(FrameAnalyzerTest, LargeFramesAreScaledDownByDefault) {
   const AnalyzerOptions defaults;
