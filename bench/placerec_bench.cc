@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <limits>
@@ -66,10 +67,11 @@ cv::Mat SyntheticFrame(int width, int height, unsigned seed) {
   return frame;
 }
 
-// Gardens Point day_left frame `index` resized to 640x480, or a synthetic frame.
-cv::Mat Frame640(int index, bool* real) {
+// Gardens Point frame `index` of `walk` (day_left by default) resized to 640x480, or a
+// synthetic frame.
+cv::Mat Frame640(int index, bool* real, const char* walk = "day_left") {
   char path[512];
-  std::snprintf(path, sizeof(path), "%s/gardens_point/day_left/Image%03d.jpg", DataRoot().c_str(),
+  std::snprintf(path, sizeof(path), "%s/gardens_point/%s/Image%03d.jpg", DataRoot().c_str(), walk,
                 index);
   StatusOr<cv::Mat> image = ReadImageFile(path);
   *real = image.ok();
@@ -426,6 +428,70 @@ BENCHMARK(BM_AuthReplayGuard)->Arg(1000)->Arg(90000)->Unit(benchmark::kMicroseco
 
 // ---- Retrieval against large synthetic maps ----
 
+// PLACEREC_BENCH_POOL=wide: the descriptors of every image of the shared data (Gardens Point's
+// three walks without frames 96-144, the bench frame's surroundings; the indoor loop; Stanford
+// Background, MSRC and CamVid), at most 640 px wide: about 1.9 million descriptors from 2,500
+// images, so that a map of 100,000 objects (2.4 million descriptors) holds most of them once,
+// as a real map of many places does, instead of the same 25 frames' descriptors dozens of times
+// each. Extracting them takes minutes; PLACEREC_BENCH_POOL_CACHE=FILE keeps them between runs
+// (remove the file when the data change).
+bool WidePool() {
+  const char* pool = std::getenv("PLACEREC_BENCH_POOL");
+  return pool != nullptr && std::string(pool) == "wide";
+}
+
+cv::Mat WideDescriptorPool() {
+  const RecognizerOptions options;
+  cv::Mat all;
+  const char* cache = std::getenv("PLACEREC_BENCH_POOL_CACHE");
+  if (cache != nullptr) {
+    std::ifstream in(cache, std::ios::binary);
+    int32_t rows = 0;
+    if (in.read(reinterpret_cast<char*>(&rows), sizeof(rows)) && rows > 0) {
+      all.create(rows, kDescriptorSize, CV_8U);
+      in.read(reinterpret_cast<char*>(all.data), int64_t{rows} * kDescriptorSize);
+      if (in) return all;
+    }
+    all.release();
+  }
+  std::vector<std::string> files;
+  for (const char* dir :
+       {"gardens_point/day_left", "gardens_point/day_right", "gardens_point/night_right",
+        "rtabmap_indoor/images", "stanford_background/images", "msrc_v2/images", "camvid/images"}) {
+    std::error_code error;
+    for (const auto& entry : std::filesystem::directory_iterator(DataRoot() + "/" + dir, error)) {
+      const std::string name = entry.path().filename().string();
+      int index = -1;
+      if (std::string(dir).rfind("gardens_point", 0) == 0 &&
+          std::sscanf(name.c_str(), "Image%d", &index) == 1 && index >= 96 && index <= 144) {
+        continue;
+      }
+      files.push_back(entry.path().string());
+    }
+  }
+  std::sort(files.begin(), files.end());
+  Timer timer;
+  for (size_t f = 0; f < files.size(); ++f) {
+    StatusOr<cv::Mat> image = ReadImageFile(files[f]);
+    if (!image.ok()) continue;
+    cv::Mat frame = *image;
+    if (frame.cols > 640) {
+      cv::resize(frame, frame, cv::Size(640, frame.rows * 640 / frame.cols), 0, 0, cv::INTER_AREA);
+    }
+    all.push_back(ExtractFeatures(frame, options.analyzer.features).descriptors);
+    if (f % 500 == 0) std::fprintf(stderr, "wide pool: %zu of %zu images\n", f, files.size());
+  }
+  std::fprintf(stderr, "wide pool: %d descriptors from %zu images in %.0f s\n", all.rows,
+               files.size(), timer.ElapsedMs() / 1000);
+  if (cache != nullptr) {
+    std::ofstream out(cache, std::ios::binary);
+    const int32_t rows = all.rows;
+    out.write(reinterpret_cast<const char*>(&rows), sizeof(rows));
+    out.write(reinterpret_cast<const char*>(all.data), int64_t{rows} * kDescriptorSize);
+  }
+  return all;
+}
+
 // Real SIFT descriptors as the pool synthetic landmarks are drawn from (with noise), so the
 // index sees the structure of real descriptors rather than uniform noise: every 8th frame from
 // frame 4 on, which leaves out the query frame (Fixture::frame, frame 120) but holds its
@@ -436,6 +502,11 @@ const cv::Mat& DescriptorPool() {
   static cv::Mat pool = [] {
     cv::Mat all;
     const RecognizerOptions options;
+    if (WidePool()) {
+      all = WideDescriptorPool();
+      if (!all.empty()) return all;
+      std::fprintf(stderr, "wide pool: no images under %s; the default pool\n", DataRoot().c_str());
+    }
     for (int i = 4; i < 200; i += 8) {
       bool real = false;
       const cv::Mat frame = Frame640(i, &real);
@@ -468,7 +539,8 @@ struct SyntheticMap {
   // exact nearest source, over every sampled row (recall_source) and over the rows whose
   // nearest source passes the matcher's ratio test against the second nearest source
   // (recall_distinctive; distinctive_share of the rows): the matches recognition keeps.
-  std::vector<int32_t> sources;  // pool row of every stored descriptor, slot by slot
+  std::vector<int32_t> sources;      // pool row of every stored descriptor, slot by slot
+  std::vector<PlaceId> true_places;  // the bench frame's true places (InsertTruePlaces)
   double recall_source = 0;
   double recall_distinctive = 0;
   double distinctive_share = 0;
@@ -601,6 +673,9 @@ RecognizerOptions BenchRecognizerOptions() {
   } else if (method != nullptr && std::string(method) == "hnsw") {
     options.index.flann.method = DescriptorSearch::kHnsw;
   }
+  if (const char* knn = std::getenv("PLACEREC_BENCH_KNN")) {
+    options.index.matching.knn = std::max(2, std::atoi(knn));
+  }
   // PLACEREC_BENCH_CHECKS: the k-d tree's leaf checks (the server's --flann-checks).
   if (const char* checks = std::getenv("PLACEREC_BENCH_CHECKS")) {
     options.index.flann.checks = std::max(1, std::atoi(checks));
@@ -674,6 +749,80 @@ MapLookup BenchQuery() {
   return query;
 }
 
+// The bench frame's true places, so that retrieval is also judged by whether it still finds
+// the place a frame revisits (issue 24: speed not bought with misses): Gardens Point day_right
+// frames 112-128, the other side of the path from the bench frame (day_left 120), inserted
+// through the recognizer as robot "right" one second apart, as a server stores a walk. The run
+// day_left_then_day_right pairs day_left 120 with day_right 118-122.
+constexpr int kTrueWalkFirst = 112;
+constexpr int kTrueWalkLast = 128;
+constexpr int kQueryFrameIndex = kFirstFrame + 20;  // Fixture::frame
+constexpr int kTrueRadius = 2;
+constexpr char kTrueRobot[] = "right";
+
+const char* TrueWalk() {
+  const char* walk = std::getenv("PLACEREC_BENCH_TRUE_WALK");
+  return walk != nullptr && std::string(walk) == "day_left" ? "day_left" : "day_right";
+}
+
+// Inserts the true places into `map` and returns the ids of those within kTrueRadius of the
+// bench frame; none (and nothing inserted) without the real data. PLACEREC_BENCH_TRUE_WALK=
+// day_left takes the bench frame's own walk instead, without frames 119-121: an easy revisit.
+std::vector<PlaceId> InsertTruePlaces(PlaceMap* map) {
+  std::vector<PlaceId> true_places;
+  if (!Data().real_data) return true_places;
+  std::vector<cv::Mat> frames;
+  const char* walk = TrueWalk();
+  for (int i = kTrueWalkFirst; i <= kTrueWalkLast; ++i) {
+    bool real = false;
+    frames.push_back(Frame640(i, &real, walk));
+    if (!real) return true_places;
+  }
+  Recognizer recognizer(BenchRecognizerOptions(), map);
+  for (int i = kTrueWalkFirst; i <= kTrueWalkLast; ++i) {
+    if (std::string(walk) == "day_left" && std::abs(i - kQueryFrameIndex) < 2) continue;
+    const FrameRequest request{kTrueRobot, i, kBenchStartUtime + int64_t{i} * 1000000, true};
+    const RecognitionResult result = recognizer.Process(request, frames[i - kTrueWalkFirst]);
+    CHECK(result.status.ok()) << result.status.message();
+    if (result.place.IsValid() && std::abs(i - kQueryFrameIndex) <= kTrueRadius) {
+      true_places.push_back(result.place);
+    }
+  }
+  return true_places;
+}
+
+// Where the best-ranked true place stands among a lookup's answers.
+struct TruePlace {
+  int rank = 0;  // 1 for the best answer; 0 when no true place is answered
+  double score = 0;
+  int inliers = -1;  // -1: not verified
+};
+
+TruePlace FindTruePlace(const MapLookupResult& result) {
+  for (size_t i = 0; i < result.places.size(); ++i) {
+    const PlaceMatch& match = result.places[i];
+    if (match.place.robot == kTrueRobot &&
+        std::llabs(match.place.sequence - kQueryFrameIndex) <= kTrueRadius) {
+      return {static_cast<int>(i) + 1, match.score, match.inliers};
+    }
+  }
+  return {};
+}
+
+// The true place's answer in a map that holds nothing else: what the synthetic objects'
+// clutter is measured against.
+const TruePlace& TruePlaceAlone() {
+  static const TruePlace alone = [] {
+    const RecognizerOptions options = BenchRecognizerOptions();
+    StatusOr<std::unique_ptr<LandmarkStore>> store =
+        OpenSqliteStore(":memory:", SqliteStoreOptions());
+    StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
+    if (InsertTruePlaces(map->get()).empty()) return TruePlace();
+    return FindTruePlace((*map)->Lookup(BenchQuery(), LoopDecisionOptions()));
+  }();
+  return alone;
+}
+
 // A map of `landmarks` synthetic landmark objects in memory; the query is the real frame's
 // objects.
 SyntheticMap& MapOf(int landmarks) {
@@ -706,6 +855,8 @@ SyntheticMap& MapOf(int landmarks) {
   // for every row, which the distinctive rows, few in this bench, need).
   const char* step = std::getenv("PLACEREC_BENCH_RECALL_STEP");
   MeasureRecall(&entry, step != nullptr ? std::max(1, std::atoi(step)) : 6);
+  // After the recall, which reads every stored descriptor by its synthetic source.
+  entry.true_places = InsertTruePlaces(entry.map.get());
   return entry;
 }
 
@@ -742,8 +893,12 @@ void BM_MapReopen(benchmark::State& state) {
   // build cut short, which leaves no answer file) is refused rather than measured. "route 1 Hz":
   // places one second apart (FillSyntheticMap); files from before it held every place at time 0.
   const char* method = std::getenv("PLACEREC_BENCH_DESCRIPTOR_SEARCH");
-  const std::string settings = "landmarks " + std::to_string(landmarks) + " descriptor-search " +
-                               (method != nullptr ? method : "default") + " route 1 Hz\n";
+  // "true places": the bench frame's true places among the synthetic ones (InsertTruePlaces),
+  // so that the answer compared after reopening is not empty; "pool wide": WideDescriptorPool.
+  const std::string settings =
+      "landmarks " + std::to_string(landmarks) + " descriptor-search " +
+      (method != nullptr ? method : "default") + " route 1 Hz" + (WidePool() ? " pool wide" : "") +
+      (Data().real_data ? std::string(" true places ") + TrueWalk() : "") + "\n";
   const bool existed = std::ifstream(path).good();
   if (existed && !std::ifstream(path + ".answer").good()) {
     state.SkipWithError((path + " has no .answer file (a build cut short?): remove it").c_str());
@@ -757,6 +912,7 @@ void BM_MapReopen(benchmark::State& state) {
     StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
     CHECK(map.ok()) << map.status().message();
     FillSyntheticMap(landmarks, map->get());
+    InsertTruePlaces(map->get());
     std::ofstream(path + ".answer")
         << settings << AnswerText((*map)->Lookup(BenchQuery(), LoopDecisionOptions()));
   }
@@ -786,7 +942,9 @@ void BM_MapReopen(benchmark::State& state) {
     double peak = 0;
     ResidentMiB(&rss, &peak);
     const MapCounts counts = (*map)->Counts();
-    const std::string answer = AnswerText((*map)->Lookup(query, LoopDecisionOptions()));
+    const MapLookupResult result = (*map)->Lookup(query, LoopDecisionOptions());
+    const std::string answer = AnswerText(result);
+    state.counters["true_rank"] = FindTruePlace(result).rank;
     state.counters["open_s"] = (*map)->open_ms() / 1000.0;
     state.counters["rss_mib"] = rss;
     state.counters["peak_mib"] = peak;
@@ -824,9 +982,11 @@ void RetrievalOn(int landmarks, benchmark::State& state) {
   IndexQueryStats sum;
   double ranking_ms = 0;
   int n = 0;
+  TruePlace found;
   for (auto _ : state) {
     MapLookupResult result = synthetic.map->Lookup(synthetic.query, options);
     benchmark::DoNotOptimize(result.places.data());
+    found = FindTruePlace(result);
     sum.filter_ms += result.stats.filter_ms;
     sum.search_ms += result.stats.search_ms;
     sum.objects_ms += result.stats.objects_ms;
@@ -853,6 +1013,28 @@ void RetrievalOn(int landmarks, benchmark::State& state) {
   state.counters["recall_distinct"] = synthetic.recall_distinctive;
   state.counters["distinct_share"] = synthetic.distinctive_share;
   state.counters["build_s"] = synthetic.build_seconds;
+  if (!synthetic.true_places.empty()) {
+    // The true place: its rank among the answers (0: not answered), its score (a loop closure
+    // from LoopDecisionOptions::min_score) and the same score with no synthetic objects; and
+    // before the geometric check, how many true places are candidates with place-level
+    // matches and how many matches they hold (LandmarkIndex::Query).
+    const IndexResult index_result =
+        synthetic.map->index().Query(synthetic.query.objects, [](PlaceId) { return true; });
+    int candidates = 0;
+    size_t points = 0;
+    for (const PlaceId place : synthetic.true_places) {
+      const auto it = index_result.place_points.find(place);
+      if (it == index_result.place_points.end() || it->second.empty()) continue;
+      ++candidates;
+      points += it->second.size();
+    }
+    state.counters["true_candidates"] = candidates;
+    state.counters["true_points"] = static_cast<double>(points);
+    state.counters["true_rank"] = found.rank;
+    state.counters["true_score"] = found.score;
+    state.counters["true_loop"] = found.rank == 1 && found.score >= options.min_score ? 1 : 0;
+    state.counters["true_alone"] = TruePlaceAlone().score;
+  }
 }
 void BM_Retrieval(benchmark::State& state) { RetrievalOn(static_cast<int>(state.range(0)), state); }
 BENCHMARK(BM_Retrieval)->Arg(1000)->Arg(10000)->Arg(100000)->Unit(benchmark::kMillisecond);
