@@ -430,11 +430,12 @@ BENCHMARK(BM_AuthReplayGuard)->Arg(1000)->Arg(90000)->Unit(benchmark::kMicroseco
 
 // PLACEREC_BENCH_POOL=wide: the descriptors of every image of the shared data (Gardens Point's
 // three walks without frames 96-144, the bench frame's surroundings; the indoor loop; Stanford
-// Background, MSRC and CamVid), at most 640 px wide: about 1.9 million descriptors from 2,500
-// images, so that a map of 100,000 objects (2.4 million descriptors) holds most of them once,
-// as a real map of many places does, instead of the same 25 frames' descriptors dozens of times
-// each. Extracting them takes minutes; PLACEREC_BENCH_POOL_CACHE=FILE keeps them between runs
-// (remove the file when the data change).
+// Background, MSRC and CamVid), each at most 640 px wide and in its own aspect, so that a map
+// of 100,000 objects holds most of its descriptors about once, as a map of many real places
+// does, instead of the same 25 frames' descriptors many times each (docs/results.md "Is the
+// revisited place still found among the clutter?"). PLACEREC_BENCH_POOL_CACHE=FILE keeps them
+// between runs; it is not checked against the data or the feature options: remove it when
+// either changes.
 bool WidePool() {
   const char* pool = std::getenv("PLACEREC_BENCH_POOL");
   return pool != nullptr && std::string(pool) == "wide";
@@ -443,16 +444,24 @@ bool WidePool() {
 cv::Mat WideDescriptorPool() {
   const RecognizerOptions options;
   cv::Mat all;
+  // The cache: kPoolMagic, the row count (int32), the rows; any other file is not used.
+  static constexpr char kPoolMagic[8] = {'P', 'R', 'P', 'O', 'O', 'L', '1', '\n'};
   const char* cache = std::getenv("PLACEREC_BENCH_POOL_CACHE");
   if (cache != nullptr) {
+    std::error_code error;
+    const uintmax_t bytes = std::filesystem::file_size(cache, error);
     std::ifstream in(cache, std::ios::binary);
+    char magic[sizeof(kPoolMagic)] = {};
     int32_t rows = 0;
-    if (in.read(reinterpret_cast<char*>(&rows), sizeof(rows)) && rows > 0) {
+    if (!error && in.read(magic, sizeof(magic)) &&
+        std::equal(magic, magic + sizeof(magic), kPoolMagic) &&
+        in.read(reinterpret_cast<char*>(&rows), sizeof(rows)) && rows > 0 &&
+        bytes == sizeof(kPoolMagic) + sizeof(rows) + uintmax_t(rows) * kDescriptorSize) {
       all.create(rows, kDescriptorSize, CV_8U);
-      in.read(reinterpret_cast<char*>(all.data), int64_t{rows} * kDescriptorSize);
-      if (in) return all;
+      if (in.read(reinterpret_cast<char*>(all.data), int64_t{rows} * kDescriptorSize)) return all;
     }
     all.release();
+    if (!error) std::fprintf(stderr, "wide pool: %s is no pool cache; extracting again\n", cache);
   }
   std::vector<std::string> files;
   for (const char* dir :
@@ -483,11 +492,18 @@ cv::Mat WideDescriptorPool() {
   }
   std::fprintf(stderr, "wide pool: %d descriptors from %zu images in %.0f s\n", all.rows,
                files.size(), timer.ElapsedMs() / 1000);
-  if (cache != nullptr) {
-    std::ofstream out(cache, std::ios::binary);
+  if (cache != nullptr && !all.empty()) {
+    // Written aside and renamed, so that a run cut short leaves no partial cache.
+    const std::string partial = std::string(cache) + ".partial";
+    std::ofstream out(partial, std::ios::binary);
     const int32_t rows = all.rows;
+    out.write(kPoolMagic, sizeof(kPoolMagic));
     out.write(reinterpret_cast<const char*>(&rows), sizeof(rows));
     out.write(reinterpret_cast<const char*>(all.data), int64_t{rows} * kDescriptorSize);
+    out.close();
+    std::error_code error;
+    if (out) std::filesystem::rename(partial, cache, error);
+    if (!out || error) std::fprintf(stderr, "wide pool: could not write %s\n", cache);
   }
   return all;
 }
@@ -552,6 +568,8 @@ struct SyntheticMap {
 // is the share of the exact k nearest distances found among the index's k.
 void MeasureRecall(SyntheticMap* synthetic, int step) {
   const LandmarkIndex& index = synthetic->map->index();
+  // Before the true places: every stored descriptor still has its synthetic source.
+  CHECK_EQ(synthetic->sources.size(), index.num_landmarks() * kSyntheticRows);
   const int k = RecognizerOptions().index.matching.knn;
   cv::Mat rows;
   for (const IndexQuery& q : synthetic->query.objects) rows.push_back(q.descriptors);
@@ -673,8 +691,10 @@ RecognizerOptions BenchRecognizerOptions() {
   } else if (method != nullptr && std::string(method) == "hnsw") {
     options.index.flann.method = DescriptorSearch::kHnsw;
   }
+  // PLACEREC_BENCH_KNN: nearest neighbours per query descriptor (the server's --match-knn,
+  // at most 1000); the recall counters always use the default.
   if (const char* knn = std::getenv("PLACEREC_BENCH_KNN")) {
-    options.index.matching.knn = std::max(2, std::atoi(knn));
+    options.index.matching.knn = std::clamp(std::atoi(knn), 2, 1000);
   }
   // PLACEREC_BENCH_CHECKS: the k-d tree's leaf checks (the server's --flann-checks).
   if (const char* checks = std::getenv("PLACEREC_BENCH_CHECKS")) {
@@ -693,6 +713,7 @@ RecognizerOptions BenchRecognizerOptions() {
 void FillSyntheticMap(int landmarks, PlaceMap* map, std::vector<int32_t>* sources = nullptr) {
   const int per_landmark = kSyntheticRows;
   const cv::Mat& pool = DescriptorPool();
+  CHECK(!pool.empty());
   std::mt19937 rng(42);
   std::uniform_int_distribution<int> pick(0, pool.rows - 1);
   std::uniform_int_distribution<int> noise(-8, 8);
@@ -758,26 +779,35 @@ constexpr int kTrueWalkFirst = 112;
 constexpr int kTrueWalkLast = 128;
 constexpr int kQueryFrameIndex = kFirstFrame + 20;  // Fixture::frame
 constexpr int kTrueRadius = 2;
-constexpr char kTrueRobot[] = "right";
+constexpr char kTrueRobot[] = "right";  // the true places' robot, whichever walk they are from
 
 const char* TrueWalk() {
   const char* walk = std::getenv("PLACEREC_BENCH_TRUE_WALK");
   return walk != nullptr && std::string(walk) == "day_left" ? "day_left" : "day_right";
 }
 
-// Inserts the true places into `map` and returns the ids of those within kTrueRadius of the
-// bench frame; none (and nothing inserted) without the real data. PLACEREC_BENCH_TRUE_WALK=
-// day_left takes the bench frame's own walk instead, without frames 119-121: an easy revisit.
-std::vector<PlaceId> InsertTruePlaces(PlaceMap* map) {
-  std::vector<PlaceId> true_places;
-  if (!Data().real_data) return true_places;
+// The true walk's frames kTrueWalkFirst..kTrueWalkLast, resized as the bench frame; empty
+// unless every one of them can be read. PLACEREC_BENCH_TRUE_WALK=day_left takes the bench
+// frame's own walk instead of day_right (InsertTruePlaces then leaves out frames 119-121: an
+// easy revisit).
+std::vector<cv::Mat> TrueWalkFrames() {
   std::vector<cv::Mat> frames;
-  const char* walk = TrueWalk();
+  if (!Data().real_data) return frames;
   for (int i = kTrueWalkFirst; i <= kTrueWalkLast; ++i) {
     bool real = false;
-    frames.push_back(Frame640(i, &real, walk));
-    if (!real) return true_places;
+    frames.push_back(Frame640(i, &real, TrueWalk()));
+    if (!real) return {};
   }
+  return frames;
+}
+
+// Inserts the true places into `map` and returns the ids of those within kTrueRadius of the
+// bench frame; none (and nothing inserted) without the true walk's frames.
+std::vector<PlaceId> InsertTruePlaces(PlaceMap* map) {
+  std::vector<PlaceId> true_places;
+  const std::vector<cv::Mat> frames = TrueWalkFrames();
+  if (frames.empty()) return true_places;
+  const char* walk = TrueWalk();
   Recognizer recognizer(BenchRecognizerOptions(), map);
   for (int i = kTrueWalkFirst; i <= kTrueWalkLast; ++i) {
     if (std::string(walk) == "day_left" && std::abs(i - kQueryFrameIndex) < 2) continue;
@@ -792,18 +822,20 @@ std::vector<PlaceId> InsertTruePlaces(PlaceMap* map) {
 }
 
 // Where the best-ranked true place stands among a lookup's answers.
+// A true place counts as answered when it is among the places a lookup returns
+// (LoopDecisionOptions::max_matches) with a score above 0: the unverified and the discarded
+// ones the list may end with score 0.
 struct TruePlace {
   int rank = 0;  // 1 for the best answer; 0 when no true place is answered
   double score = 0;
-  int inliers = -1;  // -1: not verified
 };
 
 TruePlace FindTruePlace(const MapLookupResult& result) {
   for (size_t i = 0; i < result.places.size(); ++i) {
     const PlaceMatch& match = result.places[i];
     if (match.place.robot == kTrueRobot &&
-        std::llabs(match.place.sequence - kQueryFrameIndex) <= kTrueRadius) {
-      return {static_cast<int>(i) + 1, match.score, match.inliers};
+        std::llabs(match.place.sequence - kQueryFrameIndex) <= kTrueRadius && match.score > 0) {
+      return {static_cast<int>(i) + 1, match.score};
     }
   }
   return {};
@@ -816,7 +848,9 @@ const TruePlace& TruePlaceAlone() {
     const RecognizerOptions options = BenchRecognizerOptions();
     StatusOr<std::unique_ptr<LandmarkStore>> store =
         OpenSqliteStore(":memory:", SqliteStoreOptions());
+    CHECK(store.ok()) << store.status().message();
     StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
+    CHECK(map.ok()) << map.status().message();
     if (InsertTruePlaces(map->get()).empty()) return TruePlace();
     return FindTruePlace((*map)->Lookup(BenchQuery(), LoopDecisionOptions()));
   }();
@@ -894,11 +928,15 @@ void BM_MapReopen(benchmark::State& state) {
   // places one second apart (FillSyntheticMap); files from before it held every place at time 0.
   const char* method = std::getenv("PLACEREC_BENCH_DESCRIPTOR_SEARCH");
   // "true places": the bench frame's true places among the synthetic ones (InsertTruePlaces),
-  // so that the answer compared after reopening is not empty; "pool wide": WideDescriptorPool.
-  const std::string settings =
-      "landmarks " + std::to_string(landmarks) + " descriptor-search " +
-      (method != nullptr ? method : "default") + " route 1 Hz" + (WidePool() ? " pool wide" : "") +
-      (Data().real_data ? std::string(" true places ") + TrueWalk() : "") + "\n";
+  // so that the answer compared after reopening is not empty; "pool wide": WideDescriptorPool;
+  // "knn", "checks": PLACEREC_BENCH_KNN and PLACEREC_BENCH_CHECKS, which change the answer.
+  const bool true_walk = !TrueWalkFrames().empty();
+  const std::string settings = "landmarks " + std::to_string(landmarks) + " descriptor-search " +
+                               (method != nullptr ? method : "default") + " route 1 Hz" +
+                               (WidePool() ? " pool wide" : "") +
+                               (true_walk ? std::string(" true places ") + TrueWalk() : "") +
+                               " knn " + std::to_string(options.index.matching.knn) + " checks " +
+                               std::to_string(options.index.flann.checks) + "\n";
   const bool existed = std::ifstream(path).good();
   if (existed && !std::ifstream(path + ".answer").good()) {
     state.SkipWithError((path + " has no .answer file (a build cut short?): remove it").c_str());
@@ -944,7 +982,7 @@ void BM_MapReopen(benchmark::State& state) {
     const MapCounts counts = (*map)->Counts();
     const MapLookupResult result = (*map)->Lookup(query, LoopDecisionOptions());
     const std::string answer = AnswerText(result);
-    state.counters["true_rank"] = FindTruePlace(result).rank;
+    if (true_walk) state.counters["true_rank"] = FindTruePlace(result).rank;
     state.counters["open_s"] = (*map)->open_ms() / 1000.0;
     state.counters["rss_mib"] = rss;
     state.counters["peak_mib"] = peak;
@@ -982,11 +1020,10 @@ void RetrievalOn(int landmarks, benchmark::State& state) {
   IndexQueryStats sum;
   double ranking_ms = 0;
   int n = 0;
-  TruePlace found;
+  MapLookupResult result;
   for (auto _ : state) {
-    MapLookupResult result = synthetic.map->Lookup(synthetic.query, options);
+    result = synthetic.map->Lookup(synthetic.query, options);
     benchmark::DoNotOptimize(result.places.data());
-    found = FindTruePlace(result);
     sum.filter_ms += result.stats.filter_ms;
     sum.search_ms += result.stats.search_ms;
     sum.objects_ms += result.stats.objects_ms;
@@ -1014,6 +1051,7 @@ void RetrievalOn(int landmarks, benchmark::State& state) {
   state.counters["distinct_share"] = synthetic.distinctive_share;
   state.counters["build_s"] = synthetic.build_seconds;
   if (!synthetic.true_places.empty()) {
+    const TruePlace found = FindTruePlace(result);
     // The true place: its rank among the answers (0: not answered), its score (a loop closure
     // from LoopDecisionOptions::min_score) and the same score with no synthetic objects; and
     // before the geometric check, how many true places are candidates with place-level
