@@ -830,15 +830,28 @@ struct TruePlace {
   double score = 0;
 };
 
-TruePlace FindTruePlace(const MapLookupResult& result) {
-  for (size_t i = 0; i < result.places.size(); ++i) {
-    const PlaceMatch& match = result.places[i];
+TruePlace FindTruePlace(const std::vector<PlaceMatch>& places) {
+  for (size_t i = 0; i < places.size(); ++i) {
+    const PlaceMatch& match = places[i];
     if (match.place.robot == kTrueRobot &&
         std::llabs(match.place.sequence - kQueryFrameIndex) <= kTrueRadius && match.score > 0) {
       return {static_cast<int>(i) + 1, match.score};
     }
   }
   return {};
+}
+
+// The bench frame asked as a server asks it (Recognizer::Process, query only, under a robot id
+// of its own): its objects and the keypoints outside them, then the loop decision. `loop`: the
+// answer is a loop closure to a true place.
+TruePlace ServerAnswer(PlaceMap* map, bool* loop) {
+  Recognizer recognizer(BenchRecognizerOptions(), map);
+  const FrameRequest request{"bench-query", 0, kBenchStartUtime + int64_t{1000} * 1000000, false};
+  const RecognitionResult result = recognizer.Process(request, Data().frame);
+  CHECK(result.status.ok()) << result.status.message();
+  const TruePlace found = FindTruePlace(result.matches);
+  *loop = result.loop_closure && found.rank == 1;
+  return found;
 }
 
 // The true place's answer in a map that holds nothing else: what the synthetic objects'
@@ -852,7 +865,7 @@ const TruePlace& TruePlaceAlone() {
     StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
     CHECK(map.ok()) << map.status().message();
     if (InsertTruePlaces(map->get()).empty()) return TruePlace();
-    return FindTruePlace((*map)->Lookup(BenchQuery(), LoopDecisionOptions()));
+    return FindTruePlace((*map)->Lookup(BenchQuery(), LoopDecisionOptions()).places);
   }();
   return alone;
 }
@@ -982,7 +995,7 @@ void BM_MapReopen(benchmark::State& state) {
     const MapCounts counts = (*map)->Counts();
     const MapLookupResult result = (*map)->Lookup(query, LoopDecisionOptions());
     const std::string answer = AnswerText(result);
-    if (true_walk) state.counters["true_rank"] = FindTruePlace(result).rank;
+    if (true_walk) state.counters["true_rank"] = FindTruePlace(result.places).rank;
     state.counters["open_s"] = (*map)->open_ms() / 1000.0;
     state.counters["rss_mib"] = rss;
     state.counters["peak_mib"] = peak;
@@ -1051,7 +1064,7 @@ void RetrievalOn(int landmarks, benchmark::State& state) {
   state.counters["distinct_share"] = synthetic.distinctive_share;
   state.counters["build_s"] = synthetic.build_seconds;
   if (!synthetic.true_places.empty()) {
-    const TruePlace found = FindTruePlace(result);
+    const TruePlace found = FindTruePlace(result.places);
     // The true place: its rank among the answers (0: not answered), its score (a loop closure
     // from LoopDecisionOptions::min_score) and the same score with no synthetic objects; and
     // before the geometric check, how many true places are candidates with place-level
@@ -1072,6 +1085,12 @@ void RetrievalOn(int landmarks, benchmark::State& state) {
     state.counters["true_score"] = found.score;
     state.counters["true_loop"] = found.rank == 1 && found.score >= options.min_score ? 1 : 0;
     state.counters["true_alone"] = TruePlaceAlone().score;
+    // The same through the recognizer, as a server answers the frame.
+    bool server_loop = false;
+    const TruePlace server = ServerAnswer(synthetic.map.get(), &server_loop);
+    state.counters["server_rank"] = server.rank;
+    state.counters["server_score"] = server.score;
+    state.counters["server_loop"] = server_loop ? 1 : 0;
   }
 }
 void BM_Retrieval(benchmark::State& state) { RetrievalOn(static_cast<int>(state.range(0)), state); }
