@@ -821,10 +821,9 @@ std::vector<PlaceId> InsertTruePlaces(PlaceMap* map) {
   return true_places;
 }
 
-// Where the best-ranked true place stands among a lookup's answers.
-// A true place counts as answered when it is among the places a lookup returns
-// (LoopDecisionOptions::max_matches) with a score above 0: the unverified and the discarded
-// ones the list may end with score 0.
+// Where the best-ranked true place stands among a lookup's answers. It counts as answered when
+// it is among the places returned (LoopDecisionOptions::max_matches) with a score above 0: the
+// list may end with unverified or discarded places at score 0.
 struct TruePlace {
   int rank = 0;  // 1 for the best answer; 0 when no true place is answered
   double score = 0;
