@@ -700,6 +700,10 @@ RecognizerOptions BenchRecognizerOptions() {
   if (const char* checks = std::getenv("PLACEREC_BENCH_CHECKS")) {
     options.index.flann.checks = std::max(1, std::atoi(checks));
   }
+  // PLACEREC_BENCH_EXACT_PLACES: places matched again exactly (the server's --exact-places).
+  if (const char* exact = std::getenv("PLACEREC_BENCH_EXACT_PLACES")) {
+    options.index.exact_places = std::clamp(std::atoi(exact), 0, 1000);
+  }
   return options;
 }
 
@@ -941,14 +945,16 @@ void BM_MapReopen(benchmark::State& state) {
   const char* method = std::getenv("PLACEREC_BENCH_DESCRIPTOR_SEARCH");
   // "true places": the bench frame's true places among the synthetic ones (InsertTruePlaces),
   // so that the answer compared after reopening is not empty; "pool wide": WideDescriptorPool;
-  // "knn", "checks": PLACEREC_BENCH_KNN and PLACEREC_BENCH_CHECKS, which change the answer.
+  // "knn", "checks", "exact places": PLACEREC_BENCH_KNN, PLACEREC_BENCH_CHECKS and
+  // PLACEREC_BENCH_EXACT_PLACES, which change the answer.
   const bool true_walk = !TrueWalkFrames().empty();
   const std::string settings = "landmarks " + std::to_string(landmarks) + " descriptor-search " +
                                (method != nullptr ? method : "default") + " route 1 Hz" +
                                (WidePool() ? " pool wide" : "") +
                                (true_walk ? std::string(" true places ") + TrueWalk() : "") +
                                " knn " + std::to_string(options.index.matching.knn) + " checks " +
-                               std::to_string(options.index.flann.checks) + "\n";
+                               std::to_string(options.index.flann.checks) + " exact places " +
+                               std::to_string(options.index.exact_places) + "\n";
   const bool existed = std::ifstream(path).good();
   if (existed && !std::ifstream(path + ".answer").good()) {
     state.SkipWithError((path + " has no .answer file (a build cut short?): remove it").c_str());
@@ -1040,6 +1046,7 @@ void RetrievalOn(int landmarks, benchmark::State& state) {
     sum.search_ms += result.stats.search_ms;
     sum.objects_ms += result.stats.objects_ms;
     sum.places_ms += result.stats.places_ms;
+    sum.exact_ms += result.stats.exact_ms;
     ranking_ms += result.ranking_ms;
     ++n;
   }
@@ -1048,6 +1055,7 @@ void RetrievalOn(int landmarks, benchmark::State& state) {
   state.counters["search_ms"] = sum.search_ms / n;
   state.counters["objects_ms"] = sum.objects_ms / n;
   state.counters["places_ms"] = sum.places_ms / n;
+  state.counters["exact_ms"] = sum.exact_ms / n;
   state.counters["ranking_ms"] = ranking_ms / n;
   const MapCounts counts = synthetic.map->Counts();
   state.counters["landmarks"] = static_cast<double>(counts.landmarks);

@@ -191,6 +191,11 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
   p->Add(
       "vote-places", &o->index.vote_places,
       "also verify the places most query descriptors have neighbours in (0: object matches only)");
+  p->Add("exact-places", &o->index.exact_places,
+         "match every query descriptor again exactly against the candidate places with the "
+         "most matches from the neighbour lists, at most this many: in a large map, or where "
+         "many descriptors look alike, a revisited place's own matches are crowded out of the "
+         "nearest neighbours (0: none, as in the seed; the default is not in the seed)");
   p->Add("vote-window-seconds", &o->index.vote_window_seconds,
          "a robot's places taken within this many seconds count as one location for the votes "
          "(a voted place brings at most the " +

@@ -21,6 +21,10 @@ bool LandmarkIndexOptions::Check(std::string* error) const {
              std::to_string(static_cast<int>(kMaxWindowSeconds)) + "] (a day)";
     return false;
   }
+  if (exact_places < 0 || exact_places > 1000) {
+    *error = "index exact_places must be in [0, 1000]";
+    return false;
+  }
   if (count_range_low < 0 || count_range_low > 1) {
     *error = "index count_range_low must be in [0, 1]";
     return false;
@@ -171,43 +175,8 @@ IndexResult LandmarkIndex::Query(const std::vector<IndexQuery>& objects,
     // Place-level matches by exact search over each matched place.
     std::map<PlaceId, std::vector<int32_t>> places;
     for (const LandmarkMatch& m : result.objects) places[m.place];
-    for (auto& [place, unused] : places) {
-      const std::vector<int32_t>& slots = slots_of_place_.at(place);
-      std::vector<PointMatch>& points = result.place_points[place];
-      std::map<std::pair<int32_t, int>, size_t> taken;
-      const float ratio_squared =
-          static_cast<float>(options_.matching.ratio * options_.matching.ratio);
-      for (int q = 0; q < query.size(); ++q) {
-        const uint8_t* qd = query.rows.ptr<uint8_t>(q);
-        int best = INT32_MAX;
-        int second = INT32_MAX;
-        int32_t best_slot = -1;
-        int best_row = -1;
-        for (int32_t slot : slots) {
-          const cv::Mat& d = landmarks_[slot].descriptors;
-          for (int t = 0; t < d.rows; ++t) {
-            const int dist = SquaredDistance(qd, d.ptr<uint8_t>(t));
-            if (dist < best) {
-              second = best;
-              best = dist;
-              best_slot = slot;
-              best_row = t;
-            } else if (dist < second) {
-              second = dist;
-            }
-          }
-        }
-        if (best_slot < 0 || !(best < ratio_squared * static_cast<float>(second))) continue;
-        const auto [it, inserted] =
-            taken.emplace(std::make_pair(best_slot, best_row), points.size());
-        const PointMatch match{query.object[q], query.row_in_object[q], best_slot, best_row,
-                               static_cast<float>(best)};
-        if (inserted) {
-          points.push_back(match);
-        } else if (match.distance < points[it->second].distance) {
-          points[it->second] = match;
-        }
-      }
+    for (const auto& [place, unused] : places) {
+      result.place_points[place] = ExactPlacePoints(query, place);
     }
     result.stats.candidate_places = static_cast<int64_t>(places.size());
     return result;
@@ -319,7 +288,69 @@ IndexResult LandmarkIndex::Query(const std::vector<IndexQuery>& objects,
     }
   }
   result.stats.places_ms = timer.ElapsedMs();
+  if (options_.exact_places > 0) {
+    timer.Restart();
+    std::vector<std::pair<int64_t, PlaceId>> ranked;
+    for (const auto& [place, points] : result.place_points) {
+      ranked.emplace_back(-static_cast<int64_t>(points.size()), place);
+    }
+    std::sort(ranked.begin(), ranked.end());
+    for (size_t i = 0; i < ranked.size() && static_cast<int>(i) < options_.exact_places; ++i) {
+      result.place_points[ranked[i].second] = ExactPlacePoints(query, ranked[i].second);
+    }
+    result.stats.exact_ms = timer.ElapsedMs();
+  }
   return result;
+}
+
+std::vector<PointMatch> LandmarkIndex::ExactPlacePoints(const StackedQuery& query,
+                                                        PlaceId place) const {
+  // The place's descriptors in one matrix (a place holds some hundreds: it stays in cache while
+  // every query row is compared with it).
+  const std::vector<int32_t>& slots = slots_of_place_.at(place);
+  int rows = 0;
+  for (int32_t slot : slots) rows += landmarks_[slot].descriptors.rows;
+  cv::Mat stacked(rows, kDescriptorSize, CV_8U);
+  std::vector<std::pair<int32_t, int>> origin;  // per stacked row: (slot, row in the landmark)
+  origin.reserve(static_cast<size_t>(rows));
+  for (int32_t slot : slots) {
+    const cv::Mat& d = landmarks_[slot].descriptors;
+    if (d.empty()) continue;
+    d.copyTo(stacked.rowRange(static_cast<int>(origin.size()),
+                              static_cast<int>(origin.size()) + d.rows));
+    for (int t = 0; t < d.rows; ++t) origin.emplace_back(slot, t);
+  }
+  std::vector<PointMatch> points;
+  if (rows == 0) return points;
+  std::unordered_map<int, size_t> taken;  // stacked row -> index in points
+  const float ratio_squared = static_cast<float>(options_.matching.ratio * options_.matching.ratio);
+  std::vector<int> distances(static_cast<size_t>(rows));
+  for (int q = 0; q < query.size(); ++q) {
+    SquaredDistances(query.rows.ptr<uint8_t>(q), stacked, distances.data());
+    int best = INT32_MAX;
+    int second = INT32_MAX;
+    int best_row = -1;
+    for (int t = 0; t < rows; ++t) {
+      const int dist = distances[t];
+      if (dist < best) {
+        second = best;
+        best = dist;
+        best_row = t;
+      } else if (dist < second) {
+        second = dist;
+      }
+    }
+    if (!(static_cast<float>(best) < ratio_squared * static_cast<float>(second))) continue;
+    const auto [it, inserted] = taken.emplace(best_row, points.size());
+    const PointMatch match{query.object[q], query.row_in_object[q], origin[best_row].first,
+                           origin[best_row].second, static_cast<float>(best)};
+    if (inserted) {
+      points.push_back(match);
+    } else if (match.distance < points[it->second].distance) {
+      points[it->second] = match;
+    }
+  }
+  return points;
 }
 
 }  // namespace placerec

@@ -56,6 +56,15 @@ struct LandmarkIndexOptions {
   // brings at most LandmarkIndex::kMaxVoteNeighbours of them as candidates (the nearest in time
   // that the caller allows), so a window wider than 3.2 s at 10 Hz is cut to the nearest 64.
   double vote_window_seconds = 3.0;
+  // The candidate places with the most place-level matches from the neighbour lists (at most
+  // this many; 0: none, as in the seed, whose places are judged by their object matches, §5.6)
+  // are matched again exactly: every query descriptor against every descriptor of the place,
+  // with the ratio test within the place. Where many stored descriptors resemble a query
+  // descriptor (a large map, repeated texture, night), they crowd the revisited place's own
+  // match out of the `matching.knn` nearest neighbours of the whole map; the exact matching
+  // finds it again. It costs a comparison of every query descriptor with every descriptor of
+  // these places.
+  int exact_places = 3;
 
   bool Check(std::string* error) const;
 };
@@ -95,6 +104,7 @@ struct IndexQueryStats {
   double search_ms = 0;   // nearest neighbours of every query descriptor
   double objects_ms = 0;  // object pairs
   double places_ms = 0;   // votes and place-level matches
+  double exact_ms = 0;    // exact place-level matches of the best places (exact_places)
 };
 
 struct IndexResult {
@@ -163,6 +173,9 @@ class LandmarkIndex {
 
  private:
   bool CandidateByColour(const IndexQuery& object, int32_t slot) const;
+  // Every query row's nearest descriptor within the place's landmarks that passes the ratio
+  // test against the place's second nearest; each stored row kept by its closest query row.
+  std::vector<PointMatch> ExactPlacePoints(const StackedQuery& query, PlaceId place) const;
   bool SameLocation(PlaceId a, PlaceId b) const;
   // The other places of `place`'s robot within the vote window that `place_allowed` accepts,
   // nearest in time first, at most kMaxVoteNeighbours.

@@ -110,6 +110,12 @@ TEST(LandmarkIndexOptionsTest, DefaultsPassAndBadValuesAreNamed) {
   bad.vote_window_seconds = 1e13;
   EXPECT_FALSE(bad.Check(&error));
   EXPECT_NE(error.find("vote_window_seconds"), std::string::npos) << error;
+  for (const int exact : {-1, 1001}) {
+    bad = LandmarkIndexOptions();
+    bad.exact_places = exact;
+    EXPECT_FALSE(bad.Check(&error)) << exact;
+    EXPECT_NE(error.find("exact_places"), std::string::npos) << error;
+  }
 }
 
 // Slots are insertion order whatever the ids; counts grow with every landmark added.
@@ -376,6 +382,59 @@ TEST(LandmarkIndexVotesTest, PlacesNotAllowedTakeNoNeighbourSlot) {
       map.index.Query({map.query}, [](PlaceId place) { return place.value() % 2 == 0; });
   EXPECT_EQ(found.place_points.count(PlaceId(StoppedClock::kVoted)), 1u);
   EXPECT_EQ(found.stats.candidate_places, LandmarkIndex::kMaxVoteNeighbours + 1);
+}
+
+// A revisited place whose true matches are crowded out of the neighbour lists: half of the
+// query's rows have more than `knn` stored descriptors of other places nearer than their true
+// match (as in a large map, where many places hold similar descriptors). The lists give the
+// place only the uncrowded half; matching its best places again exactly gives it every row.
+TEST(LandmarkIndexExactPlacesTest, CrowdedOutMatchesAreFoundByMatchingTheBestPlacesAgain) {
+  const auto points = [](int exact_places, int* candidates) {
+    std::mt19937 rng(43);
+    LandmarkIndexOptions options;
+    options.exact_places = exact_places;
+    LandmarkIndex index(options);
+    // The revisited place: one robot's place 0, 40 descriptors.
+    index.AddPlace({PlaceId(0), "robot", 0, 0, 1});
+    const cv::Mat stored = RandomDescriptors(40, &rng);
+    index.Add(MakeLandmark(0, 0, stored, 40, {}));
+    IndexQuery rest;
+    rest.sift_count = 40;
+    rest.is_object = false;
+    rest.descriptors = Noisy(stored, &rng, 6);
+    // Rows 20-39: 20 near copies each (noise 2 against the true match's 6), spread over 100
+    // places of other robots, 4 per place.
+    const int knn = options.matching.knn;
+    const int copies = knn + 4;
+    std::vector<cv::Mat> clutter(100);
+    int next = 0;
+    for (int row = 20; row < 40; ++row) {
+      for (int c = 0; c < copies; ++c) {
+        clutter[next % 100].push_back(Noisy(rest.descriptors.row(row), &rng, 2));
+        ++next;
+      }
+    }
+    for (int p = 0; p < 100; ++p) {
+      index.AddPlace({PlaceId(1 + p), "other" + std::to_string(p), 0, 0, 1});
+      index.Add(MakeLandmark(1 + p, 1 + p, clutter[p], clutter[p].rows, {}));
+    }
+    const IndexResult found = index.Query({rest}, [](PlaceId) { return true; });
+    *candidates = static_cast<int>(found.stats.candidate_places);
+    const auto place = found.place_points.find(PlaceId(0));
+    if (place == found.place_points.end()) return std::vector<PointMatch>();
+    return place->second;
+  };
+  int candidates = 0;
+  const std::vector<PointMatch> from_lists = points(0, &candidates);
+  EXPECT_EQ(candidates, 1);           // only the true place gets distinctive votes
+  EXPECT_EQ(from_lists.size(), 20u);  // the uncrowded half
+  const std::vector<PointMatch> exact = points(1, &candidates);
+  EXPECT_EQ(candidates, 1);
+  ASSERT_EQ(exact.size(), 40u);
+  for (const PointMatch& p : exact) {
+    EXPECT_EQ(p.slot, 0);
+    EXPECT_EQ(p.train, p.query_row);
+  }
 }
 
 }  // namespace
