@@ -192,7 +192,7 @@ StatusOr<std::unique_ptr<Server>> Server::Create(const ServerOptions& options) {
                : OpenSqliteStore(options.db_path, options.store);
   if (!store.ok()) return store.status();
   StatusOr<std::unique_ptr<PlaceMap>> map =
-      PlaceMap::Open(std::move(*store), options.recognizer.index);
+      PlaceMap::Open(std::move(*store), EffectiveOptions(options.recognizer).index);
   if (!map.ok()) return map.status();
   std::unique_ptr<Server> server(new Server(options, std::move(*map), std::move(*segmenter),
                                             std::move(labeler), std::move(*auth)));

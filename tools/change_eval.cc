@@ -132,7 +132,8 @@ StatusOr<nlohmann::json> EvaluateChanges(const Run& run, const RecognizerOptions
   SqliteStoreOptions store_options;
   StatusOr<std::unique_ptr<LandmarkStore>> store = OpenSqliteStore(":memory:", store_options);
   if (!store.ok()) return store.status();
-  StatusOr<std::unique_ptr<PlaceMap>> map = PlaceMap::Open(std::move(*store), options.index);
+  StatusOr<std::unique_ptr<PlaceMap>> map =
+      PlaceMap::Open(std::move(*store), EffectiveOptions(options).index);
   if (!map.ok()) return map.status();
   StatusOr<std::unique_ptr<Segmenter>> segmenter = MakeSegmenter(options.analyzer);
   if (!segmenter.ok()) return segmenter.status();

@@ -61,6 +61,11 @@ nlohmann::json OptionsJson(const RecognizerOptions& o) {
   j["colour_tolerance"] = o.index.colour.tolerance;
   j["match_min"] = o.index.matching.min_matches;
   j["match_ratio"] = o.index.matching.ratio;
+  j["match_knn"] = o.index.matching.knn;
+  j["vote_places"] = o.index.vote_places;
+  j["exact_places"] = o.index.exact_places;
+  j["exact_route_neighbours"] = o.index.exact_route_neighbours;
+  j["exact_max_comparisons"] = o.index.exact_max_comparisons;
   j["index_search"] = o.index.search == IndexSearch::kFlann ? "flann" : "exhaustive";
   j["min_same_robot_gap_seconds"] = o.recent_past.min_gap_seconds;
   j["resume_within_seconds"] = o.recent_past.resume_within_seconds;
@@ -116,7 +121,8 @@ StatusOr<std::unique_ptr<PlaceMap>> OpenMap(const RecognizerOptions& options,
   StatusOr<std::unique_ptr<LandmarkStore>> store =
       OpenSqliteStore(eval.db_path.empty() ? ":memory:" : eval.db_path, store_options);
   if (!store.ok()) return store.status();
-  return PlaceMap::Open(std::move(*store), options.index);
+  // The index as the mode uses it (the seed's recognition: no vote places, no exact matching).
+  return PlaceMap::Open(std::move(*store), EffectiveOptions(options).index);
 }
 
 // One stdout line for a loop closure found at `frame`.

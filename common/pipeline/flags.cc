@@ -195,7 +195,15 @@ void AddRecognizerFlags(FlagParser* p, RecognizerOptions* o) {
          "match every query descriptor again exactly against the candidate places with the "
          "most matches from the neighbour lists, at most this many: in a large map, or where "
          "many descriptors look alike, a revisited place's own matches are crowded out of the "
-         "nearest neighbours (0: none, as in the seed; the default is not in the seed)");
+         "nearest neighbours (0, the default: none, as in the seed; 3 is measured in "
+         "docs/results.md: more loop closures at full size, wrong ones on small frames)");
+  p->Add("exact-route-neighbours", &o->index.exact_route_neighbours,
+         "each place of --exact-places also brings this many candidate places of its robot on "
+         "either side along the route, matched exactly too (not in the seed)");
+  p->Add("exact-max-comparisons", &o->index.exact_max_comparisons,
+         "descriptor comparisons (query descriptors times a place's) the exact matching of "
+         "--exact-places may take per frame; a place that would pass them keeps its matches "
+         "from the nearest neighbours");
   p->Add("vote-window-seconds", &o->index.vote_window_seconds,
          "a robot's places taken within this many seconds count as one location for the votes "
          "(a voted place brings at most the " +

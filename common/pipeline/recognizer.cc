@@ -54,6 +54,7 @@ RecognizerOptions EffectiveOptions(const RecognizerOptions& options) {
   o.max_query_descriptors = 0;
   o.index.vote_places = 0;
   o.index.exact_places = 0;
+  o.index.exact_route_neighbours = 0;
   o.loop.geometric_verification = false;
   o.sequence.frames = 0;
   o.store_tracked_descriptors_only = false;

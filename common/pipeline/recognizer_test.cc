@@ -88,6 +88,27 @@ TEST(RecognizerOptionsTest, ChangeFlagsReachTheDetectorAndBadValuesAreNamed) {
   EXPECT_NE(error.find("min class confidence"), std::string::npos) << error;
 }
 
+TEST(RecognizerOptionsTest, ExactPlaceFlagsReachTheIndexAndTheSeedModeTurnsThemOff) {
+  RecognizerOptions options;
+  FlagParser parser("test");
+  AddRecognizerFlags(&parser, &options);
+  const char* argv[] = {"prog", "--exact-places", "2", "--exact-max-comparisons", "5000"};
+  bool help = false;
+  ASSERT_TRUE(parser.Parse(5, argv, 1, &help).ok());
+  EXPECT_EQ(options.index.exact_places, 2);
+  EXPECT_EQ(options.index.exact_max_comparisons, 5000);
+  std::string error;
+  EXPECT_TRUE(options.Check(&error)) << error;
+  // The seed's recognition (§5.6) judges places by their object matches alone.
+  options.mode = RecognitionMode::kSeed;
+  EXPECT_EQ(EffectiveOptions(options).index.exact_places, 0);
+  EXPECT_EQ(EffectiveOptions(options).index.vote_places, 0);
+  const char* negative[] = {"prog", "--exact-places", "-1"};
+  ASSERT_TRUE(parser.Parse(3, negative, 1, &help).ok());
+  EXPECT_FALSE(options.Check(&error));
+  EXPECT_NE(error.find("exact_places"), std::string::npos) << error;
+}
+
 TEST(RecognizerTest, RejectsBadRequestsWithoutChangingAnything) {
   const RecognizerOptions options = TestOptions();
   std::unique_ptr<PlaceMap> map = OpenMap(":memory:", options);

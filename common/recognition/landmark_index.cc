@@ -25,6 +25,15 @@ bool LandmarkIndexOptions::Check(std::string* error) const {
     *error = "index exact_places must be in [0, 1000]";
     return false;
   }
+  if (exact_route_neighbours < 0 || exact_route_neighbours > LandmarkIndex::kMaxVoteNeighbours) {
+    *error = "index exact_route_neighbours must be in [0, " +
+             std::to_string(LandmarkIndex::kMaxVoteNeighbours) + "]";
+    return false;
+  }
+  if (exact_max_comparisons < 0) {
+    *error = "index exact_max_comparisons must be at least 0";
+    return false;
+  }
   if (count_range_low < 0 || count_range_low > 1) {
     *error = "index count_range_low must be in [0, 1]";
     return false;
@@ -295,21 +304,85 @@ IndexResult LandmarkIndex::Query(const std::vector<IndexQuery>& objects,
       ranked.emplace_back(-static_cast<int64_t>(points.size()), place);
     }
     std::sort(ranked.begin(), ranked.end());
+    // The best places, then each one's nearest candidate places along its robot's route (so
+    // that the frames of one stretch compete on equal matches).
+    std::vector<PlaceId> chosen;
     for (size_t i = 0; i < ranked.size() && static_cast<int>(i) < options_.exact_places; ++i) {
-      result.place_points[ranked[i].second] = ExactPlacePoints(query, ranked[i].second);
+      chosen.push_back(ranked[i].second);
+    }
+    const size_t best = chosen.size();
+    for (size_t i = 0; i < best && options_.exact_route_neighbours > 0; ++i) {
+      for (const PlaceId neighbour :
+           RouteNeighbours(chosen[i], options_.exact_route_neighbours, result.place_points)) {
+        if (std::find(chosen.begin(), chosen.end(), neighbour) == chosen.end()) {
+          chosen.push_back(neighbour);
+        }
+      }
+    }
+    int64_t budget = options_.exact_max_comparisons;
+    for (const PlaceId place : chosen) {
+      int64_t rows = 0;
+      for (int32_t slot : slots_of_place_.at(place)) {
+        const cv::Mat& d = landmarks_[slot].descriptors;
+        if (!d.empty()) rows += d.rows;
+      }
+      const int64_t comparisons = rows * query.size();
+      if (comparisons > budget) {
+        ++result.stats.exact_skipped;
+        continue;
+      }
+      budget -= comparisons;
+      result.stats.exact_comparisons += comparisons;
+      ++result.stats.exact_places;
+      result.place_points[place] = ExactPlacePoints(query, place);
     }
     result.stats.exact_ms = timer.ElapsedMs();
   }
   return result;
 }
 
+std::vector<PlaceId> LandmarkIndex::RouteNeighbours(
+    PlaceId place, int per_side, const std::map<PlaceId, std::vector<PointMatch>>& among) const {
+  const PlaceInfo& info = place_info_.at(place);
+  const auto own = place_by_time_.find({info.robot, info.utime, place.value()});
+  CHECK(own != place_by_time_.end());
+  const int64_t window = VoteWindowUs();
+  const auto in_window = [&](decltype(own) it) {
+    return std::get<0>(*it) == info.robot && std::abs(std::get<1>(*it) - info.utime) <= window;
+  };
+  std::vector<PlaceId> neighbours;
+  // Before: walk back to the nearest `per_side` places that are among the candidates.
+  int found = 0;
+  for (auto it = own; it != place_by_time_.begin() && found < per_side;) {
+    --it;
+    if (!in_window(it)) break;
+    const PlaceId id(std::get<2>(*it));
+    if (among.count(id) > 0) {
+      neighbours.push_back(id);
+      ++found;
+    }
+  }
+  found = 0;
+  for (auto it = std::next(own); it != place_by_time_.end() && found < per_side; ++it) {
+    if (!in_window(it)) break;
+    const PlaceId id(std::get<2>(*it));
+    if (among.count(id) > 0) {
+      neighbours.push_back(id);
+      ++found;
+    }
+  }
+  return neighbours;
+}
+
 std::vector<PointMatch> LandmarkIndex::ExactPlacePoints(const StackedQuery& query,
                                                         PlaceId place) const {
-  // The place's descriptors in one matrix (a place holds some hundreds: it stays in cache while
-  // every query row is compared with it).
+  // The place's descriptors in one matrix, compared with every query row in turn: query rows
+  // times the place's descriptors comparisons.
   const std::vector<int32_t>& slots = slots_of_place_.at(place);
   int rows = 0;
-  for (int32_t slot : slots) rows += landmarks_[slot].descriptors.rows;
+  for (int32_t slot : slots) {
+    if (!landmarks_[slot].descriptors.empty()) rows += landmarks_[slot].descriptors.rows;
+  }
   cv::Mat stacked(rows, kDescriptorSize, CV_8U);
   std::vector<std::pair<int32_t, int>> origin;  // per stacked row: (slot, row in the landmark)
   origin.reserve(static_cast<size_t>(rows));

@@ -57,14 +57,26 @@ struct LandmarkIndexOptions {
   // that the caller allows), so a window wider than 3.2 s at 10 Hz is cut to the nearest 64.
   double vote_window_seconds = 3.0;
   // The candidate places with the most place-level matches from the neighbour lists (at most
-  // this many; 0: none, as in the seed, whose places are judged by their object matches, §5.6)
-  // are matched again exactly: every query descriptor against every descriptor of the place,
-  // with the ratio test within the place. Where many stored descriptors resemble a query
-  // descriptor (a large map, repeated texture, night), they crowd the revisited place's own
-  // match out of the `matching.knn` nearest neighbours of the whole map; the exact matching
-  // finds it again. It costs a comparison of every query descriptor with every descriptor of
-  // these places.
-  int exact_places = 3;
+  // this many, ties to the lower place id; 0: none, as in the seed, whose places are judged by
+  // their object matches, §5.6) are matched again exactly: every query descriptor against every
+  // descriptor of the place, with the ratio test within the place; these matches replace the
+  // place's matches from the lists (the other candidates keep theirs). Where many stored
+  // descriptors resemble a query descriptor (a large map, repeated texture, night), they crowd
+  // the revisited place's own match out of the `matching.knn` nearest neighbours of the whole
+  // map; the exact matching finds it again. Only candidate places with an entry in
+  // IndexResult::place_points (a neighbour in some list) are ranked. Off by default: it also
+  // lifts the frames a few metres along the route from the true one, which on small frames
+  // scaled up (AnalyzerOptions' small_frame_width) then win loop closures (docs/results.md).
+  int exact_places = 0;
+  // Each of those places also brings this many of its robot's candidate places on either side
+  // along the route (nearest in time, within vote_window_seconds), matched exactly too, so that
+  // the frames of one stretch compete on equal terms for which is nearest to the query.
+  int exact_route_neighbours = 1;
+  // At most this many descriptor comparisons (query rows times a place's descriptors) per
+  // lookup for exact_places: a place whose comparisons would pass what is left keeps its
+  // matches from the lists. It bounds the step's time for frames and places with many
+  // descriptors.
+  int64_t exact_max_comparisons = 20000000;
 
   bool Check(std::string* error) const;
 };
@@ -100,11 +112,14 @@ struct IndexQueryStats {
   int64_t candidates = 0;  // kExhaustive: sum over query objects of candidate landmarks
   int64_t candidate_places = 0;
   ObjectMatchingStats matching;
-  double filter_ms = 0;   // query ranges and filters
-  double search_ms = 0;   // nearest neighbours of every query descriptor
-  double objects_ms = 0;  // object pairs
-  double places_ms = 0;   // votes and place-level matches
-  double exact_ms = 0;    // exact place-level matches of the best places (exact_places)
+  double filter_ms = 0;           // query ranges and filters
+  double search_ms = 0;           // nearest neighbours of every query descriptor
+  double objects_ms = 0;          // object pairs
+  double places_ms = 0;           // votes and place-level matches
+  double exact_ms = 0;            // exact place-level matches of the best places (exact_places)
+  int64_t exact_places = 0;       // places matched exactly
+  int64_t exact_comparisons = 0;  // descriptor comparisons they took
+  int64_t exact_skipped = 0;      // places left to their lists by exact_max_comparisons
 };
 
 struct IndexResult {
@@ -114,7 +129,8 @@ struct IndexResult {
   // distinctive votes and their neighbours, see `vote_places`): the query descriptors matched
   // into the place's landmarks with a ratio test over the whole place. These feed the geometric
   // check; they are more selective than matches inside single objects, whose second neighbours
-  // are few. A voted place may have no object-level match at all.
+  // are few. A voted place may have no object-level match at all. The places matched exactly
+  // (`exact_places`) have every such match; the others those their neighbour lists hold.
   std::map<PlaceId, std::vector<PointMatch>> place_points;
   IndexQueryStats stats;
 };
@@ -176,6 +192,10 @@ class LandmarkIndex {
   // Every query row's nearest descriptor within the place's landmarks that passes the ratio
   // test against the place's second nearest; each stored row kept by its closest query row.
   std::vector<PointMatch> ExactPlacePoints(const StackedQuery& query, PlaceId place) const;
+  // The nearest `per_side` places of `place`'s robot before it and after it in time (within the
+  // vote window) that are keys of `among`.
+  std::vector<PlaceId> RouteNeighbours(
+      PlaceId place, int per_side, const std::map<PlaceId, std::vector<PointMatch>>& among) const;
   bool SameLocation(PlaceId a, PlaceId b) const;
   // The other places of `place`'s robot within the vote window that `place_allowed` accepts,
   // nearest in time first, at most kMaxVoteNeighbours.

@@ -2,6 +2,7 @@
 // the texture range and the colour filter, object-level and place-level matches, distinctive
 // votes, slots and counts, with both searches where they must agree.
 #include <limits>
+#include <map>
 #include <memory>
 #include <random>
 #include <set>
@@ -435,6 +436,107 @@ TEST(LandmarkIndexExactPlacesTest, CrowdedOutMatchesAreFoundByMatchingTheBestPla
     EXPECT_EQ(p.slot, 0);
     EXPECT_EQ(p.train, p.query_row);
   }
+}
+
+// Five places of five robots (or of one robot along a route), 40 descriptors each; the query holds
+// a noisy copy of every descriptor, of which only the first `uncrowded[p]` of place p are free of
+// near copies in other places (the rest have knn + 4 nearer ones each). Place 1 also holds a
+// landmark without descriptors. Returns each place's matches.
+std::map<int64_t, size_t> ExactRanking(const LandmarkIndexOptions& options, IndexQueryStats* stats,
+                                       const std::vector<int>& uncrowded = {10, 20, 15, 12, 12},
+                                       bool one_route = false) {
+  std::mt19937 rng(47);
+  LandmarkIndex index(options);
+  IndexQuery rest;
+  rest.sift_count = 40;
+  rest.is_object = false;
+  std::vector<cv::Mat> clutter(200);
+  int next = 0;
+  for (int p = 0; p < 5; ++p) {
+    // One route: one robot's places a second apart, within one vote window.
+    index.AddPlace({PlaceId(p), one_route ? "robot" : "robot" + std::to_string(p), p,
+                    one_route ? p * 1000000LL : 0, 1});
+    const cv::Mat stored = RandomDescriptors(40, &rng);
+    index.Add(MakeLandmark(p, p, stored, 40, {}));
+    const cv::Mat query = Noisy(stored, &rng, 6);
+    rest.descriptors.push_back(query);
+    for (int row = uncrowded[p]; row < 40; ++row) {
+      for (int c = 0; c < options.matching.knn + 4; ++c) {
+        clutter[next++ % 200].push_back(Noisy(query.row(row), &rng, 2));
+      }
+    }
+  }
+  index.Add(MakeLandmark(5, 1, cv::Mat(), 0, {}));
+  for (int c = 0; c < 200; ++c) {
+    index.AddPlace({PlaceId(10 + c), "clutter" + std::to_string(c), 0, 0, 1});
+    index.Add(MakeLandmark(10 + c, 10 + c, clutter[c], clutter[c].rows, {}));
+  }
+  const IndexResult found = index.Query({rest}, [](PlaceId) { return true; });
+  *stats = found.stats;
+  std::map<int64_t, size_t> points;
+  for (int p = 0; p < 5; ++p) {
+    const auto it = found.place_points.find(PlaceId(p));
+    points[p] = it == found.place_points.end() ? 0 : it->second.size();
+  }
+  return points;
+}
+
+// The places with the most matches from the lists are matched exactly, ties to the lower id;
+// the others keep what their lists hold.
+TEST(LandmarkIndexExactPlacesTest, OnlyTheBestPlacesAreMatchedAgainTiesToTheLowerId) {
+  LandmarkIndexOptions options;
+  IndexQueryStats stats;
+  options.exact_places = 0;
+  const std::map<int64_t, size_t> lists = ExactRanking(options, &stats);
+  EXPECT_EQ(lists, (std::map<int64_t, size_t>{{0, 10}, {1, 20}, {2, 15}, {3, 12}, {4, 12}}));
+  EXPECT_EQ(stats.exact_places, 0);
+  options.exact_places = 1;
+  EXPECT_EQ(ExactRanking(options, &stats),
+            (std::map<int64_t, size_t>{{0, 10}, {1, 40}, {2, 15}, {3, 12}, {4, 12}}));
+  EXPECT_EQ(stats.exact_places, 1);
+  options.exact_places = 3;  // places 1 and 2, then 3 before 4 (12 each)
+  EXPECT_EQ(ExactRanking(options, &stats),
+            (std::map<int64_t, size_t>{{0, 10}, {1, 40}, {2, 40}, {3, 40}, {4, 12}}));
+  EXPECT_EQ(stats.exact_places, 3);
+  EXPECT_EQ(stats.exact_comparisons, 3 * 40 * 200);  // query rows times each place's 40
+  EXPECT_EQ(stats.exact_skipped, 0);
+}
+
+// Along a route, a chosen place brings its nearest candidate place on either side, matched
+// exactly too; the places beyond keep their lists' matches.
+TEST(LandmarkIndexExactPlacesTest, AChosenPlaceBringsItsRouteNeighbours) {
+  LandmarkIndexOptions options;
+  options.exact_places = 1;
+  options.exact_route_neighbours = 0;
+  const std::vector<int> uncrowded = {10, 12, 20, 14, 10};
+  IndexQueryStats stats;
+  EXPECT_EQ(ExactRanking(options, &stats, uncrowded, true),
+            (std::map<int64_t, size_t>{{0, 10}, {1, 12}, {2, 40}, {3, 14}, {4, 10}}));
+  options.exact_route_neighbours = 1;
+  EXPECT_EQ(ExactRanking(options, &stats, uncrowded, true),
+            (std::map<int64_t, size_t>{{0, 10}, {1, 40}, {2, 40}, {3, 40}, {4, 10}}));
+  EXPECT_EQ(stats.exact_places, 3);
+  // Robots apart: no route, no neighbours.
+  EXPECT_EQ(ExactRanking(options, &stats, uncrowded, false),
+            (std::map<int64_t, size_t>{{0, 10}, {1, 12}, {2, 40}, {3, 14}, {4, 10}}));
+}
+
+// The comparison budget: a place that would pass it keeps its matches from the lists, and a
+// smaller one after it may still be matched.
+TEST(LandmarkIndexExactPlacesTest, APlaceBeyondTheComparisonBudgetKeepsItsListMatches) {
+  LandmarkIndexOptions options;
+  options.exact_places = 2;
+  options.exact_max_comparisons = 40 * 200;  // one place's worth
+  IndexQueryStats stats;
+  EXPECT_EQ(ExactRanking(options, &stats),
+            (std::map<int64_t, size_t>{{0, 10}, {1, 40}, {2, 15}, {3, 12}, {4, 12}}));
+  EXPECT_EQ(stats.exact_places, 1);
+  EXPECT_EQ(stats.exact_skipped, 1);
+  EXPECT_EQ(stats.exact_comparisons, 40 * 200);
+  options.exact_max_comparisons = 40 * 200 - 1;
+  EXPECT_EQ(ExactRanking(options, &stats),
+            (std::map<int64_t, size_t>{{0, 10}, {1, 20}, {2, 15}, {3, 12}, {4, 12}}));
+  EXPECT_EQ(stats.exact_skipped, 2);
 }
 
 }  // namespace

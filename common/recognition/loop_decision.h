@@ -78,9 +78,12 @@ struct PlaceMatch {
   // has averaged in the robot's earlier frames, `supporting_frames` of which matched the route.
   double frame_score = 0;
   int supporting_frames = 0;
-  int matched_landmarks = 0;    // the place's landmarks matched by this frame's objects
-  int matched_descriptors = 0;  // place-level descriptor matches (before the geometric check)
-  int inliers = -1;             // geometric inliers; -1 when not verified
+  int matched_landmarks = 0;  // the place's landmarks matched by this frame's objects
+  // Place-level descriptor matches before the geometric check: every match of the place for the
+  // places the index matched exactly (LandmarkIndexOptions::exact_places), those the neighbour
+  // lists hold for the others.
+  int matched_descriptors = 0;
+  int inliers = -1;  // geometric inliers; -1 when not verified
   // Median over the inliers of log(query keypoint size / stored keypoint size), each size taken
   // relative to its frame's width: 0 when the query was taken as far from the scene.
   double log_scale = 0;
