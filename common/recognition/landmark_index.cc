@@ -393,35 +393,11 @@ std::vector<PointMatch> LandmarkIndex::ExactPlacePoints(const StackedQuery& quer
                               static_cast<int>(origin.size()) + d.rows));
     for (int t = 0; t < d.rows; ++t) origin.emplace_back(slot, t);
   }
+  // Lowe's ratio test within the place; each stored row kept by its closest query row.
   std::vector<PointMatch> points;
-  if (rows == 0) return points;
-  std::unordered_map<int, size_t> taken;  // stacked row -> index in points
-  const float ratio_squared = static_cast<float>(options_.matching.ratio * options_.matching.ratio);
-  std::vector<int> distances(static_cast<size_t>(rows));
-  for (int q = 0; q < query.size(); ++q) {
-    SquaredDistances(query.rows.ptr<uint8_t>(q), stacked, distances.data());
-    int best = INT32_MAX;
-    int second = INT32_MAX;
-    int best_row = -1;
-    for (int t = 0; t < rows; ++t) {
-      const int dist = distances[t];
-      if (dist < best) {
-        second = best;
-        best = dist;
-        best_row = t;
-      } else if (dist < second) {
-        second = dist;
-      }
-    }
-    if (!(static_cast<float>(best) < ratio_squared * static_cast<float>(second))) continue;
-    const auto [it, inserted] = taken.emplace(best_row, points.size());
-    const PointMatch match{query.object[q], query.row_in_object[q], origin[best_row].first,
-                           origin[best_row].second, static_cast<float>(best)};
-    if (inserted) {
-      points.push_back(match);
-    } else if (match.distance < points[it->second].distance) {
-      points[it->second] = match;
-    }
+  for (const DescriptorMatch& m : MatchRatioTest(query.rows, stacked, options_.matching.ratio)) {
+    points.push_back({query.object[m.query], query.row_in_object[m.query], origin[m.train].first,
+                      origin[m.train].second, static_cast<float>(m.distance)});
   }
   return points;
 }
