@@ -20,6 +20,7 @@
 #include "common/storage/schema.h"
 #include "common/storage/sqlite_db.h"
 #include "common/storage/sqlite_store.h"
+#include "common/util/paths.h"
 #include "common/util/timer.h"
 #include "proto/channels.h"
 
@@ -809,15 +810,10 @@ StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, cons
       return copied;
     }
   }  // closed: the last connection checkpoints the WAL into the file and removes it
-  // A hard link never replaces an existing file (another process may have created `out`).
-  std::error_code link_error;
-  std::filesystem::create_hard_link(temporary, out, link_error);
-  if (link_error) {
-    RemoveMapFiles(temporary);
-    return Status::IoError("cannot create " + out + ": " + link_error.message() +
-                           "; nothing was written");
-  }
+  // Never replaces an existing file (another process may have created `out`).
+  const Status moved = MoveWithoutReplacing(temporary, out);
   RemoveMapFiles(temporary);
+  if (!moved.ok()) return Status::IoError(moved.message() + "; nothing was written");
   report.places = report.a.places + report.b.places;
   report.landmarks = report.a.landmarks + report.b.landmarks;
   return report;

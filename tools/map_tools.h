@@ -181,9 +181,10 @@ struct MergeReport {
 // with new ids; sightings follow their landmarks' new ids), B's colliding robot ids renamed by
 // MergeOptions::suffix. Refuses, before writing anything, an existing `out` and a renamed id
 // longer than the 47-byte wire limit of robot ids. The map is written to `out`.merging.HOST.PID
-// and linked to `out` when complete; on error nothing is left behind. What a killed merge left
-// (`out`.merging.HOST.PID of this machine whose process no longer runs) is removed first; a
-// running merge's work file, another machine's and an input are left alone.
+// and moved to `out` when complete, never replacing a file (MoveWithoutReplacing); on error
+// nothing is left behind. What a killed merge left (`out`.merging.HOST.PID of this machine whose
+// process no longer runs) is removed first; a running merge's work file, another machine's and an
+// input are left alone.
 StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, const std::string& out,
                                 const MergeOptions& options);
 

@@ -2,8 +2,10 @@
 
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -15,6 +17,7 @@
 #include "common/util/ids.h"
 #include "common/util/memory.h"
 #include "common/util/options.h"
+#include "common/util/paths.h"
 #include "common/util/stage.h"
 #include "common/util/status.h"
 
@@ -290,6 +293,41 @@ TEST(FlagParserTest, RepeatedFlagsCollectEveryOccurrence) {
   bool help = false;
   ASSERT_TRUE(parser.Parse(5, argv, 1, &help).ok());
   EXPECT_EQ(urls, (std::vector<std::string>{"udpm://a", "tcpq://127.0.0.1:7700"}));
+}
+
+std::string ReadWhole(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// Every way of moving (a hard link, and what file systems without hard links get) moves a file
+// to a free name and leaves both files alone when the name is taken.
+TEST(PathsTest, MoveWithoutReplacingNeverReplacesAFile) {
+  for (const MoveWay way :
+       {MoveWay::kHardLink, MoveWay::kRenameNoReplace, MoveWay::kReserveAndRename}) {
+    const std::string dir = ::testing::TempDir() + "/placerec_move_" + std::to_string(getpid()) +
+                            "_" + std::to_string(static_cast<int>(way));
+    std::filesystem::remove_all(dir);
+    ASSERT_TRUE(MakeDirectories(dir));
+    const std::string from = dir + "/work";
+    const std::string to = dir + "/map";
+    std::ofstream(from) << "merged";
+    ASSERT_TRUE(MoveWithoutReplacing(from, to, way).ok()) << static_cast<int>(way);
+    EXPECT_FALSE(PathExists(from));
+    EXPECT_EQ(ReadWhole(to), "merged");
+
+    std::ofstream(from) << "second";
+    const Status taken = MoveWithoutReplacing(from, to, way);
+    EXPECT_FALSE(taken.ok());
+    EXPECT_NE(taken.message().find("cannot create " + to), std::string::npos) << taken.message();
+    EXPECT_EQ(ReadWhole(from), "second");
+    EXPECT_EQ(ReadWhole(to), "merged");
+
+    const Status missing = MoveWithoutReplacing(dir + "/none", dir + "/other", way);
+    EXPECT_FALSE(missing.ok());
+    EXPECT_FALSE(PathExists(dir + "/other"));
+    std::filesystem::remove_all(dir);
+  }
 }
 
 TEST(CommandLineTest, DropsTheDirectoryAndQuotesWhatAShellWouldSplit) {
