@@ -735,7 +735,8 @@ StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, cons
   if (!options.Check(&error)) return Status::InvalidArgument(error);
   if (out.empty()) return Status::InvalidArgument("merge needs --out FILE");
   std::error_code ignored;
-  if (std::filesystem::exists(out, ignored)) {
+  // symlink_status: a dangling link at `out` is a taken name too.
+  if (std::filesystem::exists(std::filesystem::symlink_status(out, ignored))) {
     return Status::InvalidArgument(out +
                                    " exists: merge writes a new map; remove it or choose "
                                    "another --out");
@@ -789,8 +790,8 @@ StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, cons
   }
 
   // This process's own work file: another running merge into the same `out` is not touched (what
-  // a killed one left is removed); of two merges racing for `out`, the hard link below lets only
-  // one in.
+  // a killed one left is removed); of two merges racing for `out`, MoveWithoutReplacing below
+  // lets only one in.
   const std::string temporary = MergeWorkFile(out, HostName(), std::to_string(getpid()));
   report.removed_work_files = RemoveKilledMergesWork(out, a, b);
   RemoveMapFiles(temporary);
@@ -810,6 +811,14 @@ StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, cons
       return copied;
     }
   }  // closed: the last connection checkpoints the WAL into the file and removes it
+  std::error_code wal_error;
+  if (std::filesystem::exists(temporary + "-wal", wal_error) &&
+      std::filesystem::file_size(temporary + "-wal", wal_error) > 0) {
+    RemoveMapFiles(temporary);
+    return Status::IoError("the merged map " + temporary +
+                           " kept a write-ahead log when closed (its checkpoint failed); nothing "
+                           "was written");
+  }
   // Never replaces an existing file (another process may have created `out`).
   const Status moved = MoveWithoutReplacing(temporary, out);
   RemoveMapFiles(temporary);

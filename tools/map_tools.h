@@ -182,9 +182,10 @@ struct MergeReport {
 // MergeOptions::suffix. Refuses, before writing anything, an existing `out` and a renamed id
 // longer than the 47-byte wire limit of robot ids. The map is written to `out`.merging.HOST.PID
 // and moved to `out` when complete, never replacing a file (MoveWithoutReplacing); on error
-// nothing is left behind. What a killed merge left (`out`.merging.HOST.PID of this machine whose
-// process no longer runs) is removed first; a running merge's work file, another machine's and an
-// input are left alone.
+// nothing is left behind (on a file system without hard links or RENAME_NOREPLACE, a merge killed
+// within the move's two steps leaves an empty `out`). What a killed merge left
+// (`out`.merging.HOST.PID of this machine whose process no longer runs) is removed first; a running
+// merge's work file, another machine's and an input are left alone.
 StatusOr<MergeReport> MergeMaps(const std::string& a, const std::string& b, const std::string& out,
                                 const MergeOptions& options);
 

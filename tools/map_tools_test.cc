@@ -492,6 +492,23 @@ TEST(MapToolsTest, MergeRefusesAnOutputWithAnEarlierMapsLog) {
   EXPECT_TRUE(MergeMaps(a.path(), b.path(), c.path(), MergeOptions()).ok());
 }
 
+// A dangling symbolic link at C is a taken name: refused before any work, the link left alone.
+TEST(MapToolsTest, MergeRefusesADanglingLinkAtTheOutput) {
+  TempMap a("merge_link_a");
+  TempMap b("merge_link_b");
+  TempMap c("merge_link_c");
+  BuildSite(a.path());
+  BuildSite(b.path());
+  std::filesystem::create_symlink(c.path() + ".nowhere", c.path());
+  StatusOr<MergeReport> report = MergeMaps(a.path(), b.path(), c.path(), MergeOptions());
+  ASSERT_FALSE(report.ok());
+  EXPECT_EQ(report.status().code(), StatusCode::kInvalidArgument) << report.status().ToString();
+  EXPECT_NE(report.status().message().find("exists"), std::string::npos)
+      << report.status().ToString();
+  EXPECT_TRUE(std::filesystem::is_symlink(std::filesystem::symlink_status(c.path())));
+  std::filesystem::remove(c.path());
+}
+
 // A merge that was killed left C.merging.HOST.<pid> (and its -wal): the next merge into C removes
 // them, while a running process's work file, another machine's, files that only look alike and
 // an input stay.

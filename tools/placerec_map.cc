@@ -166,8 +166,9 @@ int MergeCommand(int argc, char** argv) {
       "A also has becomes ID + suffix (ID.b; ID.b2, ID.b3, ... when that is taken in A or B).\n"
       "A new id over the 47-byte robot id limit is refused before anything is written. C must\n"
       "not exist; it is written to C.merging.<host>.<pid> and moved to C when complete, never\n"
-      "replacing a file (also on file systems without hard links such as exFAT; what a\n"
-      "killed merge on this machine left, its process no longer running, is removed). A and B are\n"
+      "replacing a file, also on file systems without hard links such as exFAT (there a merge\n"
+      "killed within the move may leave an empty C: remove it). What a killed merge on this\n"
+      "machine left, its process no longer running, is removed. A and B are\n"
       "only read (a map of an older schema version is read as it is, not upgraded); C is written\n"
       "in the current schema version.");
   parser.AddPositional("maps", &maps, "the two maps A and B");

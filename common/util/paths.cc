@@ -1,6 +1,7 @@
 #include "common/util/paths.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -46,20 +47,17 @@ Status MoveWithoutReplacing(const std::string& from, const std::string& to, Move
   const auto failed = [&](int error) {
     return Status::IoError("cannot create " + to + ": " + std::strerror(error));
   };
-  // What a file system answers for a call it does not have; anything else (the name is taken,
-  // no permission, no space, no `from`) is the answer.
+  // What a file system answers for a call it does not have (FUSE answers EINVAL for a rename
+  // with flags it cannot pass on); anything else (the name is taken, no permission, no space, no
+  // `from`) is the answer. Passing on is safe: no later way replaces a file either.
   const auto unsupported = [](int error) {
-    return error == EPERM || error == EOPNOTSUPP || error == ENOTSUP || error == ENOSYS ||
-           error == EINVAL || error == EMLINK;
+    return error == EPERM || error == EOPNOTSUPP || error == ENOSYS || error == EINVAL ||
+           error == EMLINK;
   };
   if (first == MoveWay::kHardLink) {
     if (::link(from.c_str(), to.c_str()) == 0) {
-      if (::unlink(from.c_str()) != 0 && errno != ENOENT) {
-        const int error = errno;
-        ::unlink(to.c_str());
-        return Status::IoError("cannot remove " + from + " after linking it to " + to + ": " +
-                               std::strerror(error));
-      }
+      // The move stands; a `from` that cannot be removed is only a second name of the file.
+      ::unlink(from.c_str());
       return Status::Ok();
     }
     if (!unsupported(errno)) return failed(errno);
@@ -70,13 +68,22 @@ Status MoveWithoutReplacing(const std::string& from, const std::string& to, Move
     }
     if (!unsupported(errno)) return failed(errno);
   }
-  if (::access(from.c_str(), F_OK) != 0) return failed(errno);
+  if (::access(from.c_str(), F_OK) != 0) {
+    return Status::IoError("cannot move " + from + ": " + std::strerror(errno));
+  }
   const int reserved = ::open(to.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (reserved < 0) return failed(errno);
+  struct stat placeholder;
+  const bool known = ::fstat(reserved, &placeholder) == 0;
   ::close(reserved);
-  if (::rename(from.c_str(), to.c_str()) != 0) {
-    const int error = errno;
-    ::unlink(to.c_str());
+  if (!known || ::rename(from.c_str(), to.c_str()) != 0) {
+    const int error = known ? errno : EIO;
+    // Only the placeholder is removed, never a file another process put there meanwhile.
+    struct stat now;
+    if (known && ::lstat(to.c_str(), &now) == 0 && now.st_dev == placeholder.st_dev &&
+        now.st_ino == placeholder.st_ino && now.st_size == 0) {
+      ::unlink(to.c_str());
+    }
     return failed(error);
   }
   return Status::Ok();

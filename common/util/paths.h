@@ -18,15 +18,16 @@ bool MakeDirectories(const std::string& path);
 // Ways to put a file at a name without replacing what is there, in the order they are tried.
 enum class MoveWay {
   kHardLink,          // link(2), then `from` removed
-  kRenameNoReplace,   // renameat2(2) with RENAME_NOREPLACE (Linux 3.15; ext4, XFS, btrfs,
-                      // tmpfs, the kernel's FAT and exFAT)
+  kRenameNoReplace,   // renameat2(2) with RENAME_NOREPLACE (Linux 3.15; ext4, XFS, btrfs and
+                      // tmpfs have it, the kernel's FAT and exFAT drivers since later kernels)
   kReserveAndRename,  // the name taken with O_CREAT | O_EXCL, then `from` renamed over it
 };
 
 // Puts the closed file `from` at `to` unless a file `to` exists (another process may create it
 // meanwhile, so the check is part of the move), trying the ways from `first` on: a way the file
-// system does not have (no hard links on FAT, exFAT and many FUSE and network file systems; no
-// RENAME_NOREPLACE on many FUSE ones) passes to the next. With the last way a process killed
+// system does not have (no hard links on FAT, exFAT and many FUSE file systems; no
+// RENAME_NOREPLACE on many FUSE ones) passes to the next. The last way protects `to` only from
+// writers that also create it exclusively (these three ways, O_EXCL), and a process killed
 // between its two steps leaves an empty file at `to`. On error `from` is where it was and `to`
 // as it was.
 Status MoveWithoutReplacing(const std::string& from, const std::string& to,

@@ -326,8 +326,32 @@ TEST(PathsTest, MoveWithoutReplacingNeverReplacesAFile) {
     const Status missing = MoveWithoutReplacing(dir + "/none", dir + "/other", way);
     EXPECT_FALSE(missing.ok());
     EXPECT_FALSE(PathExists(dir + "/other"));
+    // A file onto itself is a taken name.
+    EXPECT_FALSE(MoveWithoutReplacing(to, to, way).ok());
+    EXPECT_EQ(ReadWhole(to), "merged");
     std::filesystem::remove_all(dir);
   }
+}
+
+// A way that fails passes to the next where the failure says the file system lacks it: a folder
+// cannot be hard linked (EPERM), so it is renamed; and where the rename after taking the name
+// fails (a folder onto the file that holds the name), only that placeholder is removed.
+TEST(PathsTest, MoveWithoutReplacingPassesOnAndCleansUp) {
+  const std::string dir = ::testing::TempDir() + "/placerec_move_on_" + std::to_string(getpid());
+  std::filesystem::remove_all(dir);
+  ASSERT_TRUE(MakeDirectories(dir + "/folder"));
+  ASSERT_TRUE(MoveWithoutReplacing(dir + "/folder", dir + "/moved", MoveWay::kHardLink).ok());
+  EXPECT_TRUE(std::filesystem::is_directory(dir + "/moved"));
+  EXPECT_FALSE(PathExists(dir + "/folder"));
+
+  const Status failed =
+      MoveWithoutReplacing(dir + "/moved", dir + "/file", MoveWay::kReserveAndRename);
+  EXPECT_FALSE(failed.ok());
+  EXPECT_NE(failed.message().find("cannot create " + dir + "/file"), std::string::npos)
+      << failed.message();
+  EXPECT_FALSE(PathExists(dir + "/file"));
+  EXPECT_TRUE(std::filesystem::is_directory(dir + "/moved"));
+  std::filesystem::remove_all(dir);
 }
 
 TEST(CommandLineTest, DropsTheDirectoryAndQuotesWhatAShellWouldSplit) {
