@@ -123,6 +123,7 @@ FrameResult FromWire(const result_t& answer) {
   r.landmarks = answer.landmarks;
   r.stored_descriptors = answer.stored_descriptors;
   r.place_id = answer.place_id;
+  r.next_sequence = answer.next_sequence;
   r.map_places = answer.map_places;
   r.map_landmarks = answer.map_landmarks;
   r.map_descriptors = answer.map_descriptors;

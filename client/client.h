@@ -134,6 +134,9 @@ struct FrameResult {
   int landmarks = 0;  // landmarks this frame stored
   int stored_descriptors = 0;
   int64_t place_id = -1;  // the place stored for this frame; -1 when none
+  // The sequence the robot's next insert should carry at least (protocol 6): after every
+  // sequence the robot has used; -1 when the server knows none (proto/README.md).
+  int64_t next_sequence = -1;
   int64_t map_places = 0;
   int64_t map_landmarks = 0;
   int64_t map_descriptors = 0;

@@ -103,6 +103,7 @@ inline bool LengthsFit(const void* data, size_t size, const result_t*) {
   r.Skip(static_cast<size_t>(changes) * (1 + 16));
   for (int32_t i = 0; i < changes && r.ok(); ++i) r.String();
   r.Skip(static_cast<size_t>(changes) * 4);
+  r.Skip(8);  // next_sequence
   return r.ok();
 }
 

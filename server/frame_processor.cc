@@ -110,6 +110,7 @@ result_t FrameProcessor::ProcessOrThrow(const frame_t& frame, std::vector<change
     answer.map_landmarks = counts.landmarks;
     answer.map_descriptors = counts.descriptors;
     SetError(status, message, &answer);
+    answer.next_sequence = gate_.NextSequence(frame.robot);
     return answer;
   };
   std::string why;
@@ -141,6 +142,7 @@ result_t FrameProcessor::ProcessOrThrow(const frame_t& frame, std::vector<change
       answer.map_descriptors = counts.descriptors;
       answer.place_id = stored->id.value();
       answer.landmarks = stored->num_landmarks;
+      answer.next_sequence = gate_.NextSequence(request.robot);
       return answer;
     }
     new_run = *admission == SequenceGate::Admission::kNewRun;
@@ -184,6 +186,7 @@ result_t FrameProcessor::ProcessOrThrow(const frame_t& frame, std::vector<change
     KeepRun(request.robot, std::move(recognizer));
   }
   FillAnswer(result, &answer);
+  answer.next_sequence = gate_.NextSequence(request.robot);
   if (alarms != nullptr) {
     ScopedStage stage("alarms");
     *alarms = AlarmMessages(result, frame, image->size());

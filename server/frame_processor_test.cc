@@ -254,9 +254,16 @@ TEST(FrameProcessorTest, LastSequencesSurviveARestartAndStoredOnesAreNeverReused
     EXPECT_NE(reused.message.find("already in the map"), std::string::npos) << reused.message;
     EXPECT_NE(reused.message.find("continue from " + std::to_string(next)), std::string::npos)
         << reused.message;
+    EXPECT_EQ(reused.next_sequence, next);  // the same number, for a program to read
     EXPECT_EQ(map->Counts().places, places);
     const result_t resumed = processor->Process(Frame("r", next, 6));
     EXPECT_EQ(int{resumed.status}, int{result_t::STATUS_OK}) << resumed.message;
+    EXPECT_EQ(resumed.next_sequence, next + 1);
+    // A robot the server knows no sequence of: -1, on a query as on a refusal.
+    frame_t query = Frame("new", 0, 8);
+    query.insert = false;
+    EXPECT_EQ(processor->Process(query).next_sequence, -1);
+    EXPECT_EQ(processor->Process(Frame("", 0, 8)).next_sequence, -1);
   }
 }
 

@@ -246,6 +246,7 @@ result_t AnswerTemplate(const frame_t& frame) {
   answer.change_checked = false;
   answer.change_place_id = PlaceId::kInvalidValue;
   answer.num_changes = 0;
+  answer.next_sequence = -1;
   answer.queue_ms = 0;
   answer.server_ms = 0;
   answer.num_timings = 0;

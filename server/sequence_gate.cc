@@ -88,6 +88,13 @@ void SequenceGate::Accepted(const std::string& robot, int64_t sequence, bool sto
   if (stored) r.stored.insert(sequence);
 }
 
+int64_t SequenceGate::NextSequence(const std::string& robot) const {
+  std::lock_guard lock(mutex_);
+  const auto it = robots_.find(robot);
+  if (it == robots_.end() || it->second.highest == std::numeric_limits<int64_t>::max()) return -1;
+  return it->second.highest + 1;
+}
+
 bool SequenceGate::IsStored(const std::string& robot, int64_t sequence) const {
   std::lock_guard lock(mutex_);
   const auto it = robots_.find(robot);

@@ -71,6 +71,11 @@ class SequenceGate {
   // Whether the map holds a place of `robot` with `sequence` (as far as this gate learned).
   bool IsStored(const std::string& robot, int64_t sequence) const;
 
+  // The sequence `robot`'s next insert should carry at least: after every sequence the robot has
+  // used (stored or accepted); -1 for a robot this gate knows no sequence of, or whose largest
+  // sequence is the largest there is.
+  int64_t NextSequence(const std::string& robot) const;
+
  private:
   struct Robot {
     int64_t last = 0;  // the last accepted sequence (of the robot's current run)

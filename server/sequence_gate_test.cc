@@ -70,6 +70,7 @@ TEST(SequenceGateTest, AForgedHugeSequenceLocksTheRobotOutOnlyForTheGap) {
   const std::string again = Refusal(gate, "r", kMax, t0 + std::chrono::seconds(60));
   EXPECT_NE(again.find("already in the map"), std::string::npos) << again;
   EXPECT_NE(again.find("no sequence after it is free"), std::string::npos) << again;
+  EXPECT_EQ(gate.NextSequence("r"), -1);  // none after the largest
 }
 
 TEST(SequenceGateTest, StoredSequencesAreNeverReusedAndTheRobotIsToldToContinueAfterThemAll) {
@@ -89,6 +90,8 @@ TEST(SequenceGateTest, StoredSequencesAreNeverReusedAndTheRobotIsToldToContinueA
             "sequence, so a restarted robot must not reuse one; continue from 10, after every "
             "sequence the robot has used");
   EXPECT_NE(Refusal(gate, "r", 3, t0).find("continue from 10"), std::string::npos);
+  EXPECT_EQ(gate.NextSequence("r"), 10);
+  EXPECT_EQ(gate.NextSequence("other"), -1);
   EXPECT_EQ(*gate.Admit("r", 10, t0), SequenceGate::Admission::kSameRun);
   // A lower sequence that is not stored still begins a new run after the restart gap ...
   EXPECT_EQ(*gate.Admit("r", 2, t0), SequenceGate::Admission::kNewRun);
@@ -98,6 +101,7 @@ TEST(SequenceGateTest, StoredSequencesAreNeverReusedAndTheRobotIsToldToContinueA
   gate.Accepted("r", 11, false, t0);
   gate.Accepted("r", 7, true, t0);
   EXPECT_NE(Refusal(gate, "r", 5, t0).find("continue from 12"), std::string::npos);
+  EXPECT_EQ(gate.NextSequence("r"), 12);
   // What the map holds, as the gate learned it (a refused insert of a stored sequence is looked
   // up among the places; others are not).
   EXPECT_TRUE(gate.IsStored("r", 3));

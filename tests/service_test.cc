@@ -553,6 +553,9 @@ TEST_F(ServiceTest, BadInputGetsErrorAnswersAndTheServerGoesOn) {
     good.push_back(client_->Send(FrameOfRun(run, f)));
     ASSERT_TRUE(good.back().ok()) << DescribeResult(good.back()) << ServerLog();
   }
+  // Every answer names the sequence to continue from (protocol 6), through the wire and the
+  // client library.
+  EXPECT_EQ(good.back().next_sequence, good.back().sequence + 1);
   const int64_t landmarks_before = good.back().map_landmarks;
   const int64_t places_before = good.back().map_places;
 
