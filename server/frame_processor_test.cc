@@ -259,7 +259,11 @@ TEST(FrameProcessorTest, LastSequencesSurviveARestartAndStoredOnesAreNeverReused
     const result_t resumed = processor->Process(Frame("r", next, 6));
     EXPECT_EQ(int{resumed.status}, int{result_t::STATUS_OK}) << resumed.message;
     EXPECT_EQ(resumed.next_sequence, next + 1);
-    // A robot the server knows no sequence of: -1, on a query as on a refusal.
+    // A query tells a known robot where to continue before it inserts anything ...
+    frame_t ask = Frame("r", 0, 8);
+    ask.insert = false;
+    EXPECT_EQ(processor->Process(ask).next_sequence, next + 1);
+    // ... and a robot the server knows no sequence of -1, on a query as on a refusal.
     frame_t query = Frame("new", 0, 8);
     query.insert = false;
     EXPECT_EQ(processor->Process(query).next_sequence, -1);
