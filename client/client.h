@@ -135,7 +135,8 @@ struct FrameResult {
   int stored_descriptors = 0;
   int64_t place_id = -1;  // the place stored for this frame; -1 when none
   // The sequence the robot's next insert should carry at least (protocol 6): after every
-  // sequence the robot has used; -1 when the server knows none (proto/README.md).
+  // sequence of the robot the server has learned; -1 when it knows none, and on answers to
+  // frames it did not process (proto/README.md).
   int64_t next_sequence = -1;
   int64_t map_places = 0;
   int64_t map_landmarks = 0;

@@ -98,6 +98,7 @@ result_t FrameProcessor::Process(const frame_t& frame, std::vector<change_t>* al
     result_t answer = AnswerTemplate(frame);
     SetError(result_t::STATUS_INTERNAL_ERROR,
              "internal error while processing the frame" + where + ": " + e.what(), &answer);
+    answer.next_sequence = gate_.NextSequence(frame.robot);
     return answer;
   }
 }

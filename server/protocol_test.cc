@@ -248,6 +248,7 @@ TEST(ProtocolTest, AnswersCarryTheResult) {
   EXPECT_EQ(answer.place_id, 9);
   EXPECT_EQ(answer.map_landmarks, 30);
   EXPECT_EQ(answer.num_timings, 2);
+  EXPECT_EQ(answer.next_sequence, -1);  // the frame processor sets it from the sequence rule
   // It encodes (counts agree with the arrays).
   std::vector<uint8_t> bytes(answer.getEncodedSize());
   EXPECT_GT(answer.encode(bytes.data(), 0, static_cast<int>(bytes.size())), 0);

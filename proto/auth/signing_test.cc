@@ -153,7 +153,7 @@ TEST(SigningTest, AFrameSignatureCoversEveryByte) {
 
 TEST(SigningTest, AnAnswerSignatureNamesItsKey) {
   const SigningKey key = KeyOf("left", kHexA);
-  result_t answer;
+  result_t answer{};
   answer.utime = 1;
   answer.robot = "left";
   answer.sequence = 7;
