@@ -321,12 +321,7 @@ IndexResult LandmarkIndex::Query(const std::vector<IndexQuery>& objects,
     }
     int64_t budget = options_.exact_max_comparisons;
     for (const PlaceId place : chosen) {
-      int64_t rows = 0;
-      for (int32_t slot : slots_of_place_.at(place)) {
-        const cv::Mat& d = landmarks_[slot].descriptors;
-        if (!d.empty()) rows += d.rows;
-      }
-      const int64_t comparisons = rows * query.size();
+      const int64_t comparisons = PlaceDescriptorRows(place) * query.size();
       if (comparisons > budget) {
         ++result.stats.exact_skipped;
         continue;
@@ -343,35 +338,34 @@ IndexResult LandmarkIndex::Query(const std::vector<IndexQuery>& objects,
 
 std::vector<PlaceId> LandmarkIndex::RouteNeighbours(
     PlaceId place, int per_side, const std::map<PlaceId, std::vector<PointMatch>>& among) const {
+  // The vote neighbours among the candidates come nearest in time first; keep the first
+  // `per_side` on either side (the order of the route: capture time, then place id).
   const PlaceInfo& info = place_info_.at(place);
-  const auto own = place_by_time_.find({info.robot, info.utime, place.value()});
-  CHECK(own != place_by_time_.end());
-  const int64_t window = VoteWindowUs();
-  const auto in_window = [&](decltype(own) it) {
-    return std::get<0>(*it) == info.robot && std::abs(std::get<1>(*it) - info.utime) <= window;
-  };
+  int before = 0;
+  int after = 0;
   std::vector<PlaceId> neighbours;
-  // Before: walk back to the nearest `per_side` places that are among the candidates.
-  int found = 0;
-  for (auto it = own; it != place_by_time_.begin() && found < per_side;) {
-    --it;
-    if (!in_window(it)) break;
-    const PlaceId id(std::get<2>(*it));
-    if (among.count(id) > 0) {
-      neighbours.push_back(id);
-      ++found;
-    }
-  }
-  found = 0;
-  for (auto it = std::next(own); it != place_by_time_.end() && found < per_side; ++it) {
-    if (!in_window(it)) break;
-    const PlaceId id(std::get<2>(*it));
-    if (among.count(id) > 0) {
-      neighbours.push_back(id);
-      ++found;
+  for (const PlaceId other :
+       VoteNeighbours(place, [&](PlaceId id) { return among.count(id) > 0; })) {
+    const PlaceInfo& other_info = place_info_.at(other);
+    int& taken =
+        std::make_pair(other_info.utime, other.value()) < std::make_pair(info.utime, place.value())
+            ? before
+            : after;
+    if (taken < per_side) {
+      neighbours.push_back(other);
+      ++taken;
     }
   }
   return neighbours;
+}
+
+int64_t LandmarkIndex::PlaceDescriptorRows(PlaceId place) const {
+  int64_t rows = 0;
+  for (int32_t slot : slots_of_place_.at(place)) {
+    const cv::Mat& d = landmarks_[slot].descriptors;
+    if (!d.empty()) rows += d.rows;  // a matrix may be empty with rows but no columns
+  }
+  return rows;
 }
 
 std::vector<PointMatch> LandmarkIndex::ExactPlacePoints(const StackedQuery& query,
@@ -379,10 +373,7 @@ std::vector<PointMatch> LandmarkIndex::ExactPlacePoints(const StackedQuery& quer
   // The place's descriptors in one matrix, compared with every query row in turn: query rows
   // times the place's descriptors comparisons.
   const std::vector<int32_t>& slots = slots_of_place_.at(place);
-  int rows = 0;
-  for (int32_t slot : slots) {
-    if (!landmarks_[slot].descriptors.empty()) rows += landmarks_[slot].descriptors.rows;
-  }
+  const int rows = static_cast<int>(PlaceDescriptorRows(place));
   cv::Mat stacked(rows, kDescriptorSize, CV_8U);
   std::vector<std::pair<int32_t, int>> origin;  // per stacked row: (slot, row in the landmark)
   origin.reserve(static_cast<size_t>(rows));

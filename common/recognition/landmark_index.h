@@ -192,10 +192,12 @@ class LandmarkIndex {
   // Every query row's nearest descriptor within the place's landmarks that passes the ratio
   // test against the place's second nearest; each stored row kept by its closest query row.
   std::vector<PointMatch> ExactPlacePoints(const StackedQuery& query, PlaceId place) const;
-  // The nearest `per_side` places of `place`'s robot before it and after it in time (within the
-  // vote window) that are keys of `among`.
+  // The nearest `per_side` places of `place`'s robot before it and after it in time that are
+  // keys of `among`, among its vote neighbours (VoteNeighbours).
   std::vector<PlaceId> RouteNeighbours(
       PlaceId place, int per_side, const std::map<PlaceId, std::vector<PointMatch>>& among) const;
+  // Descriptors of the place's landmarks.
+  int64_t PlaceDescriptorRows(PlaceId place) const;
   bool SameLocation(PlaceId a, PlaceId b) const;
   // The other places of `place`'s robot within the vote window that `place_allowed` accepts,
   // nearest in time first, at most kMaxVoteNeighbours.
